@@ -1,0 +1,1 @@
+"""ias_gym.baselines."""

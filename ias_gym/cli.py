@@ -1,0 +1,58 @@
+"""The ``ias-gym`` command: parses arguments and calls the packages (nothing else lives here).
+
+Every command imports what it needs when it runs, so ``ias-gym --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+
+def _figure_wrench_intensities(args: argparse.Namespace) -> int:
+    from ias_gym.figures.wrench_intensities import write_wrench_intensity_figure
+
+    csv_path, png_path = write_wrench_intensity_figure(Path(args.out), cone=args.cone)
+    print(f"wrote {csv_path}")
+    print(f"wrote {png_path}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``ias-gym`` with one sub-parser per command."""
+    parser = argparse.ArgumentParser(
+        prog="ias-gym",
+        description="Dextrous in-hand manipulation after the IAS sensor-hand paper.",
+    )
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    figure = commands.add_parser("figure", help="reproduce a figure of the paper")
+    figures = figure.add_subparsers(dest="figure", metavar="FIGURE", required=True)
+    wrench = figures.add_parser(
+        "wrench-intensities",
+        help="Fig. 8: wrench intensities c(t) of the pen-sliding skill (CSV + PNG)",
+        description="Solve the internal-force problem of eqs. (19)-(24) along the sliding "
+        "schedule of eq. (17) and write DIR/wrench_intensities.csv and .png.",
+    )
+    wrench.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    wrench.add_argument(
+        "--cone",
+        choices=("box", "exact"),
+        default="box",
+        help="friction cone: the paper's linearised box (LP) or the exact Coulomb cone (SOCP)",
+    )
+    wrench.set_defaults(run=_figure_wrench_intensities)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``ias-gym`` console script."""
+    args = build_parser().parse_args(argv)
+    run: Callable[[argparse.Namespace], int] = args.run
+    return run(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,104 @@
+"""Contact wrench bases and the wrench matrix W of eq. (3).
+
+A contact contributes one column per wrench it can transmit: a unit wrench direction
+``[u; p x u]`` for a force along ``u`` applied at point ``p`` (moments about the reference
+point), or ``[0; n]`` for a torsional moment about the normal. ``W`` stacks those columns
+for all contacts, so that ``W c`` is the net wrench the contacts apply to the object for the
+wrench intensities ``c`` (eq. 3). The modern literature calls the paper's ``W`` the *grasp
+matrix*.
+
+Conventions: the normal ``n`` is the direction in which the finger pushes on the object (into
+the object), so a compressive contact has a positive normal intensity. Units are SI (m, N).
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+class ContactModel(str, Enum):
+    """What a contact can transmit (number of wrench columns in brackets)."""
+
+    FRICTIONLESS = "frictionless"  # normal force only (1)
+    POINT_WITH_FRICTION = "pcwf"  # normal + two tangential forces, "hard finger" (3)
+    SOFT_FINGER = "soft"  # point with friction + torsion about the normal (4)
+
+    @property
+    def n_wrenches(self) -> int:
+        """Number of wrench columns a contact of this model contributes."""
+        return {"frictionless": 1, "pcwf": 3, "soft": 4}[self.value]
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    # Written out: np.cross on 3-vectors costs microseconds each (DESIGN.md, "Speed").
+    return np.array(
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    )
+
+
+def contact_wrench_basis(
+    point: ArrayLike,
+    normal: ArrayLike,
+    t1: ArrayLike | None = None,
+    t2: ArrayLike | None = None,
+    model: ContactModel | str = ContactModel.POINT_WITH_FRICTION,
+    reference: ArrayLike = (0.0, 0.0, 0.0),
+) -> FloatArray:
+    """Wrench directions one contact can apply to the object, as columns.
+
+    Args:
+        point: contact point [m], in the object's reference frame.
+        normal: unit direction in which the finger pushes on the object.
+        t1: first unit tangent (needed unless ``model`` is frictionless).
+        t2: second unit tangent (needed unless ``model`` is frictionless).
+        model: a :class:`ContactModel` or its value (``"frictionless"``, ``"pcwf"``, ``"soft"``).
+        reference: point [m] about which moments are taken (the object's centre of mass).
+
+    Returns:
+        ``(6, k)`` array, columns in the order normal, t1, t2 (, torsion); ``k`` from the model.
+    """
+    model = ContactModel(model)
+    p = np.asarray(point, dtype=float) - np.asarray(reference, dtype=float)
+    dirs = [np.asarray(normal, dtype=float)]
+    if model is not ContactModel.FRICTIONLESS:
+        if t1 is None or t2 is None:
+            raise ValueError(f"contact model {model.value!r} needs both tangents t1 and t2")
+        dirs += [np.asarray(t1, dtype=float), np.asarray(t2, dtype=float)]
+    cols = [np.concatenate([u, _cross(p, u)]) for u in dirs]
+    if model is ContactModel.SOFT_FINGER:
+        cols.append(np.concatenate([np.zeros(3), dirs[0]]))
+    return np.stack(cols, axis=1)
+
+
+def wrench_matrix(
+    points: ArrayLike,
+    frames: ArrayLike,
+    model: ContactModel | str = ContactModel.POINT_WITH_FRICTION,
+    reference: ArrayLike = (0.0, 0.0, 0.0),
+) -> FloatArray:
+    """The wrench matrix W of eq. (3) for a set of contacts of one model.
+
+    Args:
+        points: ``(m, 3)`` contact points [m].
+        frames: ``(m, 3, 3)`` contact frames; row 0 the normal (finger pushes along it),
+            rows 1 and 2 the tangents t1, t2.
+        model: contact model shared by all contacts.
+        reference: point [m] about which moments are taken.
+
+    Returns:
+        ``(6, m * k)`` array: the columns of contact 1, then contact 2, ...
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    frs = np.asarray(frames, dtype=float).reshape(-1, 3, 3)
+    if len(pts) != len(frs):
+        raise ValueError(f"got {len(pts)} contact points but {len(frs)} contact frames")
+    blocks = [
+        contact_wrench_basis(p, f[0], f[1], f[2], model=model, reference=reference)
+        for p, f in zip(pts, frs, strict=True)
+    ]
+    return np.concatenate(blocks, axis=1) if blocks else np.zeros((6, 0))

@@ -1,0 +1,15 @@
+"""Registration of the ``IAS-*`` environment ids with Gymnasium (lazy string entry points)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+#: id -> (entry point, max_episode_steps); filled as environments land.
+ENV_SPECS: dict[str, tuple[str, int]] = {}
+
+
+def register_envs() -> None:
+    """Register every ``IAS-*`` id once; calling again is harmless."""
+    for env_id, (entry_point, max_steps) in ENV_SPECS.items():
+        if env_id not in gym.registry:
+            gym.register(id=env_id, entry_point=entry_point, max_episode_steps=max_steps)
