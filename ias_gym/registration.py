@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import gymnasium as gym
 
-#: id -> (entry point, max_episode_steps); filled as environments land.
-ENV_SPECS: dict[str, tuple[str, int]] = {}
+#: id -> (entry point, max_episode_steps at the default control_dt of 10 ms).
+ENV_SPECS: dict[str, tuple[str, int]] = {
+    "IAS-PenSlide-v0": ("ias_gym.envs.pen_slide:PenSlideEnv", 475),
+    "IAS-PenRotate-v0": ("ias_gym.envs.pen_rotate:PenRotateEnv", 400),
+}
 
 
 def register_envs() -> None:

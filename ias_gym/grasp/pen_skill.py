@@ -22,6 +22,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ias_gym.grasp.contacts import wrench_matrix
+from ias_gym.grasp.internal_forces import (
+    Cone,
+    InfeasibleGraspError,
+    InternalForceSettings,
+    solve_internal_forces,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -129,3 +135,41 @@ def sliding_directions(t: float, params: PenSkillParams = PenSkillParams()) -> d
     """
     k = sliding_finger(t, params)
     return {} if k is None else {k: np.array([OUTWARD[k], 0.0])}
+
+
+def wrench_intensities(
+    times: ArrayLike,
+    params: PenSkillParams = PenSkillParams(),
+    cone: Cone = "box",
+    margin: float = 0.0,
+) -> FloatArray:
+    """The reference wrench intensities c(t) of the sliding skill (paper Fig. 8).
+
+    At each time the internal-force problem of eqs. (19)-(24) is solved for W(t) of eq. (16),
+    the weight of eq. (18) and the finger sliding at t (NOTES.md's equality model).
+
+    Args:
+        times: ``(T,)`` sample times [s].
+        params: skill parameters (the paper's by default).
+        cone: ``"box"`` (the paper's LP, HiGHS) or ``"exact"`` (Coulomb cones, Clarabel).
+        margin: friction safety margin for the sticking contacts [-].
+
+    Returns:
+        ``(T, 12)`` intensities [N], numbered as the paper: finger k has c_{3k-2} normal,
+        c_{3k-1} along the pen axis x and c_{3k} along z.
+
+    Raises:
+        InfeasibleGraspError: at a time where no intensities hold the pen (names the time).
+    """
+    settings = InternalForceSettings(mu=params.mu, f0=params.f0, cone=cone, margin=margin)
+    w_g = gravity_wrench(params.weight)
+    ts = np.atleast_1d(np.asarray(times, dtype=float))
+    phis = finger_distances(ts, params)
+    out = np.empty((len(ts), 3 * N_FINGERS))
+    for row, (t, phi) in enumerate(zip(ts, phis, strict=True)):
+        W = pen_wrench_matrix(phi, params.radius)
+        try:
+            out[row] = solve_internal_forces(W, w_g, sliding_directions(t, params), settings).c
+        except InfeasibleGraspError as exc:
+            raise InfeasibleGraspError(f"at t = {t:.3f} s: {exc}") from exc
+    return out

@@ -1,1 +1,35 @@
-"""ias_gym.sim."""
+"""ias_gym.sim: the physics side (MuJoCo models answering the paper's named questions)."""
+
+from ias_gym.sim.pen_hand import (
+    FINGER_JOINTS,
+    FINGERS,
+    GRASP_KEYFRAME,
+    R_PAPER_TO_MJ,
+    FingertipContacts,
+    NameNotFoundError,
+    PenHandPhysics,
+    load_pen_hand_model,
+    matrix_to_rpy,
+    mj_to_paper,
+    paper_to_mj,
+    rpy_to_matrix,
+    wrench_mj_to_paper,
+    wrench_paper_to_mj,
+)
+
+__all__ = [
+    "FINGERS",
+    "FINGER_JOINTS",
+    "GRASP_KEYFRAME",
+    "R_PAPER_TO_MJ",
+    "FingertipContacts",
+    "NameNotFoundError",
+    "PenHandPhysics",
+    "load_pen_hand_model",
+    "matrix_to_rpy",
+    "mj_to_paper",
+    "paper_to_mj",
+    "rpy_to_matrix",
+    "wrench_mj_to_paper",
+    "wrench_paper_to_mj",
+]

@@ -1,0 +1,371 @@
+"""What both pen tasks share: the MuJoCo hand holding the pen, stepping, safety, rendering.
+
+A task subclass (:mod:`ias_gym.envs.pen_slide`, :mod:`ias_gym.envs.pen_rotate`) says only
+what differs: its configuration, the reset distribution of the pen and contacts, its
+observation features, reward terms and success test (dm_control's Physics/Task split).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from ias_gym.sim.grasp_pose import place_grasp
+from ias_gym.sim.pen_hand import PenHandPhysics, load_pen_hand_model
+
+FloatArray = NDArray[np.float64]
+
+#: The paper's contact layout along the pen, ``[-phi1, -phi2, +phi3, +phi4]`` at t = 0 [m].
+NOMINAL_CONTACT_X = np.array([-0.03, -0.02, 0.02, 0.03])
+#: Shaping scales (reward terms are exp(-(error / scale)^2), bounded in [0, 1]).
+POSITION_SCALE = 0.005  # [m]
+ANGLE_SCALE = np.deg2rad(5.0)  # [rad]
+
+
+@dataclasses.dataclass(frozen=True)
+class PenReference:
+    """What the task wants of the pen and the fingers at one instant (paper frame, SI).
+
+    The desired object trajectory of eqs. (25)-(28) with its derivatives; the pen's roll
+    about its own axis is free, so the orientation is given by the axis direction.
+
+    Attributes:
+        position, velocity, acceleration: pen centre r_d [m], its derivatives.
+        axis: unit direction of the pen's axis.
+        omega, alpha: angular velocity [rad/s] and acceleration [rad/s^2].
+        sliding: {finger index: unit sliding direction in (t_x, t_z)} (NOTES.md, eq. 20).
+        contact_x: scheduled contact positions along the pen [m], ``None``: hold them.
+        contact_vx: their rates [m/s].
+    """
+
+    position: FloatArray
+    velocity: FloatArray
+    acceleration: FloatArray
+    axis: FloatArray
+    omega: FloatArray
+    alpha: FloatArray
+    sliding: dict[int, FloatArray]
+    contact_x: FloatArray | None = None
+    contact_vx: FloatArray | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class PenHandConfig:
+    """Settings shared by the pen tasks (units in the comments)."""
+
+    control_dt: float = 0.01  # one env step [s]; a multiple of the 1 ms physics step
+    duration: float = 4.0  # episode length [s] (the registered max_episode_steps matches)
+    min_grasp_force: float = 0.2  # minimum normal force a controller should keep [N]
+    pen_position_noise: float = 0.001  # reset: uniform +- per axis [m]
+    contact_noise: float = 0.001  # reset: uniform +- per contact along the pen [m]
+    penetration: float = 3e-4  # reset: tip-pen overlap [m]
+    drop_distance: float = 0.02  # pen centre this far from nominal = dropped [m]
+    max_contact_gap: float = 0.02  # longest a tip may lose the pen in a success [s]
+    max_position_error: float = 0.005  # success: pen centre error throughout [m]
+    effort_weight: float = 0.01  # weight of the effort penalty [-]
+    contact_weight: float = 0.5  # weight of the contact-kept term [-]
+    render_width: int = 480  # [px]
+    render_height: int = 360  # [px]
+    camera: str = "perspective"  # camera for rgb_array / depth_array
+
+    def __post_init__(self) -> None:
+        if self.control_dt <= 0 or self.duration <= 0:
+            raise ValueError("control_dt and duration must be positive [s]")
+
+
+class PenHandEnv(gym.Env[FloatArray, FloatArray]):
+    """Base class of the pen tasks (not registered itself).
+
+    Action: ``Box(-1, 1, (12,))``, joint torques normalised by each motor's limit (0.5 N m),
+    fingers 1-4 with joints (abd, mcp, pip). Out-of-range values are clipped; NaN or inf
+    raise ``ValueError``.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {
+        "render_modes": ["human", "rgb_array", "depth_array"],
+        "render_fps": 50,
+    }
+    config_class: ClassVar[type[PenHandConfig]] = PenHandConfig
+    #: Attributes that make up an episode's state (pickled with the env).
+    _episode_fields: ClassVar[tuple[str, ...]] = (
+        "_steps", "_gap", "_max_gap", "_max_position_error", "_dropped", "_unstable",
+        "_last_action",
+    )
+
+    def __init__(self, render_mode: str | None = None, **config: Any) -> None:
+        """Build the task.
+
+        Args:
+            render_mode: ``None``, ``"human"``, ``"rgb_array"`` or ``"depth_array"``.
+            **config: fields of the task's configuration dataclass to override.
+        """
+        fields = {f.name for f in dataclasses.fields(self.config_class)}
+        unknown = sorted(set(config) - fields)
+        if unknown:
+            raise TypeError(
+                f"unknown config {unknown} for {type(self).__name__}; known: {sorted(fields)}"
+            )
+        self.config = self.config_class(**config)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}"
+            )
+        self.render_mode = render_mode
+
+        self.model = load_pen_hand_model()
+        self.data = mujoco.MjData(self.model)
+        self.physics = PenHandPhysics(self.model, self.data)
+        self.frame_skip = round(self.config.control_dt / self.model.opt.timestep)
+        if self.frame_skip < 1 or not np.isclose(
+            self.frame_skip * self.model.opt.timestep, self.config.control_dt
+        ):
+            raise ValueError(
+                f"control_dt={self.config.control_dt} s must be a multiple of the physics "
+                f"step {self.model.opt.timestep} s"
+            )
+        self.max_steps = round(self.config.duration / self.config.control_dt)
+        self._act_ids = self.physics.hand_actuator_ids
+        self._ctrl_max = self.model.actuator_ctrlrange[self._act_ids, 1].copy()
+        self._touch_adr = self.physics._touch_adr
+        self._key = self.model.key("grasp").id
+        self.metadata = {**self.metadata, "render_fps": round(1.0 / self.config.control_dt)}
+
+        mujoco.mj_resetDataKeyframe(self.model, self.data, self._key)
+        mujoco.mj_forward(self.model, self.data)
+        self._start_episode()
+        n = self.physics.n_hand_dofs
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float64)
+        obs_dim = len(self._observation())
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(obs_dim,), dtype=np.float64)
+        self._renderer: Any = None
+
+    # ------------------------------------------------------------------ task hooks
+    def _sample_initial_pose(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``(pen position [m], pen rpy [rad], contact x [m])`` for a reset (paper frame)."""
+        cfg, rng = self.config, self.np_random
+        return (
+            rng.uniform(-cfg.pen_position_noise, cfg.pen_position_noise, 3),
+            np.zeros(3),
+            NOMINAL_CONTACT_X + rng.uniform(-cfg.contact_noise, cfg.contact_noise, 4),
+        )
+
+    def _task_observation(self) -> FloatArray:
+        raise NotImplementedError
+
+    def reference(self) -> PenReference:
+        """The task's desired pen motion now (what an expert controller tracks)."""
+        raise NotImplementedError
+
+    def _task_reward(self) -> dict[str, float]:
+        """Task reward terms (already weighted); the base adds contact and effort."""
+        raise NotImplementedError
+
+    def _task_update(self) -> None:
+        """Update the task's episode statistics after a step (and at reset)."""
+
+    def _task_success(self) -> bool:
+        raise NotImplementedError
+
+    def _task_info(self) -> dict[str, Any]:
+        return {}
+
+    # ------------------------------------------------------------------ gymnasium API
+    @property
+    def time(self) -> float:
+        """Time since reset [s]."""
+        return float(self.data.time)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[FloatArray, dict[str, Any]]:
+        """Reset to a perturbed stable grasp.
+
+        Args:
+            seed: seeds ``self.np_random``.
+            options: ``{"qpos": ..., "qvel": ...}`` starts from that exact MuJoCo state
+                instead (e.g. a stored demonstration's initial state).
+        """
+        super().reset(seed=seed)
+        mujoco.mj_resetDataKeyframe(self.model, self.data, self._key)
+        options = options or {}
+        if "qpos" in options:
+            qpos = np.asarray(options["qpos"], dtype=float)
+            qvel = np.asarray(options.get("qvel", np.zeros(self.model.nv)), dtype=float)
+            if qpos.shape != (self.model.nq,) or qvel.shape != (self.model.nv,):
+                raise ValueError(
+                    f"options qpos/qvel need shapes ({self.model.nq},)/({self.model.nv},), "
+                    f"got {qpos.shape}/{qvel.shape}"
+                )
+            self.data.qpos[:] = qpos
+            self.data.qvel[:] = qvel
+            mujoco.mj_forward(self.model, self.data)
+        else:
+            position, rpy, contact_x = self._sample_initial_pose()
+            place_grasp(self.physics, position, rpy, contact_x, self.config.penetration)
+        self._start_episode()
+        obs = self._observation()
+        terms = {k: 0.0 for k in self._reward_terms()}
+        if self.render_mode == "human":
+            self.render()
+        return obs, self._info(terms)
+
+    def step(self, action: Any) -> tuple[FloatArray, float, bool, bool, dict[str, Any]]:
+        """Apply normalised joint torques for ``control_dt``.
+
+        Raises:
+            ValueError: the action has the wrong shape or contains NaN or inf.
+        """
+        a = np.asarray(action, dtype=float)
+        if a.shape != self.action_space.shape:
+            raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action contains NaN or inf: {a}; actions must be finite")
+        a = np.clip(a, -1.0, 1.0)
+        self._last_action = a
+        d = self.data
+        d.ctrl[self._act_ids] = a * self._ctrl_max
+        warnings_before = int(d.warning.number.sum())
+        dt = self.model.opt.timestep
+        for _ in range(self.frame_skip):
+            mujoco.mj_step(self.model, d)
+            touching = d.sensordata[self._touch_adr] > 0.0
+            self._gap = np.where(touching, 0.0, self._gap + dt)
+            np.maximum(self._max_gap, self._gap, out=self._max_gap)
+        self._steps += 1
+
+        self._unstable = int(d.warning.number.sum()) > warnings_before or not (
+            np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))
+        )
+        if self._unstable:
+            # Keep the returned values finite; the episode ends here.
+            mujoco.mj_resetDataKeyframe(self.model, d, self._key)
+            mujoco.mj_forward(self.model, d)
+        position, _ = self.physics.pen_pose()
+        pos_err = float(np.linalg.norm(position))
+        self._max_position_error = max(self._max_position_error, pos_err)
+        self._dropped = pos_err > self.config.drop_distance
+        self._task_update()
+
+        obs = self._observation()
+        terms = self._reward_terms()
+        reward = float(sum(terms.values()))
+        terminated = self._dropped and not self._unstable
+        # The env ends its own episode at ``duration`` too, so a control_dt other than the
+        # registered default still gets the documented episode length.
+        truncated = self._unstable or self._steps >= self.max_steps
+        if self.render_mode == "human":
+            self.render()
+        return obs, reward, terminated, truncated, self._info(terms)
+
+    # ------------------------------------------------------------------ pieces
+    def _start_episode(self) -> None:
+        """Zero the episode's statistics for the current (just reset) state."""
+        self._steps = 0
+        self._gap = np.zeros(4)  # current time without contact, per finger [s]
+        self._max_gap = np.zeros(4)
+        self._max_position_error = 0.0
+        self._dropped = False
+        self._unstable = False
+        self._last_action = np.zeros(self.physics.n_hand_dofs)
+        self._task_update()
+
+    def _observation(self) -> FloatArray:
+        p = self.physics
+        position, rpy = p.pen_pose()
+        v, omega = p.pen_twist()
+        return np.concatenate(
+            [
+                p.hand_qpos(),
+                p.hand_qvel(),
+                position,
+                rpy,
+                v,
+                omega,
+                p.contact_intensities(),
+                [self.time / self.config.duration],
+                self._task_observation(),
+            ]
+        )
+
+    def _reward_terms(self) -> dict[str, float]:
+        terms = self._task_reward()
+        touching = self.data.sensordata[self._touch_adr] > 0.0
+        terms["contact"] = self.config.contact_weight * float(np.mean(touching))
+        terms["effort"] = -self.config.effort_weight * float(np.mean(self._last_action**2))
+        return terms
+
+    def _info(self, terms: dict[str, float]) -> dict[str, Any]:
+        done = self._steps >= self.max_steps
+        success = bool(
+            done
+            and not self._dropped
+            and not self._unstable
+            and self._max_position_error < self.config.max_position_error
+            and self._max_gap.max() <= self.config.max_contact_gap
+            and self._task_success()
+        )
+        return {
+            "is_success": success,
+            "time": self.time,
+            "dropped": self._dropped,
+            "sim_unstable": self._unstable,
+            "max_position_error": self._max_position_error,
+            "max_contact_gap": self._max_gap.copy(),
+            "fingers_in_contact": self.data.sensordata[self._touch_adr] > 0.0,
+            **{f"reward_{k}": v for k, v in terms.items()},
+            **self._task_info(),
+        }
+
+    # ------------------------------------------------------------------ rendering, pickling
+    def render(self) -> NDArray[Any] | None:
+        """Render with the configured camera (``rgb_array``/``depth_array``) or a window."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass one to gym.make")
+            return None
+        if self._renderer is None:
+            from gymnasium.envs.mujoco.mujoco_rendering import MujocoRenderer
+
+            self._renderer = MujocoRenderer(
+                self.model,
+                self.data,
+                width=self.config.render_width,
+                height=self.config.render_height,
+                camera_name=None if self.render_mode == "human" else self.config.camera,
+            )
+        result: NDArray[Any] | None = self._renderer.render(self.render_mode)
+        return result
+
+    def close(self) -> None:
+        """Release the renderer."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle the configuration, the full MuJoCo state and the episode's statistics."""
+        size = mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_INTEGRATION)
+        buf = np.empty(size)
+        mujoco.mj_getState(self.model, self.data, buf, mujoco.mjtState.mjSTATE_INTEGRATION)
+        return {
+            "config": dataclasses.asdict(self.config),
+            "render_mode": self.render_mode,
+            "mj_state": buf,
+            "episode": {k: getattr(self, k) for k in self._episode_fields if hasattr(self, k)},
+            "np_random": self._np_random,
+        }
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        type(self).__init__(self, render_mode=state["render_mode"], **state["config"])
+        mujoco.mj_setState(
+            self.model, self.data, state["mj_state"], mujoco.mjtState.mjSTATE_INTEGRATION
+        )
+        mujoco.mj_forward(self.model, self.data)
+        for key, value in state["episode"].items():
+            setattr(self, key, value)
+        self._np_random = state["np_random"]

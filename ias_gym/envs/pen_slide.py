@@ -1,0 +1,176 @@
+"""IAS-PenSlide-v0: four fingers slide outward along a held pen, one after another.
+
+The skill example of paper sections 3.2 and 4.2. After a short hold, finger i slides 1 cm
+outward during phase i (eq. 17 with the paper's parameters: l = [3, 2, 2, 3] cm,
+alpha_i = 1 cm/s, phases of 1 s): fingers 1 and 2 to -x, fingers 3 and 4 to +x (the
+equation's direction; the paper's prose says "to the left" for all, see NOTES.md), while
+the pen stays still.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ias_gym.envs.pen_hand_env import (
+    ANGLE_SCALE,
+    POSITION_SCALE,
+    FloatArray,
+    PenHandConfig,
+    PenHandEnv,
+    PenReference,
+)
+from ias_gym.grasp.pen_skill import (
+    OUTWARD,
+    PenSkillParams,
+    finger_distances,
+    finger_velocities,
+    sliding_directions,
+)
+
+#: The paper's skill (section 4.2); the task's schedule.
+SKILL = PenSkillParams()
+TRACK_SCALE = 0.003  # [m] scale of the schedule-tracking term
+
+
+@dataclasses.dataclass(frozen=True)
+class PenSlideConfig(PenHandConfig):
+    """PenSlide settings (units in the comments); the base fields are shared with PenRotate."""
+
+    hold_time: float = 0.25  # hold before phase 1 starts [s]
+    duration: float = 4.75  # hold + 4 s of sliding + 0.5 s settling [s]
+    target_tolerance: float = 0.002  # success: each finger this close to its target [m]
+    max_tilt: float = np.deg2rad(5.0)  # success: pen tilt throughout [rad]
+    track_weight: float = 1.0  # [-]
+    pose_weight: float = 1.0  # [-]
+
+
+class PenSlideEnv(PenHandEnv):
+    """The fingers slide outward along the pen in turn while the pen stays still.
+
+    ## Action
+    ``Box(-1, 1, (12,))``: joint torques of fingers 1-4 (abd, mcp, pip), normalised by the
+    motors' limit (0.5 N m). Values outside [-1, 1] are clipped; NaN/inf raise ValueError.
+
+    ## Observation
+    ``Box(-inf, inf, (67,))``, float64, in the paper frame (x pen axis, y up, z lateral),
+    SI units: hand joint angles (12) and velocities (12); pen position relative to its
+    nominal centre (3), roll-pitch-yaw (3), linear (3) and angular velocity (3); measured
+    contact wrench intensities c (12, per finger normal/along-pen/lateral, eq. 3); episode
+    time fraction (1); per finger the position along the pen minus its target (4) and the
+    target's velocity (4); the phase as one-hot (hold, phases 1-4, settle: 6); the
+    targets' positions along the pen (4).
+
+    ## Reward
+    The sum of named terms, each copied into ``info["reward_<name>"]``:
+    ``track`` = mean_i exp(-(e_i / 3 mm)^2) (e_i: finger i's position along the pen minus
+    its scheduled position), ``pose`` = exp(-(|r| / 5 mm)^2 - (tilt / 5 deg)^2),
+    ``contact`` = 0.5 x fraction of tips touching, ``effort`` = -0.01 x mean(action^2).
+
+    ## Success and termination
+    ``info["is_success"]`` (at the last step): every finger within 2 mm of its final target,
+    pen centre error < 5 mm and tilt < 5 deg throughout, no tip off the pen for more than
+    20 ms. Terminated when the pen is dropped (centre more than 2 cm from nominal);
+    truncated by the time limit (475 steps of 10 ms) or when the simulation diverges
+    (``info["sim_unstable"]``).
+
+    ## Version history
+    - v0: initial release.
+    """
+
+    config_class: ClassVar[type[PenHandConfig]] = PenSlideConfig
+    config: PenSlideConfig
+    _episode_fields: ClassVar[tuple[str, ...]] = (
+        *PenHandEnv._episode_fields,
+        "_max_tilt",
+        "_slide_errors",
+    )
+
+    def schedule_time(self) -> float:
+        """Time on the paper's schedule, ``t - hold_time`` [s] (negative while holding)."""
+        return self.time - self.config.hold_time
+
+    def targets(self, t: float | None = None) -> tuple[FloatArray, FloatArray]:
+        """Scheduled contact positions along the pen [m] and their velocities [m/s] (eq. 17).
+
+        Signed as the pen-frame x coordinate: ``[-phi1, -phi2, +phi3, +phi4]``.
+        """
+        tau = self.schedule_time() if t is None else t
+        return OUTWARD * finger_distances(tau, SKILL), OUTWARD * finger_velocities(tau, SKILL)
+
+    def reference(self) -> PenReference:
+        """Pen at rest, untilted; the scheduled finger sliding (eq. 17)."""
+        zero = np.zeros(3)
+        target, velocity = self.targets()
+        return PenReference(
+            position=zero,
+            velocity=zero,
+            acceleration=zero,
+            axis=np.array([1.0, 0.0, 0.0]),
+            omega=zero,
+            alpha=zero,
+            sliding=sliding_directions(self.schedule_time(), SKILL),
+            contact_x=target,
+            contact_vx=velocity,
+        )
+
+    def contact_positions(self) -> FloatArray:
+        """Each fingertip's position along the pen's axis, from the pen's centre [m]."""
+        p = self.physics
+        return (p.tip_positions() - p.pen_com()) @ p.pen_axis()
+
+    def phase(self) -> int:
+        """0 while holding, i during phase i (1-4), 5 when settling."""
+        tau = self.schedule_time()
+        if tau < 0:
+            return 0
+        return min(int(np.searchsorted(SKILL.phase_times, tau, side="right")), 5)
+
+    def _pen_tilt(self) -> float:
+        axis = self.physics.pen_axis()
+        return float(np.arccos(np.clip(abs(axis[0]), 0.0, 1.0)))
+
+    def _task_update(self) -> None:
+        target, _ = self.targets()
+        self._slide_errors = self.contact_positions() - target
+        tilt = self._pen_tilt()
+        self._max_tilt = tilt if self._steps == 0 else max(self._max_tilt, tilt)
+        self._tilt = tilt
+
+    def _task_observation(self) -> FloatArray:
+        target, velocity = self.targets()
+        return np.concatenate(
+            [self.contact_positions() - target, velocity, np.eye(6)[self.phase()], target]
+        )
+
+    def _task_reward(self) -> dict[str, float]:
+        cfg = self.config
+        position, _ = self.physics.pen_pose()
+        return {
+            "track": cfg.track_weight
+            * float(np.mean(np.exp(-((self._slide_errors / TRACK_SCALE) ** 2)))),
+            "pose": cfg.pose_weight
+            * float(
+                np.exp(
+                    -float(position @ position) / POSITION_SCALE**2
+                    - (self._tilt / ANGLE_SCALE) ** 2
+                )
+            ),
+        }
+
+    def _task_success(self) -> bool:
+        cfg = self.config
+        return bool(
+            np.all(np.abs(self._slide_errors) < cfg.target_tolerance)
+            and self._max_tilt < cfg.max_tilt
+        )
+
+    def _task_info(self) -> dict[str, Any]:
+        return {
+            "slide_errors": self._slide_errors.copy(),
+            "pen_tilt": self._tilt,
+            "max_pen_tilt": self._max_tilt,
+            "phase": self.phase(),
+        }

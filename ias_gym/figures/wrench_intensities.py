@@ -1,0 +1,63 @@
+"""Figure 8 of the paper: wrench intensities of the pen-sliding skill over time."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ias_gym.figures._io import save_png_atomic, write_csv_atomic
+from ias_gym.grasp.internal_forces import Cone
+from ias_gym.grasp.pen_skill import N_FINGERS, PenSkillParams, wrench_intensities
+
+CSV_NAME = "wrench_intensities.csv"
+PNG_NAME = "wrench_intensities.png"
+
+
+def wrench_intensity_table(
+    params: PenSkillParams = PenSkillParams(), cone: Cone = "box", samples: int = 401
+) -> np.ndarray:
+    """``(samples, 13)`` array: t [s] over [t_0, t_4], then c_1..c_12 [N] (paper numbering)."""
+    t = np.linspace(params.phase_times[0], params.duration, samples)
+    return np.column_stack([t, wrench_intensities(t, params, cone=cone)])
+
+
+def write_wrench_intensity_figure(
+    out_dir: Path, cone: Cone = "box", params: PenSkillParams = PenSkillParams()
+) -> tuple[Path, Path]:
+    """Write ``wrench_intensities.csv`` and ``wrench_intensities.png`` into ``out_dir``.
+
+    Returns:
+        The CSV and PNG paths.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    table = wrench_intensity_table(params, cone)
+    header = ["t"] + [f"c{i}" for i in range(1, 3 * N_FINGERS + 1)]
+    csv_path = write_csv_atomic(Path(out_dir) / CSV_NAME, header, table)
+
+    t, c = table[:, 0], table[:, 1:]
+    fig, axes = plt.subplots(N_FINGERS, 1, sharex=True, figsize=(7, 8), constrained_layout=True)
+    labels = ("normal", "along pen (x)", "lateral (z)")
+    for k, ax in enumerate(axes):
+        for j, label in enumerate(labels):
+            idx = 3 * k + j
+            ax.plot(t, c[:, idx], label=f"$c_{{{idx + 1}}}$ {label}")
+        for boundary in params.phase_times[1:-1]:
+            ax.axvline(boundary, color="0.7", lw=0.8, ls="--")
+        ax.axvspan(params.phase_times[k], params.phase_times[k + 1], color="C3", alpha=0.06)
+        ax.set_ylabel(f"finger {k + 1} [N]")
+        ax.legend(loc="upper right", fontsize=7, ncol=3)
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("t [s]  (shaded: this finger slides)")
+    fig.suptitle(
+        f"Wrench intensities of the sliding skill (paper Fig. 8)\n{cone} cone, "
+        f"mu = {params.mu}, f0 = {params.f0} N, mg = {params.weight} N",
+        fontsize=10,
+    )
+    png_path = save_png_atomic(fig, Path(out_dir) / PNG_NAME)
+    plt.close(fig)
+    return csv_path, png_path

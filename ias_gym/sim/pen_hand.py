@@ -1,0 +1,539 @@
+"""The physics side of the pen-hand scene: named questions about a compiled MuJoCo model.
+
+:class:`PenHandPhysics` wraps ``(model, data)`` of ``assets/scene_pen.xml`` (the four-finger
+IAS hand holding the pen of the paper's sec. 3.2) in the spirit of dm_control's ``Physics``:
+names are looked up once in ``__init__``, every method then indexes by id and answers one
+question in the paper's terms - the wrench matrix W (eqs. 3, 16), the contact intensities c,
+the hand Jacobian J (eq. 30), the hand's M and H (eq. 35), the pen's pose (eq. 25), twist
+(eq. 15), mass and inertia (eq. 33).
+
+Frames. The paper frame has x = pen axis, y = vertical (up), z = lateral. MuJoCo's world has
+z up, so ``paper x = MuJoCo x``, ``paper y = MuJoCo z``, ``paper z = -MuJoCo y``
+(a right-handed rotation by +90 degrees about x): ``v_mj = R_PAPER_TO_MJ @ v_paper``.
+Every vector this class returns is in the paper frame; positions have their origin at the
+nominal pen centre (the pen body's position in the XML, MuJoCo (0, 0, 0.2) m). The pen's own
+frame at rest coincides with the paper frame.
+
+State. Contacts, Jacobians, M and H come from the last ``mj_forward``/``mj_step`` (MuJoCo's
+``d.contact``, ``d.xpos``, ``d.qM``, ...); :meth:`PenHandPhysics.pen_pose`,
+:meth:`~PenHandPhysics.pen_twist` and the ``hand_q*`` methods read ``qpos``/``qvel`` directly.
+Units are SI (m, rad, N, N m, kg).
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ias_gym.grasp.contacts import wrench_matrix as _wrench_matrix
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+# Index permutations for a written-out cross product (np.cross is slow on small arrays).
+_YZX = np.array([1, 2, 0])
+_ZXY = np.array([2, 0, 1])
+
+#: Finger name prefixes in the MJCF, in the paper's order (1, 2, 3, 4).
+FINGERS: tuple[str, ...] = ("f1", "f2", "f3", "f4")
+#: Joint suffixes per finger, proximal to distal.
+FINGER_JOINTS: tuple[str, ...] = ("abd", "mcp", "pip")
+#: Scene file in ``ias_gym.assets``.
+SCENE_FILE = "scene_pen.xml"
+#: Keyframe with the paper's four-finger grasp (phi = [3, 2, 2, 3] cm).
+GRASP_KEYFRAME = "grasp"
+
+#: Rotation from the paper frame to MuJoCo's world frame: ``v_mj = R_PAPER_TO_MJ @ v_paper``.
+#: Columns are the paper axes in MuJoCo coordinates: x -> x, y -> z, z -> -y.
+R_PAPER_TO_MJ: FloatArray = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+R_PAPER_TO_MJ.flags.writeable = False
+
+
+def mj_to_paper(v: ArrayLike) -> FloatArray:
+    """Vectors (``(..., 3)``) from MuJoCo's world frame to the paper frame (direction only)."""
+    return np.asarray(v, dtype=float) @ R_PAPER_TO_MJ
+
+
+def paper_to_mj(v: ArrayLike) -> FloatArray:
+    """Vectors (``(..., 3)``) from the paper frame to MuJoCo's world frame (direction only)."""
+    return np.asarray(v, dtype=float) @ R_PAPER_TO_MJ.T
+
+
+def wrench_mj_to_paper(w: ArrayLike) -> FloatArray:
+    """Wrenches ``[f; m]`` (``(..., 6)``, N and N m) from MuJoCo's world frame to the paper's.
+
+    Both halves rotate with ``R_PAPER_TO_MJ``; the reference point is unchanged.
+    """
+    w = np.asarray(w, dtype=float)
+    return (w.reshape(*w.shape[:-1], 2, 3) @ R_PAPER_TO_MJ).reshape(w.shape)
+
+
+def wrench_paper_to_mj(w: ArrayLike) -> FloatArray:
+    """Wrenches ``[f; m]`` (``(..., 6)``) from the paper frame to MuJoCo's world frame."""
+    w = np.asarray(w, dtype=float)
+    return (w.reshape(*w.shape[:-1], 2, 3) @ R_PAPER_TO_MJ.T).reshape(w.shape)
+
+
+def rpy_to_matrix(rpy: ArrayLike) -> FloatArray:
+    """Rotation matrix of roll-pitch-yaw angles [rad], eq. (25).
+
+    Convention (ours; the paper does not fix it): fixed axes x, y, z, i.e.
+    ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``, roll about the pen axis (paper x), pitch about the
+    vertical (paper y), yaw about the lateral axis (paper z). The pen's axis ``R e_x`` does not
+    depend on roll, and the see-saw tilt of sec. 4.3 ("rotate about z") is the yaw angle.
+    """
+    r, p, y = np.asarray(rpy, dtype=float)
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def matrix_to_rpy(rot: ArrayLike) -> FloatArray:
+    """Roll-pitch-yaw angles [rad] of a rotation matrix; inverse of :func:`rpy_to_matrix`.
+
+    Pitch is in [-pi/2, pi/2]; roll and yaw in (-pi, pi].
+    """
+    m = np.asarray(rot, dtype=float)
+    return np.array(
+        [
+            np.arctan2(m[2, 1], m[2, 2]),
+            np.arctan2(-m[2, 0], np.hypot(m[0, 0], m[1, 0])),
+            np.arctan2(m[1, 0], m[0, 0]),
+        ]
+    )
+
+
+class NameNotFoundError(KeyError):
+    """A name that the model does not contain; the message lists the names it does."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+def _lookup(model: mujoco.MjModel, obj: mujoco.mjtObj, name: str) -> int:
+    idx = mujoco.mj_name2id(model, obj, name)
+    if idx < 0:
+        kind = obj.name.removeprefix("mjOBJ_").lower()
+        count = {
+            int(mujoco.mjtObj.mjOBJ_BODY): model.nbody,
+            int(mujoco.mjtObj.mjOBJ_JOINT): model.njnt,
+            int(mujoco.mjtObj.mjOBJ_GEOM): model.ngeom,
+            int(mujoco.mjtObj.mjOBJ_SITE): model.nsite,
+            int(mujoco.mjtObj.mjOBJ_SENSOR): model.nsensor,
+            int(mujoco.mjtObj.mjOBJ_KEY): model.nkey,
+        }[int(obj)]
+        names = [n for i in range(count) if (n := mujoco.mj_id2name(model, obj, i))]
+        raise NameNotFoundError(
+            f"no {kind} named {name!r} in the model. Available {kind} names: {names}"
+        )
+    return int(idx)
+
+
+def load_pen_hand_model(scene: str = SCENE_FILE) -> mujoco.MjModel:
+    """Compile a scene of ``ias_gym.assets`` (default: the pen-hand scene).
+
+    The scene includes ``ias_hand.xml`` and ``pen.xml`` by relative path, so it is compiled
+    from its real path on disk (``importlib.resources.as_file``).
+    """
+    resource = importlib.resources.files("ias_gym.assets") / scene
+    with importlib.resources.as_file(resource) as path:
+        return mujoco.MjModel.from_xml_path(str(path))
+
+
+@dataclass(frozen=True)
+class FingertipContacts:
+    """The fingertip-pen contacts of one instant, one row per finger (paper frame).
+
+    Attributes:
+        index: MuJoCo contact index (into ``data.contact``) per finger, ``None`` if not touching.
+        active: ``(k,)`` bool, finger touches the pen.
+        points: ``(k, 3)`` contact points [m] (MuJoCo's: midway through the penetration),
+            origin at the nominal pen centre; the tip-site centre for a finger not touching.
+        frames: ``(k, 3, 3)`` rows normal, t1, t2. The normal is the direction in which the
+            finger pushes on the pen; t1 is the pen's own axis (made orthogonal to the normal);
+            t2 = +-(t1 x n), the sign fixed per finger so that t2 = +z for the untilted pen,
+            as eq. (16) uses (this makes the frames of the bottom fingers left-handed). For a
+            finger not touching, the normal points from the tip centre to the pen's axis.
+        depth: ``(k,)`` penetration [m] (positive = overlapping); 0 when not touching.
+        tip_is_geom1: ``(k,)`` bool, the tip is ``geom1`` of the MuJoCo contact (then MuJoCo's
+            contact normal is ours; otherwise it is flipped).
+    """
+
+    index: tuple[int | None, ...]
+    active: BoolArray
+    points: FloatArray
+    frames: FloatArray
+    depth: FloatArray
+    tip_is_geom1: BoolArray
+
+
+class PenHandPhysics:
+    """Named, vectorised questions about the pen-hand scene (paper frame, SI units).
+
+    Args:
+        model: compiled scene (see :func:`load_pen_hand_model`).
+        data: its data.
+        fingers: finger name prefixes; finger ``f`` needs joints ``f_abd``, ``f_mcp``,
+            ``f_pip`` (each driven by one actuator), site ``f_tip``, geom ``f_tip_collision``
+            and touch sensor ``f_touch``.
+        pen: name of the pen's body, free joint and geom.
+
+    Attributes:
+        n_fingers, n_hand_dofs: k fingers and their 3k hinge dofs.
+        hand_qpos_ids, hand_dof_ids, hand_actuator_ids: ``(3k,)`` indices into ``qpos``,
+            ``qvel``/``qfrc_*`` and ``ctrl``, in the order f1 abd, mcp, pip, f2 ...
+        tip_site_ids, tip_geom_ids: ``(k,)`` fingertip sites and collision spheres.
+        pen_body_id, pen_geom_id, pen_qpos_adr, pen_dof_adr: the pen's body and geom ids and
+            its free joint's addresses (``qpos[adr:adr+7]`` = position, quaternion w-x-y-z;
+            ``qvel[adr:adr+6]`` = linear velocity (world), angular velocity (body frame)).
+        origin_mj: the nominal pen centre [m] in MuJoCo's world frame (origin of the paper
+            frame; the pen body's position in the XML).
+
+    Raises:
+        NameNotFoundError: a name is missing; the message lists the names that exist.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        fingers: Sequence[str] = FINGERS,
+        pen: str = "pen",
+    ) -> None:
+        self.model = model
+        self.data = data
+        self.fingers: tuple[str, ...] = tuple(fingers)
+        k = len(self.fingers)
+        obj = mujoco.mjtObj
+
+        joints = [
+            _lookup(model, obj.mjOBJ_JOINT, f"{f}_{j}") for f in fingers for j in FINGER_JOINTS
+        ]
+        self.hand_qpos_ids = np.array([model.jnt_qposadr[j] for j in joints])
+        self.hand_dof_ids = np.array([model.jnt_dofadr[j] for j in joints])
+        self._dof_ix = np.ix_(self.hand_dof_ids, self.hand_dof_ids)
+        # The actuator driving each hand joint (found by transmission, not by name).
+        act_of_joint = {
+            int(model.actuator_trnid[a, 0]): a
+            for a in range(model.nu)
+            if int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT)
+        }
+        missing = [
+            mujoco.mj_id2name(model, obj.mjOBJ_JOINT, j) for j in joints if j not in act_of_joint
+        ]
+        if missing:
+            raise ValueError(f"hand joints without a joint actuator: {missing}")
+        self.hand_actuator_ids = np.array([act_of_joint[j] for j in joints])
+        self._gear = model.actuator_gear[self.hand_actuator_ids, 0].copy()
+
+        self.tip_site_ids = np.array([_lookup(model, obj.mjOBJ_SITE, f"{f}_tip") for f in fingers])
+        self.tip_geom_ids = np.array(
+            [_lookup(model, obj.mjOBJ_GEOM, f"{f}_tip_collision") for f in fingers]
+        )
+        self._tip_bodies = model.geom_bodyid[self.tip_geom_ids].copy()
+        touch = [_lookup(model, obj.mjOBJ_SENSOR, f"{f}_touch") for f in fingers]
+        self._touch_adr = model.sensor_adr[touch].copy()
+
+        self.pen_body_id = _lookup(model, obj.mjOBJ_BODY, pen)
+        self.pen_geom_id = _lookup(model, obj.mjOBJ_GEOM, pen)
+        pen_joint = _lookup(model, obj.mjOBJ_JOINT, pen)
+        if int(model.jnt_type[pen_joint]) != int(mujoco.mjtJoint.mjJNT_FREE):
+            raise ValueError(f"joint {pen!r} must be a free joint")
+        if not np.allclose(model.body_ipos[self.pen_body_id], 0.0, atol=1e-9):
+            raise ValueError("the pen's centre of mass must be at its body origin")
+        self.pen_qpos_adr = int(model.jnt_qposadr[pen_joint])
+        self.pen_dof_adr = int(model.jnt_dofadr[pen_joint])
+        #: Nominal pen centre in MuJoCo's world frame [m]: the origin of the paper frame.
+        self.origin_mj: FloatArray = model.qpos0[self.pen_qpos_adr : self.pen_qpos_adr + 3].copy()
+        # The pen's capsule: half-length of its cylindrical part [m] (for closest-point queries).
+        self._pen_half_length = float(model.geom_size[self.pen_geom_id, 1])
+
+        # t2 = sign * (t1 x n): -1 for fingers above the pen axis (push down), +1 below, so
+        # that t2 = +z (paper) for all fingers at the untilted pen (eq. 16).
+        scratch = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, scratch)
+        base_z = scratch.xpos[model.jnt_bodyid[joints[::3]], 2]
+        self._t2_sign = np.where(base_z > self.origin_mj[2], -1.0, 1.0)
+        # Geoms of the hand (same kinematic tree as the fingertips), for link-contact checks.
+        hand_root = model.body_rootid[self._tip_bodies[0]]
+        self._hand_geom = model.body_rootid[model.geom_bodyid] == hand_root
+        self._hand_geom[self.tip_geom_ids] = False
+        # geom id -> finger index (-1: not a fingertip), for vectorised contact matching.
+        self._finger_of_geom = np.full(model.ngeom, -1)
+        self._finger_of_geom[self.tip_geom_ids] = np.arange(k)
+
+        self.n_fingers = k
+        self.n_hand_dofs = len(joints)
+        # Older private names, still read by ias_gym.sim.grasp_pose; prefer the public ones.
+        self._tip_sites, self._tip_geoms = self.tip_site_ids, self.tip_geom_ids
+        self._pen_geom, self._pen_qadr = self.pen_geom_id, self.pen_qpos_adr
+        self._jacp = np.zeros((3, model.nv))
+        self._full_m = np.zeros((model.nv, model.nv))
+        self._force6 = np.zeros(6)
+        self._pen_rot_mj = np.zeros(9)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_assets(cls, keyframe: str | None = GRASP_KEYFRAME) -> PenHandPhysics:
+        """Load the pen-hand scene, make its data, reset to ``keyframe`` (if given)."""
+        model = load_pen_hand_model()
+        physics = cls(model, mujoco.MjData(model))
+        physics.reset(keyframe)
+        return physics
+
+    def reset(self, keyframe: str | None = GRASP_KEYFRAME) -> None:
+        """Reset the data to a keyframe (or to ``qpos0`` if None) and run ``mj_forward``."""
+        if keyframe is None:
+            mujoco.mj_resetData(self.model, self.data)
+        else:
+            key = _lookup(self.model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
+            mujoco.mj_resetDataKeyframe(self.model, self.data, key)
+        mujoco.mj_forward(self.model, self.data)
+
+    # ------------------------------------------------------------------ hand
+    def hand_qpos(self) -> FloatArray:
+        """Hand joint angles theta [rad], ``(n_hand_dofs,)``, fingers in order, abd/mcp/pip."""
+        return self.data.qpos[self.hand_qpos_ids]
+
+    def hand_qvel(self) -> FloatArray:
+        """Hand joint velocities [rad/s], ``(n_hand_dofs,)``."""
+        return self.data.qvel[self.hand_dof_ids]
+
+    def set_hand_torques(self, tau: ArrayLike) -> None:
+        """Command joint torques tau [N m] (eq. 35) through the motors (``ctrl = tau / gear``).
+
+        MuJoCo clamps ``ctrl`` to each motor's ctrlrange.
+        """
+        self.data.ctrl[self.hand_actuator_ids] = np.asarray(tau, dtype=float) / self._gear
+
+    def hand_torques(self) -> FloatArray:
+        """Joint torques [N m] the motors apply now (after MuJoCo's clamping)."""
+        return self.data.qfrc_actuator[self.hand_dof_ids]
+
+    def hand_mass_matrix(self) -> FloatArray:
+        """The hand's joint-space inertia M(theta) of eq. (35) [kg m^2], ``(n, n)``.
+
+        Block diagonal (one 3x3 block per finger); includes the joints' armature.
+        """
+        mujoco.mj_fullM(self.model, self.data, self._full_m)
+        return self._full_m[self._dof_ix]
+
+    def hand_bias_forces(self) -> FloatArray:
+        """H(theta, theta_dot) of eq. (35) [N m]: every joint force but motors and contacts.
+
+        ``qfrc_bias - qfrc_passive`` on the hand dofs: Coriolis/centrifugal and gravity
+        (``qfrc_bias``) minus the gravity compensation of the ``gravcomp`` bodies
+        (``qfrc_gravcomp``, which ``qfrc_bias`` does not know about - forgetting it
+        compensates gravity twice), plus the joints' damping. With it,
+        ``M theta_ddot + H = tau - J^T c`` holds exactly (away from joint limits).
+        """
+        d = self.data
+        return d.qfrc_bias[self.hand_dof_ids] - d.qfrc_passive[self.hand_dof_ids]
+
+    def tip_positions(self) -> FloatArray:
+        """Fingertip (sphere centre) positions [m], ``(k, 3)``, paper frame."""
+        return mj_to_paper(self.data.site_xpos[self.tip_site_ids] - self.origin_mj)
+
+    def touch(self) -> FloatArray:
+        """Touch-sensor readings [N] per fingertip (normal force summed over its contacts)."""
+        return self.data.sensordata[self._touch_adr]
+
+    # ------------------------------------------------------------------ pen
+    def _pen_rot(self) -> FloatArray:
+        mujoco.mju_quat2Mat(
+            self._pen_rot_mj, self.data.qpos[self.pen_qpos_adr + 3 : self.pen_qpos_adr + 7]
+        )
+        return self._pen_rot_mj.reshape(3, 3)
+
+    def pen_rotation(self) -> FloatArray:
+        """Orientation of the pen's frame in the paper frame, ``(3, 3)`` (identity at rest)."""
+        return R_PAPER_TO_MJ.T @ self._pen_rot() @ R_PAPER_TO_MJ
+
+    def pen_pose(self) -> tuple[FloatArray, FloatArray]:
+        """The pen's pose as in eq. (25): ``(r, phi)``.
+
+        Returns:
+            r: centre-of-mass position [m], paper frame, relative to the nominal pen centre.
+            phi: roll, pitch, yaw [rad] of the pen in the paper frame, fixed axes x-y-z
+                (``R = Rz(yaw) Ry(pitch) Rx(roll)``, see :func:`rpy_to_matrix`): roll about
+                the pen axis, the see-saw tilt of sec. 4.3 is yaw.
+        """
+        pos = mj_to_paper(
+            self.data.qpos[self.pen_qpos_adr : self.pen_qpos_adr + 3] - self.origin_mj
+        )
+        return pos, matrix_to_rpy(self.pen_rotation())
+
+    def pen_axis(self) -> FloatArray:
+        """Unit vector along the pen's axis (its own x), paper frame; independent of roll."""
+        return mj_to_paper(self._pen_rot()[:, 0])
+
+    def pen_twist(self) -> tuple[FloatArray, FloatArray]:
+        """The pen's twist ``(v, omega)`` of eq. (15), paper frame.
+
+        Returns:
+            v: centre-of-mass velocity [m/s].
+            omega: angular velocity [rad/s] in the (world-aligned) paper frame. MuJoCo keeps a
+                free joint's angular velocity ``qvel[3:6]`` in the body frame; it is rotated here.
+        """
+        qv = self.data.qvel[self.pen_dof_adr : self.pen_dof_adr + 6]
+        return mj_to_paper(qv[:3]), mj_to_paper(self._pen_rot() @ qv[3:])
+
+    def pen_com(self) -> FloatArray:
+        """Pen centre of mass [m], paper frame (from the last forward pass)."""
+        return mj_to_paper(self.data.xipos[self.pen_body_id] - self.origin_mj)
+
+    def pen_mass(self) -> float:
+        """Pen mass m [kg] of eq. (33)."""
+        return float(self.model.body_mass[self.pen_body_id])
+
+    def pen_inertia(self) -> FloatArray:
+        """Pen inertia tensor about its centre of mass [kg m^2], paper frame (eq. 33's J).
+
+        MuJoCo stores principal moments in the inertial frame (``body_inertia``); rotated here
+        with ``ximat`` of the last forward pass.
+        """
+        rot = self.data.ximat[self.pen_body_id].reshape(3, 3)
+        inertia_mj = (rot * self.model.body_inertia[self.pen_body_id]) @ rot.T
+        return R_PAPER_TO_MJ.T @ inertia_mj @ R_PAPER_TO_MJ
+
+    # ------------------------------------------------------------------ contacts
+    def fingertip_contacts(self) -> FingertipContacts:
+        """The tip-pen contact of every finger, with the paper's contact frame (eq. 16).
+
+        When a tip touches the pen more than once (it cannot for sphere-capsule), the deepest
+        contact is used. Contacts excluded from the solver (no ``efc`` rows) do not count.
+        """
+        d, k = self.data, self.n_fingers
+        # The pen's axis from the same forward pass as the contacts (not from qpos).
+        axis_mj = d.xmat[self.pen_body_id, [0, 3, 6]]
+        tips_mj = d.site_xpos[self.tip_site_ids]
+        # Geometric normal (tip -> nearest point of the pen's axis segment), kept for fingers
+        # that do not touch.
+        rel = tips_mj - d.xpos[self.pen_body_id]
+        u = rel @ axis_mj
+        h = self._pen_half_length
+        np.minimum(np.maximum(u, -h, out=u), h, out=u)
+        normal_mj = np.multiply.outer(u, axis_mj)
+        normal_mj -= rel
+        points_mj = tips_mj
+        depth = np.zeros(k)
+        tip_is_geom1 = np.zeros(k, dtype=bool)
+        index = np.full(k, -1)
+        if d.ncon:
+            con = d.contact
+            geom, dist = con.geom, con.dist
+            pen1 = geom[:, 1] == self.pen_geom_id
+            finger = np.where(pen1, self._finger_of_geom[geom[:, 0]], -1)
+            finger = np.where(
+                geom[:, 0] == self.pen_geom_id, self._finger_of_geom[geom[:, 1]], finger
+            )
+            sel = np.flatnonzero((finger >= 0) & (con.efc_address >= 0))
+            if sel.size:
+                # Deepest contact per finger: sort by finger, then depth; keep each finger's first.
+                sel = sel[np.lexsort((dist[sel], finger[sel]))]
+                fi = finger[sel]
+                keep = np.ones(fi.size, dtype=bool)
+                keep[1:] = fi[1:] != fi[:-1]
+                sel, fi = sel[keep], fi[keep]
+                index[fi] = sel
+                depth[fi] = -dist[sel]
+                tip_is_geom1[fi] = pen1[sel]
+                normal_mj[fi] = con.frame[sel, :3] * np.where(pen1[sel], 1.0, -1.0)[:, None]
+                points_mj[fi] = con.pos[sel]
+        normal_mj /= np.sqrt(np.einsum("ij,ij->i", normal_mj, normal_mj))[:, None]
+
+        # Frame rows in MuJoCo coordinates, converted to the paper frame in one product.
+        frames = np.empty((k, 3, 3))
+        n, t1, t2 = frames[:, 0], frames[:, 1], frames[:, 2]
+        n[:] = normal_mj
+        np.subtract(axis_mj, (n @ axis_mj)[:, None] * n, out=t1)
+        t1 /= np.sqrt(np.einsum("ij,ij->i", t1, t1))[:, None]
+        # t2 = sign * (t1 x n): both are in MuJoCo coordinates here, and the paper frame is a
+        # proper rotation of it, so the cross product commutes with the conversion.
+        np.subtract(t1[:, _YZX] * n[:, _ZXY], t1[:, _ZXY] * n[:, _YZX], out=t2)
+        t2 *= self._t2_sign[:, None]
+        return FingertipContacts(
+            index=tuple(None if j < 0 else j for j in index.tolist()),
+            active=index >= 0,
+            points=(points_mj - self.origin_mj) @ R_PAPER_TO_MJ,
+            frames=frames @ R_PAPER_TO_MJ,
+            depth=depth,
+            tip_is_geom1=tip_is_geom1,
+        )
+
+    def wrench_matrix(
+        self, contacts: FingertipContacts | None = None
+    ) -> tuple[FloatArray, BoolArray]:
+        """The wrench matrix W of eqs. (3)/(16) from the simulated contacts.
+
+        Moments are about the pen's centre of mass, everything in the (world-aligned) paper
+        frame; columns per finger [normal, t1, t2] as in :class:`FingertipContacts`.
+
+        Args:
+            contacts: from :meth:`fingertip_contacts` (computed if not given).
+
+        Returns:
+            ``(W, active)``: W ``(6, 3k)`` with zero columns for fingers not touching, and the
+            ``(k,)`` bool mask of touching fingers.
+        """
+        c = self.fingertip_contacts() if contacts is None else contacts
+        w = _wrench_matrix(c.points, c.frames, reference=self.pen_com())
+        w[:, np.repeat(~c.active, 3)] = 0.0
+        return w, c.active
+
+    def contact_intensities(self, contacts: FingertipContacts | None = None) -> FloatArray:
+        """The measured wrench intensities c of eq. (3), ``(3k,)`` [N].
+
+        Per finger the force the finger applies to the pen along [normal, t1, t2] of its
+        contact frame (normal >= 0 pushes); zeros for a finger not touching. From
+        ``mj_contactForce`` (force of geom1 on geom2 in MuJoCo's contact frame), negated when
+        the pen is geom1. With the pen's other loads, ``W @ c`` is the fingers' net wrench.
+        """
+        cts = self.fingertip_contacts() if contacts is None else contacts
+        out = np.zeros((self.n_fingers, 3))
+        con = self.data.contact
+        for i, idx in enumerate(cts.index):
+            if idx is None:
+                continue
+            mujoco.mj_contactForce(self.model, self.data, idx, self._force6)
+            force_mj = self._force6[:3] @ con.frame[idx].reshape(3, 3)
+            if not cts.tip_is_geom1[i]:
+                force_mj = -force_mj
+            out[i] = cts.frames[i] @ mj_to_paper(force_mj)
+        return out.reshape(-1)
+
+    def fingertip_jacobians(self, contacts: FingertipContacts | None = None) -> FloatArray:
+        """The hand Jacobian J of eq. (30), ``(3k, n_hand_dofs)``.
+
+        Row block i maps hand joint velocities [rad/s] to the velocity [m/s] of finger i's
+        contact point (fixed to the fingertip; the tip centre when not touching) along its
+        [normal, t1, t2]. So ``J.T @ c`` are the joint torques [N m] that the contact
+        intensities c correspond to: the contacts load the hand with ``-J.T @ c`` (eq. 35).
+        """
+        cts = self.fingertip_contacts() if contacts is None else contacts
+        frames_mj = paper_to_mj(cts.frames)  # rows n, t1, t2 in MuJoCo coordinates
+        points_mj = paper_to_mj(cts.points) + self.origin_mj
+        jac = np.empty((self.n_fingers, 3, self.n_hand_dofs))
+        for i in range(self.n_fingers):
+            mujoco.mj_jac(
+                self.model, self.data, self._jacp, None, points_mj[i], self._tip_bodies[i]
+            )
+            jac[i] = frames_mj[i] @ self._jacp[:, self.hand_dof_ids]
+        return jac.reshape(3 * self.n_fingers, self.n_hand_dofs)
+
+    def n_link_contacts(self) -> int:
+        """Number of hand-pen contacts not at a fingertip (a finger link touching the pen)."""
+        geom = self.data.contact.geom
+        other = np.where(geom[:, 0] == self.pen_geom_id, geom[:, 1], geom[:, 0])
+        pen_pair = (geom[:, 0] == self.pen_geom_id) | (geom[:, 1] == self.pen_geom_id)
+        return int(np.count_nonzero(pen_pair & self._hand_geom[other]))
