@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -321,6 +322,26 @@ def solve_or_none(solve: Solve, *args: object) -> InternalForceResult | None:
         return None
 
 
+def well_posed(
+    W: np.ndarray,
+    w_ext: np.ndarray,
+    sliding: dict[int, np.ndarray],
+    s: InternalForceSettings,
+    lp: InternalForceResult | None,
+) -> bool:
+    """Whether solvers can be expected to agree: the box verdict is stable and forces moderate.
+
+    Hypothesis loves symmetric grasps at round mu where only a single point (often c = 0)
+    balances the normals, or where equilibrium needs forces growing without bound (1e9 N
+    was seen for a 0.03 N m load); there the verdict belongs to the solvers' tolerances.
+    """
+    verdicts = {
+        solve_or_none(solve_lp, W, w_ext, sliding, replace(s, mu=s.mu * f)) is None
+        for f in (0.999, 1.001)
+    }
+    return verdicts == {lp is None} and (lp is None or lp.objective < 1e3)
+
+
 @settings(max_examples=300, deadline=None)
 @given(
     grasp=grasps(),
@@ -340,15 +361,17 @@ def test_random_grasps_solutions_satisfy_every_constraint(
     lp = solve_or_none(solve_lp, W, w_ext, sliding, box)
     fast = solve_or_none(fast_solve, W, w_ext, sliding, box)
     socp = solve_or_none(solve_socp, W, w_ext, sliding, exact)
+    # Whatever a solver returns satisfies every constraint, well posed or not.
+    for res, s, tol in ((lp, box, 1e-7), (fast, box, 1e-7), (socp, exact, 1e-6)):
+        if res is not None:
+            assert_satisfies_constraints(res, W, w_ext, sliding, s, radius, tol)
+    assume(well_posed(W, w_ext, sliding, box, lp))
     event(f"box {'infeasible' if lp is None else 'feasible'}, {len(sliding)} sliding")
     assert (lp is None) == (fast is None), "LP and fast path disagree on feasibility"
     if lp is not None and fast is not None:
-        assert_satisfies_constraints(lp, W, w_ext, sliding, box, radius)
-        assert_satisfies_constraints(fast, W, w_ext, sliding, box, radius)
         # HiGHS holds constraints to 1e-7 N absolute; ill-conditioned grasps need 100s of N.
         assert fast.objective == pytest.approx(lp.objective, rel=1e-6, abs=1e-9)
     if socp is not None:
-        assert_satisfies_constraints(socp, W, w_ext, sliding, exact, radius, tol=1e-6)
         assert lp is not None, "exact cone feasible but the larger box infeasible"
         assert socp.objective >= lp.objective - 1e-6 * max(1.0, lp.objective)
 
