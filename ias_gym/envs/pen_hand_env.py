@@ -1,13 +1,18 @@
 """What both pen tasks share: the MuJoCo hand holding the pen, stepping, safety, rendering.
 
 A task subclass (:mod:`ias_gym.envs.pen_slide`, :mod:`ias_gym.envs.pen_rotate`) says only
-what differs: its configuration, the reset distribution of the pen and contacts, its
-observation features, reward terms and success test (dm_control's Physics/Task split).
+what differs: its configuration, the reset distribution, its reference motion, observation
+features, reward terms and success test (dm_control's Physics/Task split). The physics
+questions a controller asks (W, J, M, H, ...) are answered by :class:`PenHandPhysics`
+(``env.physics``); the env itself reads only what an observation needs, once per step, from
+MuJoCo's arrays and sensors (:class:`PenState`), because ``env.step`` should cost little
+more than the simulation it runs (``bench/bench_envs.py``).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -17,7 +22,7 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from ias_gym.sim.grasp_pose import place_grasp
-from ias_gym.sim.pen_hand import PenHandPhysics, load_pen_hand_model
+from ias_gym.sim.pen_hand import FINGERS, PenHandPhysics, load_pen_hand_model
 
 FloatArray = NDArray[np.float64]
 
@@ -25,7 +30,9 @@ FloatArray = NDArray[np.float64]
 NOMINAL_CONTACT_X = np.array([-0.03, -0.02, 0.02, 0.03])
 #: Shaping scales (reward terms are exp(-(error / scale)^2), bounded in [0, 1]).
 POSITION_SCALE = 0.005  # [m]
-ANGLE_SCALE = np.deg2rad(5.0)  # [rad]
+ANGLE_SCALE = math.radians(5.0)  # [rad]
+#: MuJoCo world -> paper frame: paper (x, y, z) = MuJoCo (x, z, -y).
+_TO_PAPER_INDEX = np.array([0, 2, 1])  # and negate the last
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,6 +60,57 @@ class PenReference:
     sliding: dict[int, FloatArray]
     contact_x: FloatArray | None = None
     contact_vx: FloatArray | None = None
+
+
+class PenState:
+    """The measurements one env step uses (paper frame, SI units).
+
+    Attributes:
+        vector: ``(24,)`` the observation block: pen position relative to its nominal
+            centre [m] (3), unit axis (3), velocity [m/s] (3), angular velocity [rad/s] (3),
+            net force of each fingertip on the pen [N] (4 x 3).
+        touching: ``(4,)`` bool, fingertip touches the pen.
+        tip_x: ``(4,)`` each fingertip's position along the pen's axis from its centre [m].
+        position_error: ``|position|`` [m].
+        tilt: angle between the pen's axis and its nominal direction (paper x) [rad].
+    """
+
+    __slots__ = ("position_error", "tilt", "tip_x", "touching", "vector")
+
+    def __init__(
+        self, vector: FloatArray, touching: NDArray[np.bool_], tip_x: FloatArray
+    ) -> None:
+        self.vector = vector
+        self.touching = touching
+        self.tip_x = tip_x
+        x, y, z, ax = vector[:4].tolist()
+        self.position_error = math.sqrt(x * x + y * y + z * z)
+        self.tilt = math.acos(min(1.0, abs(ax)))
+
+    @property
+    def position(self) -> FloatArray:
+        """Pen centre relative to its nominal position [m]."""
+        return self.vector[0:3]
+
+    @property
+    def axis(self) -> FloatArray:
+        """Unit vector along the pen's axis (independent of its roll)."""
+        return self.vector[3:6]
+
+    @property
+    def velocity(self) -> FloatArray:
+        """Pen centre velocity [m/s]."""
+        return self.vector[6:9]
+
+    @property
+    def omega(self) -> FloatArray:
+        """Pen angular velocity [rad/s]."""
+        return self.vector[9:12]
+
+    @property
+    def tip_force(self) -> FloatArray:
+        """``(4, 3)`` net force of each fingertip on the pen [N]."""
+        return self.vector[12:24].reshape(4, 3)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -84,17 +142,23 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
 
     Action: ``Box(-1, 1, (12,))``, joint torques normalised by each motor's limit (0.5 N m),
     fingers 1-4 with joints (abd, mcp, pip). Out-of-range values are clipped; NaN or inf
-    raise ``ValueError``.
+    raise ``ValueError``. Contacts are sampled once per step (``control_dt``): a contact
+    gap is measured in whole control periods.
     """
 
     metadata: ClassVar[dict[str, Any]] = {
         "render_modes": ["human", "rgb_array", "depth_array"],
-        "render_fps": 50,
+        "render_fps": 100,
     }
     config_class: ClassVar[type[PenHandConfig]] = PenHandConfig
     #: Attributes that make up an episode's state (pickled with the env).
     _episode_fields: ClassVar[tuple[str, ...]] = (
-        "_steps", "_gap", "_max_gap", "_max_position_error", "_dropped", "_unstable",
+        "_steps",
+        "_gap",
+        "_max_gap",
+        "_max_position_error",
+        "_dropped",
+        "_unstable",
         "_last_action",
     )
 
@@ -121,26 +185,38 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
         self.model = load_pen_hand_model()
         self.data = mujoco.MjData(self.model)
         self.physics = PenHandPhysics(self.model, self.data)
-        self.frame_skip = round(self.config.control_dt / self.model.opt.timestep)
-        if self.frame_skip < 1 or not np.isclose(
-            self.frame_skip * self.model.opt.timestep, self.config.control_dt
-        ):
+        timestep = self.model.opt.timestep
+        self.frame_skip = round(self.config.control_dt / timestep)
+        if self.frame_skip < 1 or not math.isclose(self.frame_skip * timestep, self.config.control_dt):
             raise ValueError(
                 f"control_dt={self.config.control_dt} s must be a multiple of the physics "
-                f"step {self.model.opt.timestep} s"
+                f"step {timestep} s"
             )
         self.max_steps = round(self.config.duration / self.config.control_dt)
-        self._act_ids = self.physics.hand_actuator_ids
-        self._ctrl_max = self.model.actuator_ctrlrange[self._act_ids, 1].copy()
-        self._touch_adr = self.physics._touch_adr
-        self._key = self.model.key("grasp").id
         self.metadata = {**self.metadata, "render_fps": round(1.0 / self.config.control_dt)}
+
+        # Indices looked up once (STYLE.md): joints, motors, pen, sensors.
+        p = self.physics
+        self._act_ids = p.hand_actuator_ids
+        self._ctrl_max = self.model.actuator_ctrlrange[self._act_ids, 1].copy()
+        self._hand_q = p.hand_qpos_ids
+        self._hand_v = p.hand_dof_ids
+        self._pen_q = p.pen_qpos_adr
+        self._pen_v = p.pen_dof_adr
+        self._pen_body = p.pen_body_id
+        self._tip_sites = p.tip_site_ids
+        adr = np.array([self.model.sensor(f"{f}_pen_force").adr[0] for f in FINGERS])
+        self._found_adr = adr
+        self._force_adr = (adr[:, None] + np.arange(1, 4)).ravel()
+        self._key = self.model.key("grasp").id
+        self._rot = np.zeros(9)
+        self._rows = np.zeros((8, 3))
+        self._warnings = self.data.warning.number  # a view: MuJoCo's warning counters
 
         mujoco.mj_resetDataKeyframe(self.model, self.data, self._key)
         mujoco.mj_forward(self.model, self.data)
         self._start_episode()
-        n = self.physics.n_hand_dofs
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float64)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(p.n_hand_dofs,), dtype=np.float64)
         obs_dim = len(self._observation())
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(obs_dim,), dtype=np.float64)
         self._renderer: Any = None
@@ -155,19 +231,19 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
             NOMINAL_CONTACT_X + rng.uniform(-cfg.contact_noise, cfg.contact_noise, 4),
         )
 
-    def _task_observation(self) -> FloatArray:
-        raise NotImplementedError
-
     def reference(self) -> PenReference:
         """The task's desired pen motion now (what an expert controller tracks)."""
+        raise NotImplementedError
+
+    def _task_update(self) -> None:
+        """Update the task's per-step quantities from ``self.state`` (also at reset)."""
+
+    def _task_observation(self) -> FloatArray:
         raise NotImplementedError
 
     def _task_reward(self) -> dict[str, float]:
         """Task reward terms (already weighted); the base adds contact and effort."""
         raise NotImplementedError
-
-    def _task_update(self) -> None:
-        """Update the task's episode statistics after a step (and at reset)."""
 
     def _task_success(self) -> bool:
         raise NotImplementedError
@@ -202,6 +278,8 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
                     f"options qpos/qvel need shapes ({self.model.nq},)/({self.model.nv},), "
                     f"got {qpos.shape}/{qvel.shape}"
                 )
+            if not (np.all(np.isfinite(qpos)) and np.all(np.isfinite(qvel))):
+                raise ValueError("options qpos/qvel contain NaN or inf")
             self.data.qpos[:] = qpos
             self.data.qvel[:] = qvel
             mujoco.mj_forward(self.model, self.data)
@@ -210,7 +288,7 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
             place_grasp(self.physics, position, rpy, contact_x, self.config.penetration)
         self._start_episode()
         obs = self._observation()
-        terms = {k: 0.0 for k in self._reward_terms()}
+        terms = dict.fromkeys(self._reward_terms(), 0.0)
         if self.render_mode == "human":
             self.render()
         return obs, self._info(terms)
@@ -224,32 +302,31 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
         a = np.asarray(action, dtype=float)
         if a.shape != self.action_space.shape:
             raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
-        if not np.all(np.isfinite(a)):
+        # One sum instead of isfinite(a).all(): NaN and inf propagate into it (cheaper).
+        if not math.isfinite(float(a.sum())) and not np.isfinite(a).all():
             raise ValueError(f"action contains NaN or inf: {a}; actions must be finite")
-        a = np.clip(a, -1.0, 1.0)
+        a = np.minimum(np.maximum(a, -1.0), 1.0)
         self._last_action = a
-        d = self.data
+        m, d = self.model, self.data
         d.ctrl[self._act_ids] = a * self._ctrl_max
-        warnings_before = int(d.warning.number.sum())
-        dt = self.model.opt.timestep
-        for _ in range(self.frame_skip):
-            mujoco.mj_step(self.model, d)
-            touching = d.sensordata[self._touch_adr] > 0.0
-            self._gap = np.where(touching, 0.0, self._gap + dt)
-            np.maximum(self._max_gap, self._gap, out=self._max_gap)
+        warnings_before = int(self._warnings.sum())
+        mujoco.mj_step(m, d, nstep=self.frame_skip)
         self._steps += 1
 
-        self._unstable = int(d.warning.number.sum()) > warnings_before or not (
-            np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))
+        # A diverging simulation makes MuJoCo warn (and reset its data).
+        self._unstable = int(self._warnings.sum()) > warnings_before or not math.isfinite(
+            float(d.qpos.sum()) + float(d.qvel.sum())
         )
         if self._unstable:
-            # Keep the returned values finite; the episode ends here.
-            mujoco.mj_resetDataKeyframe(self.model, d, self._key)
-            mujoco.mj_forward(self.model, d)
-        position, _ = self.physics.pen_pose()
-        pos_err = float(np.linalg.norm(position))
+            mujoco.mj_resetDataKeyframe(m, d, self._key)
+            mujoco.mj_forward(m, d)
+        self._measure()
+        state = self.state
+        pos_err = state.position_error
         self._max_position_error = max(self._max_position_error, pos_err)
         self._dropped = pos_err > self.config.drop_distance
+        self._gap = np.where(state.touching, 0.0, self._gap + self.config.control_dt)
+        np.maximum(self._max_gap, self._gap, out=self._max_gap)
         self._task_update()
 
         obs = self._observation()
@@ -264,6 +341,29 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
         return obs, reward, terminated, truncated, self._info(terms)
 
     # ------------------------------------------------------------------ pieces
+    def _measure(self) -> None:
+        """Read the step's measurements into ``self.state`` (one pass over MuJoCo's arrays).
+
+        The pen's and hand's state come from ``qpos``/``qvel`` (now); fingertip positions
+        and contact sensors from the last forward pass, one physics step (1 ms) earlier.
+        """
+        d = self.data
+        a, va = self._pen_q, self._pen_v
+        mujoco.mju_quat2Mat(self._rot, d.qpos[a + 3 : a + 7])
+        rot = self._rot.reshape(3, 3)
+        rows = self._rows  # (8, 3) in MuJoCo's frame
+        np.subtract(d.qpos[a : a + 3], self.physics.origin_mj, out=rows[0])
+        rows[1] = rot[:, 0]
+        rows[2] = d.qvel[va : va + 3]
+        np.dot(rot, d.qvel[va + 3 : va + 6], out=rows[3])  # body -> world
+        rows[4:] = d.sensordata[self._force_adr].reshape(4, 3)
+        paper = rows[:, _TO_PAPER_INDEX]
+        paper[:, 2] *= -1.0
+        tips = d.site_xpos[self._tip_sites] - d.xpos[self._pen_body]
+        self.state = PenState(
+            paper.ravel(), d.sensordata[self._found_adr] > 0, tips @ rot[:, 0]
+        )
+
     def _start_episode(self) -> None:
         """Zero the episode's statistics for the current (just reset) state."""
         self._steps = 0
@@ -273,54 +373,51 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
         self._dropped = False
         self._unstable = False
         self._last_action = np.zeros(self.physics.n_hand_dofs)
+        self._measure()
         self._task_update()
 
     def _observation(self) -> FloatArray:
-        p = self.physics
-        position, rpy = p.pen_pose()
-        v, omega = p.pen_twist()
+        d = self.data
         return np.concatenate(
             [
-                p.hand_qpos(),
-                p.hand_qvel(),
-                position,
-                rpy,
-                v,
-                omega,
-                p.contact_intensities(),
-                [self.time / self.config.duration],
+                d.qpos[self._hand_q],
+                d.qvel[self._hand_v],
+                self.state.vector,
+                (self._steps / self.max_steps,),
                 self._task_observation(),
             ]
         )
 
     def _reward_terms(self) -> dict[str, float]:
         terms = self._task_reward()
-        touching = self.data.sensordata[self._touch_adr] > 0.0
-        terms["contact"] = self.config.contact_weight * float(np.mean(touching))
-        terms["effort"] = -self.config.effort_weight * float(np.mean(self._last_action**2))
+        a = self._last_action
+        touching = int(np.count_nonzero(self.state.touching))
+        terms["contact"] = self.config.contact_weight * touching / len(self.state.touching)
+        terms["effort"] = -self.config.effort_weight * float(a @ a) / len(a)
         return terms
 
     def _info(self, terms: dict[str, float]) -> dict[str, Any]:
-        done = self._steps >= self.max_steps
         success = bool(
-            done
+            self._steps >= self.max_steps
             and not self._dropped
             and not self._unstable
             and self._max_position_error < self.config.max_position_error
-            and self._max_gap.max() <= self.config.max_contact_gap
+            and self._max_gap.max() <= self.config.max_contact_gap + 1e-9
             and self._task_success()
         )
-        return {
+        info = {
             "is_success": success,
             "time": self.time,
             "dropped": self._dropped,
             "sim_unstable": self._unstable,
             "max_position_error": self._max_position_error,
             "max_contact_gap": self._max_gap.copy(),
-            "fingers_in_contact": self.data.sensordata[self._touch_adr] > 0.0,
-            **{f"reward_{k}": v for k, v in terms.items()},
-            **self._task_info(),
+            "fingers_in_contact": self.state.touching.copy(),
         }
+        for name, value in terms.items():
+            info["reward_" + name] = value
+        info.update(self._task_info())
+        return info
 
     # ------------------------------------------------------------------ rendering, pickling
     def render(self) -> NDArray[Any] | None:
@@ -349,23 +446,24 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickle the configuration, the full MuJoCo state and the episode's statistics."""
-        size = mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_INTEGRATION)
-        buf = np.empty(size)
-        mujoco.mj_getState(self.model, self.data, buf, mujoco.mjtState.mjSTATE_INTEGRATION)
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        buf = np.empty(mujoco.mj_stateSize(self.model, spec))
+        mujoco.mj_getState(self.model, self.data, buf, spec)
         return {
             "config": dataclasses.asdict(self.config),
             "render_mode": self.render_mode,
             "mj_state": buf,
-            "episode": {k: getattr(self, k) for k in self._episode_fields if hasattr(self, k)},
+            "episode": {k: getattr(self, k) for k in self._episode_fields},
             "np_random": self._np_random,
         }
 
     def __setstate__(self, state: dict[str, Any]) -> None:
+        """Rebuild the env from its configuration and restore the pickled state."""
         type(self).__init__(self, render_mode=state["render_mode"], **state["config"])
-        mujoco.mj_setState(
-            self.model, self.data, state["mj_state"], mujoco.mjtState.mjSTATE_INTEGRATION
-        )
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        mujoco.mj_setState(self.model, self.data, state["mj_state"], spec)
         mujoco.mj_forward(self.model, self.data)
         for key, value in state["episode"].items():
             setattr(self, key, value)
         self._np_random = state["np_random"]
+        self._measure()

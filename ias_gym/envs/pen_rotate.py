@@ -10,6 +10,7 @@ contacts). As in Fig. 9, each episode starts with an angular error sampled at re
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any, ClassVar
 
 import numpy as np
@@ -83,6 +84,7 @@ class PenRotateEnv(PenHandEnv):
         *PenHandEnv._episode_fields,
         "_sq_error_sum",
         "_sq_error_count",
+        "_errors",
     )
 
     def target(self, t: float | None = None) -> tuple[float, float]:
@@ -90,8 +92,8 @@ class PenRotateEnv(PenHandEnv):
         cfg = self.config
         t = self.time if t is None else t
         return (
-            cfg.amplitude * float(np.sin(cfg.frequency * t)),
-            cfg.amplitude * cfg.frequency * float(np.cos(cfg.frequency * t)),
+            cfg.amplitude * math.sin(cfg.frequency * t),
+            cfg.amplitude * cfg.frequency * math.cos(cfg.frequency * t),
         )
 
     def reference(self) -> PenReference:
@@ -115,10 +117,8 @@ class PenRotateEnv(PenHandEnv):
 
         Computed from the pen's axis, so they do not depend on the pen's roll about itself.
         """
-        axis = self.physics.pen_axis()
-        tilt_z = float(np.arctan2(axis[1], axis[0]))
-        turn_y = float(np.arctan2(-axis[2], np.hypot(axis[0], axis[1])))
-        return tilt_z - self.target()[0], turn_y
+        x, y, z = self.state.axis.tolist()
+        return math.atan2(y, x) - self.target()[0], math.atan2(-z, math.hypot(x, y))
 
     def _sample_initial_pose(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         position, rpy, contact_x = super()._sample_initial_pose()
@@ -135,24 +135,25 @@ class PenRotateEnv(PenHandEnv):
             self._sq_error_count += 1
 
     def rms_error(self) -> float:
-        """RMS tilt error about z after ``settle_time`` so far [rad] (nan before)."""
+        """RMS tilt error about z after ``settle_time`` so far [rad] (0 before any sample)."""
         if self._sq_error_count == 0:
-            return float("nan")
+            return 0.0
         return float(np.sqrt(self._sq_error_sum / self._sq_error_count))
 
     def _task_observation(self) -> FloatArray:
         target, rate = self.target()
         w_t = self.config.frequency * self.time
-        return np.array([self._errors[0], target, rate, self._errors[1], np.sin(w_t), np.cos(w_t)])
+        return np.array(
+            [self._errors[0], target, rate, self._errors[1], math.sin(w_t), math.cos(w_t)]
+        )
 
     def _task_reward(self) -> dict[str, float]:
         cfg = self.config
         e_z, e_y = self._errors
-        position, _ = self.physics.pen_pose()
+        r = self.state.position_error / POSITION_SCALE
         return {
-            "track": cfg.track_weight * float(np.exp(-(e_z**2 + e_y**2) / ORIENTATION_SCALE**2)),
-            "position": cfg.position_weight
-            * float(np.exp(-float(position @ position) / POSITION_SCALE**2)),
+            "track": cfg.track_weight * math.exp(-(e_z**2 + e_y**2) / ORIENTATION_SCALE**2),
+            "position": cfg.position_weight * math.exp(-r * r),
         }
 
     def _task_success(self) -> bool:

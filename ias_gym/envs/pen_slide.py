@@ -10,6 +10,7 @@ the pen stays still.
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any, ClassVar
 
 import numpy as np
@@ -33,6 +34,7 @@ from ias_gym.grasp.pen_skill import (
 #: The paper's skill (section 4.2); the task's schedule.
 SKILL = PenSkillParams()
 TRACK_SCALE = 0.003  # [m] scale of the schedule-tracking term
+_PHASES = np.eye(6)  # one-hot rows: hold, phases 1-4, settle
 
 
 @dataclasses.dataclass(frozen=True)
@@ -42,7 +44,7 @@ class PenSlideConfig(PenHandConfig):
     hold_time: float = 0.25  # hold before phase 1 starts [s]
     duration: float = 4.75  # hold + 4 s of sliding + 0.5 s settling [s]
     target_tolerance: float = 0.002  # success: each finger this close to its target [m]
-    max_tilt: float = np.deg2rad(5.0)  # success: pen tilt throughout [rad]
+    max_tilt: float = math.radians(5.0)  # success: pen tilt throughout [rad]
     track_weight: float = 1.0  # [-]
     pose_weight: float = 1.0  # [-]
 
@@ -88,17 +90,28 @@ class PenSlideEnv(PenHandEnv):
         "_slide_errors",
     )
 
+    def __init__(self, render_mode: str | None = None, **config: Any) -> None:
+        super().__init__(render_mode, **config)
+        # The schedule at every step time, computed once: [-phi1, -phi2, +phi3, +phi4] (eq. 17).
+        steps = np.arange(self.max_steps + 1) * self.config.control_dt - self.config.hold_time
+        self._target_table = OUTWARD * finger_distances(steps, SKILL)
+        self._target_rate_table = OUTWARD * finger_velocities(steps, SKILL)
+        self._task_update()
+
     def schedule_time(self) -> float:
         """Time on the paper's schedule, ``t - hold_time`` [s] (negative while holding)."""
         return self.time - self.config.hold_time
 
-    def targets(self, t: float | None = None) -> tuple[FloatArray, FloatArray]:
-        """Scheduled contact positions along the pen [m] and their velocities [m/s] (eq. 17).
+    def targets(self) -> tuple[FloatArray, FloatArray]:
+        """Scheduled contact positions along the pen [m] and their rates [m/s] now (eq. 17).
 
         Signed as the pen-frame x coordinate: ``[-phi1, -phi2, +phi3, +phi4]``.
         """
-        tau = self.schedule_time() if t is None else t
-        return OUTWARD * finger_distances(tau, SKILL), OUTWARD * finger_velocities(tau, SKILL)
+        k = min(self._steps, self.max_steps)
+        if not hasattr(self, "_target_table"):  # during the base class's __init__
+            t = self.schedule_time()
+            return OUTWARD * finger_distances(t, SKILL), OUTWARD * finger_velocities(t, SKILL)
+        return self._target_table[k], self._target_rate_table[k]
 
     def reference(self) -> PenReference:
         """Pen at rest, untilted; the scheduled finger sliding (eq. 17)."""
@@ -116,11 +129,6 @@ class PenSlideEnv(PenHandEnv):
             contact_vx=velocity,
         )
 
-    def contact_positions(self) -> FloatArray:
-        """Each fingertip's position along the pen's axis, from the pen's centre [m]."""
-        p = self.physics
-        return (p.tip_positions() - p.pen_com()) @ p.pen_axis()
-
     def phase(self) -> int:
         """0 while holding, i during phase i (1-4), 5 when settling."""
         tau = self.schedule_time()
@@ -128,49 +136,37 @@ class PenSlideEnv(PenHandEnv):
             return 0
         return min(int(np.searchsorted(SKILL.phase_times, tau, side="right")), 5)
 
-    def _pen_tilt(self) -> float:
-        axis = self.physics.pen_axis()
-        return float(np.arccos(np.clip(abs(axis[0]), 0.0, 1.0)))
-
     def _task_update(self) -> None:
         target, _ = self.targets()
-        self._slide_errors = self.contact_positions() - target
-        tilt = self._pen_tilt()
+        self._slide_errors = self.state.tip_x - target
+        tilt = self.state.tilt
         self._max_tilt = tilt if self._steps == 0 else max(self._max_tilt, tilt)
-        self._tilt = tilt
 
     def _task_observation(self) -> FloatArray:
         target, velocity = self.targets()
-        return np.concatenate(
-            [self.contact_positions() - target, velocity, np.eye(6)[self.phase()], target]
-        )
+        return np.concatenate([self._slide_errors, velocity, _PHASES[self.phase()], target])
 
     def _task_reward(self) -> dict[str, float]:
         cfg = self.config
-        position, _ = self.physics.pen_pose()
+        s = self.state
+        track = sum(math.exp(-((e / TRACK_SCALE) ** 2)) for e in self._slide_errors.tolist())
+        pose = (s.position_error / POSITION_SCALE) ** 2 + (s.tilt / ANGLE_SCALE) ** 2
         return {
-            "track": cfg.track_weight
-            * float(np.mean(np.exp(-((self._slide_errors / TRACK_SCALE) ** 2)))),
-            "pose": cfg.pose_weight
-            * float(
-                np.exp(
-                    -float(position @ position) / POSITION_SCALE**2
-                    - (self._tilt / ANGLE_SCALE) ** 2
-                )
-            ),
+            "track": cfg.track_weight * track / len(self._slide_errors),
+            "pose": cfg.pose_weight * math.exp(-pose),
         }
 
     def _task_success(self) -> bool:
         cfg = self.config
         return bool(
-            np.all(np.abs(self._slide_errors) < cfg.target_tolerance)
+            float(np.abs(self._slide_errors).max()) < cfg.target_tolerance
             and self._max_tilt < cfg.max_tilt
         )
 
     def _task_info(self) -> dict[str, Any]:
         return {
             "slide_errors": self._slide_errors.copy(),
-            "pen_tilt": self._tilt,
+            "pen_tilt": self.state.tilt,
             "max_pen_tilt": self._max_tilt,
             "phase": self.phase(),
         }

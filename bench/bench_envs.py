@@ -1,0 +1,94 @@
+"""env.step against the raw simulation it runs, for every IAS- pen environment.
+
+Run: ``python bench/bench_envs.py``. For each environment, from states of an expert-held
+grasp (the contacts that make stepping expensive), time blocks of ``env.step`` and, from
+the same states with the same controls, blocks of ``mujoco.mj_step(m, d, nstep=frame_skip)``;
+print the medians per step and their ratio, measured side by side in one run. Then the
+random-action rate (steps/s, resets included), as an RL library would see it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+import ias_gym  # noqa: F401
+from ias_gym.baselines.grip_transform_control import GripTransformController
+
+ENV_IDS = ("IAS-PenSlide-v0", "IAS-PenRotate-v0")
+
+
+def time_env_vs_raw(env_id: str, blocks: int, block_steps: int) -> tuple[float, float]:
+    """Median time per step [s] of env.step and of the raw simulation, same states."""
+    env = gym.make(env_id)
+    u = env.unwrapped
+    env.reset(seed=0)
+    controller = GripTransformController(f0=u.config.min_grasp_force)
+    for _ in range(20):
+        env.step(controller.action(u))
+    spec = mujoco.mjtState.mjSTATE_INTEGRATION
+    start = np.empty(mujoco.mj_stateSize(u.model, spec))
+    mujoco.mj_getState(u.model, u.data, start, spec)
+    episode = {k: getattr(u, k) for k in u._episode_fields}
+    actions = []
+    for _ in range(block_steps):
+        a = controller.action(u)
+        actions.append(a)
+        env.step(a)
+    ctrl = [a * u._ctrl_max for a in actions]
+
+    env_times, raw_times = [], []
+    for _ in range(blocks):
+        mujoco.mj_setState(u.model, u.data, start, spec)
+        for k, v in episode.items():
+            setattr(u, k, v.copy() if isinstance(v, np.ndarray) else v)
+        t0 = time.perf_counter()
+        for a in actions:
+            u.step(a)
+        env_times.append((time.perf_counter() - t0) / block_steps)
+
+        mujoco.mj_setState(u.model, u.data, start, spec)
+        m, d, n, ids = u.model, u.data, u.frame_skip, u._act_ids
+        t0 = time.perf_counter()
+        for c in ctrl:
+            d.ctrl[ids] = c
+            mujoco.mj_step(m, d, nstep=n)
+        raw_times.append((time.perf_counter() - t0) / block_steps)
+    return float(np.median(env_times)), float(np.median(raw_times))
+
+
+def random_rate(env_id: str, steps: int) -> float:
+    """Random-action env steps per second, resets included."""
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            env.reset()
+    return steps / (time.perf_counter() - t0)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--blocks", type=int, default=40)
+    parser.add_argument("--block-steps", type=int, default=50)
+    parser.add_argument("--random-steps", type=int, default=3000)
+    args = parser.parse_args()
+    print(f"machine: {platform.processor() or platform.machine()}, python {platform.python_version()}, "
+          f"mujoco {mujoco.__version__}")
+    print(f"{'env':<18} {'env.step [us]':>14} {'raw sim [us]':>13} {'ratio':>6} {'random [steps/s]':>17}")
+    for env_id in ENV_IDS:
+        t_env, t_raw = time_env_vs_raw(env_id, args.blocks, args.block_steps)
+        rate = random_rate(env_id, args.random_steps)
+        print(f"{env_id:<18} {t_env * 1e6:>14.0f} {t_raw * 1e6:>13.0f} {t_env / t_raw:>6.2f} {rate:>17.0f}")
+
+
+if __name__ == "__main__":
+    main()
