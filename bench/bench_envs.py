@@ -81,13 +81,15 @@ def main() -> None:
     parser.add_argument("--block-steps", type=int, default=50)
     parser.add_argument("--random-steps", type=int, default=3000)
     args = parser.parse_args()
-    print(f"machine: {platform.processor() or platform.machine()}, python {platform.python_version()}, "
-          f"mujoco {mujoco.__version__}")
-    print(f"{'env':<18} {'env.step [us]':>14} {'raw sim [us]':>13} {'ratio':>6} {'random [steps/s]':>17}")
+    machine = platform.processor() or platform.machine()
+    print(f"machine: {machine}, python {platform.python_version()}, mujoco {mujoco.__version__}")
+    header = ("env", "env.step [us]", "raw sim [us]", "ratio", "random [steps/s]")
+    print(f"{header[0]:<18} {header[1]:>14} {header[2]:>13} {header[3]:>6} {header[4]:>17}")
     for env_id in ENV_IDS:
         t_env, t_raw = time_env_vs_raw(env_id, args.blocks, args.block_steps)
         rate = random_rate(env_id, args.random_steps)
-        print(f"{env_id:<18} {t_env * 1e6:>14.0f} {t_raw * 1e6:>13.0f} {t_env / t_raw:>6.2f} {rate:>17.0f}")
+        ratio = t_env / t_raw
+        print(f"{env_id:<18} {t_env * 1e6:>14.0f} {t_raw * 1e6:>13.0f} {ratio:>6.2f} {rate:>17.0f}")
 
 
 if __name__ == "__main__":

@@ -20,6 +20,35 @@ def _figure_wrench_intensities(args: argparse.Namespace) -> int:
     return 0
 
 
+def _evaluate(args: argparse.Namespace) -> int:
+    import json
+
+    from ias_gym.evaluation import evaluate
+
+    result = evaluate(
+        args.env,
+        policy=args.policy,
+        episodes=args.episodes,
+        seed=args.seed,
+        video=None if args.video is None else Path(args.video),
+        progress=not args.json,
+    )
+    summary = result.summary()
+    if args.video is not None:
+        summary["video"] = str(args.video)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        width = max(len(k) for k in summary)
+        for key, value in summary.items():
+            print(
+                f"{key:<{width}}  {value:.6g}"
+                if isinstance(value, float)
+                else f"{key:<{width}}  {value}"
+            )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``ias-gym`` with one sub-parser per command."""
     parser = argparse.ArgumentParser(
@@ -44,6 +73,26 @@ def build_parser() -> argparse.ArgumentParser:
         help="friction cone: the paper's linearised box (LP) or the exact Coulomb cone (SOCP)",
     )
     wrench.set_defaults(run=_figure_wrench_intensities)
+
+    evaluate = commands.add_parser(
+        "evaluate",
+        help="run a policy on an environment: success rate, return, task errors",
+        description="Evaluate a policy over N seeded episodes (seeds S, S+1, ...).",
+    )
+    evaluate.add_argument("--env", required=True, metavar="ID", help="e.g. IAS-PenSlide-v0")
+    evaluate.add_argument(
+        "--policy",
+        default="expert",
+        metavar="expert|random|PATH",
+        help="the grip-transform expert, uniform random actions, or a saved SB3 model (.zip)",
+    )
+    evaluate.add_argument("--episodes", type=int, default=10, metavar="N")
+    evaluate.add_argument("--seed", type=int, default=0, metavar="S")
+    evaluate.add_argument(
+        "--json", action="store_true", help="print one JSON object as the last line"
+    )
+    evaluate.add_argument("--video", metavar="FILE", help="write an MP4 of the first episode")
+    evaluate.set_defaults(run=_evaluate)
     return parser
 
 

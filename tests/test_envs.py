@@ -94,8 +94,8 @@ def test_pickle_round_trip_continues_identically(env_id: str) -> None:
         env.step(a)
     clone = pickle.loads(pickle.dumps(env))
     for a in actions[5:]:
-        o1, r1, *_, i1 = env.step(a)
-        o2, r2, *_, i2 = clone.step(a)
+        o1, r1, *_ = env.step(a)
+        o2, r2, *_ = clone.step(a)
         np.testing.assert_array_equal(o1, o2)
         assert r1 == r2
     assert clone.unwrapped.config == env.unwrapped.config

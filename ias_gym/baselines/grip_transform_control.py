@@ -93,11 +93,7 @@ class GripTransformController:
         acc = ref.acceleration - g.kv * (v - ref.velocity) - g.kp * (position - ref.position)
         # Orientation: roll about the pen's own axis is left free.
         omega_perp = omega - (omega @ axis) * axis
-        alpha = (
-            ref.alpha
-            + g.kp_rot * _cross(axis, ref.axis)
-            - g.kv_rot * (omega_perp - ref.omega)
-        )
+        alpha = ref.alpha + g.kp_rot * _cross(axis, ref.axis) - g.kv_rot * (omega_perp - ref.omega)
         inertia = p.pen_inertia()
         mass = p.pen_mass()
         gravity = -9.81 * mass * np.array([0.0, 1.0, 0.0])

@@ -77,9 +77,7 @@ class PenState:
 
     __slots__ = ("position_error", "tilt", "tip_x", "touching", "vector")
 
-    def __init__(
-        self, vector: FloatArray, touching: NDArray[np.bool_], tip_x: FloatArray
-    ) -> None:
+    def __init__(self, vector: FloatArray, touching: NDArray[np.bool_], tip_x: FloatArray) -> None:
         self.vector = vector
         self.touching = touching
         self.tip_x = tip_x
@@ -130,14 +128,14 @@ class PenHandConfig:
     contact_weight: float = 0.5  # weight of the contact-kept term [-]
     render_width: int = 480  # [px]
     render_height: int = 360  # [px]
-    camera: str = "perspective"  # camera for rgb_array / depth_array
+    camera: str = "front"  # camera for rgb_array / depth_array: front, side, perspective
 
     def __post_init__(self) -> None:
         if self.control_dt <= 0 or self.duration <= 0:
             raise ValueError("control_dt and duration must be positive [s]")
 
 
-class PenHandEnv(gym.Env[FloatArray, FloatArray]):
+class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
     """Base class of the pen tasks (not registered itself).
 
     Action: ``Box(-1, 1, (12,))``, joint torques normalised by each motor's limit (0.5 N m),
@@ -146,7 +144,7 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
     gap is measured in whole control periods.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
+    metadata = {  # noqa: RUF012  (gymnasium's convention)
         "render_modes": ["human", "rgb_array", "depth_array"],
         "render_fps": 100,
     }
@@ -161,6 +159,16 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
         "_unstable",
         "_last_action",
     )
+
+    # Episode state (see _start_episode).
+    _steps: int
+    _gap: FloatArray
+    _max_gap: FloatArray
+    _max_position_error: float
+    _dropped: bool
+    _unstable: bool
+    _last_action: FloatArray
+    state: PenState
 
     def __init__(self, render_mode: str | None = None, **config: Any) -> None:
         """Build the task.
@@ -187,7 +195,9 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
         self.physics = PenHandPhysics(self.model, self.data)
         timestep = self.model.opt.timestep
         self.frame_skip = round(self.config.control_dt / timestep)
-        if self.frame_skip < 1 or not math.isclose(self.frame_skip * timestep, self.config.control_dt):
+        if self.frame_skip < 1 or not math.isclose(
+            self.frame_skip * timestep, self.config.control_dt
+        ):
             raise ValueError(
                 f"control_dt={self.config.control_dt} s must be a multiple of the physics "
                 f"step {timestep} s"
@@ -216,7 +226,7 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
         mujoco.mj_resetDataKeyframe(self.model, self.data, self._key)
         mujoco.mj_forward(self.model, self.data)
         self._start_episode()
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(p.n_hand_dofs,), dtype=np.float64)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(p.n_hand_dofs,), dtype=np.float32)
         obs_dim = len(self._observation())
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(obs_dim,), dtype=np.float64)
         self._renderer: Any = None
@@ -250,6 +260,10 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
 
     def _task_info(self) -> dict[str, Any]:
         return {}
+
+    def episode_metrics(self, info: dict[str, Any]) -> dict[str, float]:
+        """The task's error metrics of a finished episode, from its last ``info``."""
+        return {"max_position_error": float(info["max_position_error"])}
 
     # ------------------------------------------------------------------ gymnasium API
     @property
@@ -360,9 +374,7 @@ class PenHandEnv(gym.Env[FloatArray, FloatArray]):
         paper = rows[:, _TO_PAPER_INDEX]
         paper[:, 2] *= -1.0
         tips = d.site_xpos[self._tip_sites] - d.xpos[self._pen_body]
-        self.state = PenState(
-            paper.ravel(), d.sensordata[self._found_adr] > 0, tips @ rot[:, 0]
-        )
+        self.state = PenState(paper.ravel(), d.sensordata[self._found_adr] > 0, tips @ rot[:, 0])
 
     def _start_episode(self) -> None:
         """Zero the episode's statistics for the current (just reset) state."""

@@ -87,6 +87,10 @@ class PenRotateEnv(PenHandEnv):
         "_errors",
     )
 
+    _sq_error_sum: float
+    _sq_error_count: int
+    _errors: tuple[float, float]
+
     def target(self, t: float | None = None) -> tuple[float, float]:
         """Target tilt about z, ``A sin(w t)`` [rad], and its rate [rad/s]."""
         cfg = self.config
@@ -100,7 +104,7 @@ class PenRotateEnv(PenHandEnv):
         """Pen centre at rest, axis tilted by ``A sin(w t)`` about z (sec. 4.3)."""
         cfg = self.config
         angle, rate = self.target()
-        accel = -cfg.frequency**2 * angle
+        accel = -(cfg.frequency**2) * angle
         zero = np.zeros(3)
         return PenReference(
             position=zero,
@@ -158,6 +162,14 @@ class PenRotateEnv(PenHandEnv):
 
     def _task_success(self) -> bool:
         return bool(self.rms_error() < self.config.max_rms_error * self.config.amplitude)
+
+    def episode_metrics(self, info: dict[str, Any]) -> dict[str, float]:
+        """Error metrics of a finished episode from its last ``info`` (SI units)."""
+        return {
+            "rms_tilt_error": float(info["rms_tilt_error"]),
+            "rms_tilt_error_fraction": float(info["rms_tilt_error"]) / self.config.amplitude,
+            "max_position_error": float(info["max_position_error"]),
+        }
 
     def _task_info(self) -> dict[str, Any]:
         return {

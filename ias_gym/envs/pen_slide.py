@@ -90,7 +90,11 @@ class PenSlideEnv(PenHandEnv):
         "_slide_errors",
     )
 
+    _max_tilt: float
+    _slide_errors: FloatArray
+
     def __init__(self, render_mode: str | None = None, **config: Any) -> None:
+        """Build the task; ``config``: fields of :class:`PenSlideConfig` to override."""
         super().__init__(render_mode, **config)
         # The schedule at every step time, computed once: [-phi1, -phi2, +phi3, +phi4] (eq. 17).
         steps = np.arange(self.max_steps + 1) * self.config.control_dt - self.config.hold_time
@@ -162,6 +166,14 @@ class PenSlideEnv(PenHandEnv):
             float(np.abs(self._slide_errors).max()) < cfg.target_tolerance
             and self._max_tilt < cfg.max_tilt
         )
+
+    def episode_metrics(self, info: dict[str, Any]) -> dict[str, float]:
+        """Error metrics of a finished episode from its last ``info`` (SI units)."""
+        return {
+            "final_slide_error": float(np.abs(info["slide_errors"]).max()),
+            "max_position_error": float(info["max_position_error"]),
+            "max_pen_tilt": float(info["max_pen_tilt"]),
+        }
 
     def _task_info(self) -> dict[str, Any]:
         return {

@@ -17,8 +17,9 @@ def write_csv_atomic(path: Path, header: Sequence[str], rows: ArrayLike, fmt: st
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "w") as f:
-            np.savetxt(f, np.asarray(rows), delimiter=",", header=",".join(header),
-                       comments="", fmt=fmt)
+            np.savetxt(
+                f, np.asarray(rows), delimiter=",", header=",".join(header), comments="", fmt=fmt
+            )
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

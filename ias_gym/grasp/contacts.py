@@ -97,8 +97,17 @@ def wrench_matrix(
     frs = np.asarray(frames, dtype=float).reshape(-1, 3, 3)
     if len(pts) != len(frs):
         raise ValueError(f"got {len(pts)} contact points but {len(frs)} contact frames")
-    blocks = [
-        contact_wrench_basis(p, f[0], f[1], f[2], model=model, reference=reference)
-        for p, f in zip(pts, frs, strict=True)
-    ]
-    return np.concatenate(blocks, axis=1) if blocks else np.zeros((6, 0))
+    model = ContactModel(model)
+    m = len(pts)
+    # All columns at once (this runs every control step): force directions u and p x u.
+    dirs = frs[:, :1] if model is ContactModel.FRICTIONLESS else frs  # (m, k, 3)
+    p = (pts - np.asarray(reference, dtype=float))[:, None, :]
+    moments = np.empty_like(dirs)
+    moments[..., 0] = p[..., 1] * dirs[..., 2] - p[..., 2] * dirs[..., 1]
+    moments[..., 1] = p[..., 2] * dirs[..., 0] - p[..., 0] * dirs[..., 2]
+    moments[..., 2] = p[..., 0] * dirs[..., 1] - p[..., 1] * dirs[..., 0]
+    cols = np.concatenate([dirs, moments], axis=2)  # (m, k, 6)
+    if model is ContactModel.SOFT_FINGER:
+        torsion = np.concatenate([np.zeros((m, 1, 3)), frs[:, :1]], axis=2)
+        cols = np.concatenate([cols, torsion], axis=1)
+    return cols.reshape(-1, 6).T.copy()

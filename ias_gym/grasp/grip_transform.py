@@ -106,7 +106,9 @@ class GripTransform:
     N: FloatArray
 
     @classmethod
-    def from_wrench_matrix(cls, W: ArrayLike, previous: GripTransform | None = None) -> GripTransform:
+    def from_wrench_matrix(
+        cls, W: ArrayLike, previous: GripTransform | None = None
+    ) -> GripTransform:
         """Grip transform of W; ``previous`` keeps N continuous along a trajectory."""
         W, _, _ = _checked_wrench_matrix(W)
         N = null_space_basis(W, None if previous is None else previous.N)

@@ -127,7 +127,9 @@ def gravity_wrench(weight: float) -> FloatArray:
     return np.array([0.0, -weight, 0.0, 0.0, 0.0, 0.0])
 
 
-def sliding_directions(t: float, params: PenSkillParams = PenSkillParams()) -> dict[int, FloatArray]:
+def sliding_directions(
+    t: float, params: PenSkillParams = PenSkillParams()
+) -> dict[int, FloatArray]:
     """Sliding contacts at time t as {finger index: unit direction in (t_x, t_z)}.
 
     The force a sliding finger exerts on the pen points along the finger's own motion

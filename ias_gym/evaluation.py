@@ -1,0 +1,160 @@
+"""Evaluating a policy on an ``IAS-*`` environment: success rate, return, task errors, video."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import ias_gym  # noqa: F401  (registers the ids)
+
+Policy = Callable[[np.ndarray], np.ndarray]
+#: Frame rate of evaluation videos [1/s]; the env's frames are thinned to it.
+VIDEO_FPS = 25
+#: Algorithms tried, in order, when a policy is given as a path to a saved SB3 model.
+SB3_ALGORITHMS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
+
+
+@dataclass
+class EvaluationResult:
+    """Per-episode outcomes and their summary (see :meth:`summary`)."""
+
+    env_id: str
+    policy: str
+    successes: list[bool] = field(default_factory=list)
+    returns: list[float] = field(default_factory=list)
+    lengths: list[int] = field(default_factory=list)
+    metrics: list[dict[str, float]] = field(default_factory=list)
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready summary: success rate, mean return, and mean/max of each task metric."""
+        out: dict[str, Any] = {
+            "env": self.env_id,
+            "policy": self.policy,
+            "episodes": len(self.successes),
+            "success_rate": float(np.mean(self.successes)) if self.successes else 0.0,
+            "mean_return": float(np.mean(self.returns)) if self.returns else 0.0,
+            "mean_length": float(np.mean(self.lengths)) if self.lengths else 0.0,
+        }
+        for key in self.metrics[0] if self.metrics else ():
+            values = np.array([m[key] for m in self.metrics])
+            out[f"{key}_mean"] = float(values.mean())
+            out[f"{key}_max"] = float(values.max())
+        return out
+
+
+def load_policy(spec: str, env: gym.Env[Any, Any], seed: int | None = None) -> Policy:
+    """A callable ``obs -> action`` for ``expert``, ``random`` or a saved SB3 model's path.
+
+    Raises:
+        FileNotFoundError: ``spec`` is neither a known name nor an existing file.
+        ImportError: a model path was given but stable-baselines3 is not installed.
+    """
+    if spec == "expert":
+        from ias_gym.baselines.expert import ExpertPolicy
+
+        expert = ExpertPolicy(env)
+        return lambda obs: expert.predict(obs)[0]
+    if spec == "random":
+        env.action_space.seed(seed)
+        return lambda obs: env.action_space.sample()
+    path = Path(spec)
+    if not path.exists():
+        raise FileNotFoundError(
+            f"policy {spec!r} is not 'expert', 'random' or an existing SB3 model file"
+        )
+    try:
+        import stable_baselines3
+    except ImportError as exc:
+        raise ImportError(
+            "loading a saved model needs stable-baselines3: pip install 'ias-gym[train]'"
+        ) from exc
+    errors = []
+    for name in SB3_ALGORITHMS:
+        try:
+            model = getattr(stable_baselines3, name).load(path, device="cpu")
+        except Exception as exc:  # each algorithm refuses another's file differently
+            errors.append(f"{name}: {type(exc).__name__}")
+            continue
+        return lambda obs: model.predict(obs, deterministic=True)[0]
+    raise ValueError(f"{path} is not a model of any of {SB3_ALGORITHMS}: {'; '.join(errors)}")
+
+
+def evaluate(
+    env_id: str,
+    policy: str = "expert",
+    episodes: int = 10,
+    seed: int = 0,
+    video: Path | None = None,
+    progress: bool = False,
+    env_kwargs: dict[str, Any] | None = None,
+) -> EvaluationResult:
+    """Run ``episodes`` episodes (seeds ``seed, seed+1, ...``) and collect the outcomes.
+
+    Args:
+        env_id: a registered id, e.g. ``"IAS-PenSlide-v0"``.
+        policy: ``"expert"``, ``"random"`` or a path to a saved SB3 model.
+        episodes: number of episodes.
+        seed: seed of the first episode.
+        video: if given, an MP4 of the first episode is written there (needs ``MUJOCO_GL``
+            set for headless rendering, e.g. ``egl``).
+        progress: show a progress bar over episodes.
+        env_kwargs: configuration overrides passed to ``gym.make``.
+    """
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    kwargs = dict(env_kwargs or {})
+    if video is not None:
+        os.environ.setdefault("MUJOCO_GL", "egl")
+        kwargs["render_mode"] = "rgb_array"
+    env = gym.make(env_id, **kwargs)
+    act = load_policy(policy, env, seed)
+    result = EvaluationResult(env_id=env_id, policy=policy)
+    fps = float(env.metadata.get("render_fps", 50))
+    stride = max(1, round(fps / VIDEO_FPS))  # render only the frames the video keeps
+    episode_iter: Any = range(episodes)
+    if progress:
+        from tqdm import tqdm
+
+        episode_iter = tqdm(episode_iter, desc=f"{env_id} / {policy}", unit="episode")
+    for episode in episode_iter:
+        frames: list[np.ndarray] | None = [] if (video is not None and episode == 0) else None
+        if policy == "expert":
+            act = load_policy(policy, env, seed)  # a fresh controller per episode
+        obs, info = env.reset(seed=seed + episode)
+        total, length, done = 0.0, 0, False
+        while not done:
+            if frames is not None and length % stride == 0:
+                frames.append(env.render())  # type: ignore[arg-type]
+            obs, reward, terminated, truncated, info = env.step(act(obs))
+            total += float(reward)
+            length += 1
+            done = terminated or truncated
+        result.successes.append(bool(info["is_success"]))
+        result.returns.append(total)
+        result.lengths.append(length)
+        result.metrics.append(env.unwrapped.episode_metrics(info))  # type: ignore[attr-defined]
+        if frames is not None and video is not None:
+            write_video(video, frames, fps=fps / stride)
+    env.close()
+    return result
+
+
+def write_video(path: Path, frames: list[np.ndarray], fps: float) -> Path:
+    """Write RGB frames to an MP4 with imageio (replaced atomically)."""
+    import imageio.v2 as imageio
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    writer: Any = imageio.get_writer(tmp, fps=fps, macro_block_size=8)
+    with writer:
+        for frame in frames:
+            writer.append_data(frame)
+    os.replace(tmp, path)
+    return path
