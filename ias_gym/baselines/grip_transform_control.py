@@ -1,25 +1,46 @@
-"""Grip-transform control of the pen (paper section 3.3), on the simulated hand.
+"""The grip-transform control law of Theorem 1 (paper section 3.3, eq. 45) on the MuJoCo hand.
 
-Each control step:
+Every control step (``control_dt``), from the measured contacts:
 
-1. the object's desired acceleration from a PD law on the pose error plus the reference's
-   feed-forward (eqs. 26-28, 43): ``a_d = r''_d - Kv e_v - Kp e_p``; the orientation error is
-   taken from the pen's axis (``e_R = axis x axis_d``), so nothing depends on the pen's roll
-   about itself (its roll inertia is ~20x smaller than its pitch inertia: any roll-dependent
-   term spins it up, DESIGN.md);
-2. the wrench the fingers must apply, from the object's Newton-Euler equations (eq. 33):
-   ``W c = [m a_d; I alpha_d + omega x I omega] - w_g``;
-3. the wrench intensities c that realise it with the least grasp force, inside the friction
-   cones, with normals >= f0 and the sliding finger on its cone (eqs. 19-24, the fast
-   :class:`~ias_gym.grasp.internal_forces.InternalForceSolver`); W is rebuilt from the
-   measured contacts every step (soft contacts move the points);
-4. joint torques ``tau = J^T (c + f_slide) + H`` (eqs. 30, 35), where ``f_slide`` is a PD
-   force along the pen that moves a sliding finger's tip along its schedule (eq. 17) and
-   ``H`` the fingers' bias forces.
+- **Object motion** (eqs. 26-28, 41, 43): the desired object acceleration
+  ``a_d = [r''_d - Kv e_v - Kp e_p ; omega'_d - Kv e_omega - Kp e_R]``. The orientation error
+  is taken on the pen's axis, ``e_R = axis_d x axis``, in angular-velocity coordinates: this is
+  eq. (41) with ``Psi = I`` for the rotation (the paper's roll-pitch-yaw ``Psi(phi)`` adds
+  ``Psi'`` terms and a singularity at pitch +-90 deg), and it leaves the roll about the pen's
+  own axis free (its roll inertia is ~20x smaller than its pitch inertia: any roll-dependent
+  term spins the pen up, DESIGN.md).
+- **Object dynamics** (eq. 33): the net contact wrench ``w = [m a_d; I alpha_d + omega x I omega]
+  - w_g``. The paper's eq. (33) has no gravity (its ``f_ext`` is the contact wrench); the pen's
+  weight ``w_g`` (eq. 18) is added here, so ``c_p = W+ w`` (eqs. 5, 36).
+- **Internal forces** (eqs. 19-24, 29, 44): the reference ``c_h^d`` is the internal part of the
+  minimum-grasp-force solution with the friction cones, solved every step by the fast
+  :class:`~ias_gym.grasp.internal_forces.InternalForceSolver` with W rebuilt from the
+  measured contacts (soft contacts move the points). The law's term
+  ``J^T [c_h^d - (1/delta) e_f' - (1/delta) W+ W' e_f]`` prescribes that the measured
+  internal-force error ``e_f = c_h - c_h^d`` obeys ``e_f' = -(delta I + W+ W') e_f`` (eq. 44). In
+  the paper's rigid model ``c_h`` follows the torques instantly; with a measured ``e_f'`` the
+  term would be an algebraic loop. The code therefore commands the internal forces one
+  explicit-Euler step of eq. (44) ahead: ``c_h_cmd = c_h^d + (I - dt (delta I + W+ W')) e_f``;
+  wherever the soft contacts deliver the commanded force within a control period, the
+  closed loop follows eq. (44) with rate ``delta`` (``delta dt = 1`` commands ``c_h^d``
+  directly).
+- **Fingers** (eqs. 30-32, 35, 39, 45): ``tau = J^T (c_p + c_h_cmd) + H + M J+ (W^T a_d + W'^T v -
+  J' theta')`` — the second half of ``M* a_d`` (eq. 39) and the ``M J+ {...}`` term of eq. (45),
+  with ``v_int = 0`` (a rigid pen), ``J+`` a damped pseudo-inverse, and ``J' theta'`` (the
+  scan's ``J theta'`` lost its dot; eqs. 31-32 have ``J'``). ``W'`` and ``J'`` are finite
+  differences over one control period.
 
-This is the quasi-static core of Theorem 1 (eq. 45): it keeps the ``M* Psi`` object terms
-and the ``J^T c`` internal-force term, and drops the finger-inertia terms ``M J+ {...}``,
-which matter little for fingers of 5-15 g.
+Beyond the paper, where its assumptions do not hold in the simulation:
+
+- a sliding finger (the skill of 3.2) is driven along its schedule by a PD force along the pen
+  on top of its kinetic friction ``mu c_n`` (the LP's equality, NOTES.md); the paper's model
+  has the contact points move through W(t) but no law for the finger's own motion;
+- each tip is held on the pen's top or bottom line by a PD force across the pen: nothing in the
+  grasp model resists the tips circling the pen (the pen rolls with them at no cost);
+- ``H`` has Coriolis/centrifugal terms only (gravity is compensated by the model's gravcomp);
+  the joints' passive damping is left in place (see :meth:`GripTransformController.torques`);
+- the LP's solution is the least-norm one among equal sums of normal forces, because MuJoCo's
+  soft friction lets any shear creep.
 """
 
 from __future__ import annotations
@@ -35,6 +56,10 @@ from ias_gym.grasp.internal_forces import (
     InternalForceSolver,
 )
 
+NDArrayBool = np.ndarray
+GRAVITY = 9.81  # [m/s^2]
+_UP = np.array([0.0, 1.0, 0.0])  # paper y
+
 
 def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.array(
@@ -46,30 +71,54 @@ def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
 class ControllerGains:
     """Gains of the grip-transform controller (units in the comments)."""
 
-    kp: float = 400.0  # pen position stiffness [1/s^2]
-    kv: float = 40.0  # pen position damping [1/s]
-    kp_rot: float = 400.0  # pen orientation stiffness [1/s^2]
-    kv_rot: float = 40.0  # pen orientation damping [1/s]
+    kp: float = 400.0  # object position stiffness Kp [1/s^2] (eq. 43)
+    kv: float = 40.0  # object position damping Kv [1/s]
+    kp_rot: float = 400.0  # object orientation stiffness [1/s^2]
+    kv_rot: float = 40.0  # object orientation damping [1/s]
+    delta: float = 50.0  # internal-force error rate delta of eq. (44) [1/s]
     kp_slide: float = 30.0  # sliding-finger tip stiffness along the pen [N/m]
     kv_slide: float = 0.5  # sliding-finger tip damping [N s/m]
     kp_lateral: float = 20.0  # tip stiffness across the pen, toward its top/bottom line [N/m]
     kv_lateral: float = 0.5  # tip damping across the pen [N s/m]
     friction_margin: float = 0.2  # sticking contacts use mu (1 - margin) [-]
     mu: float = 0.25  # friction coefficient the controller assumes [-]
+    jacobian_damping: float = 1e-6  # damping of J+ [m^2]
+    finger_inertia: bool = True  # include the M J+ {...} terms of eq. (45)
+    lead: float = 0.0  # evaluate the reference this far ahead [s]
+    damping_feedforward: bool = True  # add the joints' damping along the reference motion
+
+
+@dataclass
+class ControlStep:
+    """What one control step computed (for diagnostics, figures and tests; paper frame)."""
+
+    tau: FloatArray  # joint torques [N m]
+    wrench: FloatArray  # net contact wrench the object needs [N, N m]
+    c_h_desired: FloatArray  # internal-force reference c_h^d [N]
+    c_h_measured: FloatArray  # measured internal forces c_h [N]
+    c_command: FloatArray  # commanded intensities c_p + c_h_cmd [N]
+    active: NDArrayBool  # fingers in contact
+    feasible: bool  # the internal-force problem had a solution this step
 
 
 @dataclass
 class GripTransformController:
-    """Joint torques for the pen hand from the grasp model (see the module docstring).
+    """Joint torques of Theorem 1 for an ``IAS-Pen*`` env (see the module docstring).
 
     Args:
         f0: minimum normal force [N] (the task's ``min_grasp_force``).
         gains: controller gains.
+
+    Attributes:
+        infeasible_count: control steps whose internal-force problem had no solution (the
+            last feasible solution was used instead).
+        last: what the last call computed.
     """
 
     f0: float = 0.2
     gains: ControllerGains = field(default_factory=ControllerGains)
     infeasible_count: int = 0
+    last: ControlStep | None = None
 
     def __post_init__(self) -> None:
         settings = InternalForceSettings(
@@ -82,54 +131,74 @@ class GripTransformController:
         # controller asks for no shear it does not need.
         self._solver = InternalForceSolver(4, settings, regularisation=1e-2)
         self._last_c = np.tile([self.f0, 0.0, 0.0], 4)
+        self._prev_W: FloatArray | None = None
+        self._prev_J: FloatArray | None = None
 
-    def desired_wrench(self, env: PenHandEnv, ref: PenReference) -> FloatArray:
-        """The net wrench the fingers must apply to the pen (eqs. 28, 33, 43) [N, N m]."""
+    def object_acceleration(self, env: PenHandEnv, ref: PenReference) -> FloatArray:
+        """Desired object acceleration ``[v'; omega']`` of eqs. (41), (43) [m/s^2, rad/s^2]."""
         g = self.gains
+        s = env.state
+        omega = s.omega
+        axis = s.axis
+        acc = ref.acceleration - g.kv * (s.velocity - ref.velocity) - g.kp * s.position
+        acc += g.kp * ref.position
+        # Roll about the pen's own axis is left free: only omega's part across the axis.
+        omega_across = omega - (omega @ axis) * axis
+        alpha = (
+            ref.alpha + g.kp_rot * _cross(axis, ref.axis) - g.kv_rot * (omega_across - ref.omega)
+        )
+        return np.concatenate([acc, alpha])
+
+    def object_wrench(self, env: PenHandEnv, a_d: FloatArray) -> FloatArray:
+        """Net contact wrench for acceleration ``a_d`` (eq. 33 plus the weight, eq. 18)."""
         p = env.physics
-        position, _ = p.pen_pose()
-        v, omega = p.pen_twist()
-        axis = p.pen_axis()
-        acc = ref.acceleration - g.kv * (v - ref.velocity) - g.kp * (position - ref.position)
-        # Orientation: roll about the pen's own axis is left free.
-        omega_perp = omega - (omega @ axis) * axis
-        alpha = ref.alpha + g.kp_rot * _cross(axis, ref.axis) - g.kv_rot * (omega_perp - ref.omega)
-        inertia = p.pen_inertia()
         mass = p.pen_mass()
-        gravity = -9.81 * mass * np.array([0.0, 1.0, 0.0])
-        force = mass * acc - gravity
-        moment = inertia @ alpha + _cross(omega, inertia @ omega)
+        inertia = p.pen_inertia()
+        omega = env.state.omega
+        force = mass * a_d[:3] + mass * GRAVITY * _UP
+        moment = inertia @ a_d[3:] + _cross(omega, inertia @ omega)
         return np.concatenate([force, moment])
 
     def torques(self, env: PenHandEnv) -> FloatArray:
-        """Joint torques [N m] for the env's current state and reference."""
+        """Joint torques [N m] of eq. (45) for the env's current state and reference."""
+        g = self.gains
         p = env.physics
-        ref = env.reference()
+        dt = env.config.control_dt
+        ref = _ahead(env.reference(), g.lead)
         contacts = p.fingertip_contacts()
         W, active = p.wrench_matrix(contacts)
         J = p.fingertip_jacobians(contacts)
-        w_des = self.desired_wrench(env, ref)
+        c_measured = p.contact_intensities(contacts)
+        qvel = p.hand_qvel()
+
+        a_d = self.object_acceleration(env, ref)
+        wrench = self.object_wrench(env, a_d)
         sliding = {k: s for k, s in ref.sliding.items() if active[k]}
         try:
-            c = self._solver.solve(W, -w_des, sliding).c
-            self._last_c = c
+            c_ref = self._solver.solve(W, -wrench, sliding).c
+            self._last_c = c_ref
+            feasible = True
         except InfeasibleGraspError:
             self.infeasible_count += 1
-            c = self._last_c
-        f = c.copy()
-        f[2::3] += self._lateral_servo(env, contacts.frames, J)
+            c_ref = self._last_c
+            feasible = False
+
+        # Grip transform of the measured W (eqs. 5, 7): c = c_p + c_h.
+        W_pinv = _pinv_rows(W)
+        dW = np.zeros_like(W) if self._prev_W is None else (W - self._prev_W) / dt
+        c_p = W_pinv @ wrench
+        c_h_d = c_ref - W_pinv @ (W @ c_ref)
+        c_h = c_measured - W_pinv @ (W @ c_measured)
+        e_f = c_h - c_h_d
+        # One explicit-Euler step of eq. (44): e_f' = -(delta I + W+ W') e_f.
+        c_h_cmd = c_h_d + e_f - dt * (g.delta * e_f + W_pinv @ (dW @ e_f))
+        c_cmd = c_p + c_h_cmd
+
+        f = c_cmd.copy()
+        f[2::3] += self._lateral_servo(env, contacts.frames, J, qvel)
         if sliding and ref.contact_x is not None and ref.contact_vx is not None:
-            g = self.gains
-            slide = np.zeros(4)
-            slide[list(sliding)] = 1.0
-            tips = p.tip_positions() - p.pen_com()
-            x = tips @ p.pen_axis()
-            v_pen, _ = p.pen_twist()
-            # Velocity of each tip along the pen (relative to the pen's centre), from J.
-            vx = (J[1::3] @ p.hand_qvel()) - v_pen @ p.pen_axis()
-            f[1::3] += slide * (
-                g.kp_slide * (ref.contact_x - x) + g.kv_slide * (ref.contact_vx - vx)
-            )
+            f[1::3] += self._slide_servo(env, ref, sliding, J, qvel)
+
         # H of eq. (35): Coriolis/centrifugal forces (gravity is compensated by the model's
         # gravcomp). The joints' passive damping is deliberately NOT cancelled: sampled and
         # held for a control period, a cancellation turns into negative damping of the
@@ -138,9 +207,50 @@ class GripTransformController:
         d = env.data
         dofs = p.hand_dof_ids
         coriolis = d.qfrc_bias[dofs] - d.qfrc_gravcomp[dofs]
-        return J.T @ f + coriolis
+        tau = J.T @ f + coriolis
+        if g.finger_inertia:
+            tau += self._finger_inertia(env, W, dW, J, qvel, a_d, active, dt)
+        if g.damping_feedforward:
+            # The joints' damping along the *reference* motion (never the measured one, which
+            # would cancel the damping, see above): fingers that follow the object drag on
+            # it otherwise (measured: a 23 ms lag of the pen's tilt behind its reference).
+            v_ref = np.concatenate([ref.velocity, ref.omega])
+            qvel_ref = _damped_pinv(J, g.jacobian_damping) @ np.where(
+                np.repeat(active, 3), W.T @ v_ref, 0.0
+            )
+            tau += env.model.dof_damping[dofs] * qvel_ref
 
-    def _lateral_servo(self, env: PenHandEnv, frames: FloatArray, J: FloatArray) -> FloatArray:
+        self._prev_W, self._prev_J = W, J
+        self.last = ControlStep(tau, wrench, c_h_d, c_h, c_cmd, active, feasible)
+        return tau
+
+    def _finger_inertia(
+        self,
+        env: PenHandEnv,
+        W: FloatArray,
+        dW: FloatArray,
+        J: FloatArray,
+        qvel: FloatArray,
+        a_d: FloatArray,
+        active: NDArrayBool,
+        dt: float,
+    ) -> FloatArray:
+        """``M J+ (W^T a_d + W'^T v - J' theta')``: eqs. (32), (39), (45) with v_int = 0.
+
+        The joint accelerations that keep the contact points moving with the object.
+        """
+        s = env.state
+        v = np.concatenate([s.velocity, s.omega])
+        dJ_qvel = np.zeros(len(qvel)) if self._prev_J is None else (J - self._prev_J) @ qvel / dt
+        contact_acc = W.T @ a_d + dW.T @ v - dJ_qvel
+        contact_acc[np.repeat(~active, 3)] = 0.0
+        qacc = _damped_pinv(J, self.gains.jacobian_damping) @ contact_acc
+        result: FloatArray = env.physics.hand_mass_matrix() @ qacc
+        return result
+
+    def _lateral_servo(
+        self, env: PenHandEnv, frames: FloatArray, J: FloatArray, qvel: FloatArray
+    ) -> FloatArray:
         """Forces along t2 [N] that keep each tip on the pen's top or bottom line.
 
         Without them nothing holds the tips from circling the pen (the pen rolls with them at
@@ -149,16 +259,68 @@ class GripTransformController:
         """
         g = self.gains
         p = env.physics
-        axis = p.pen_axis()
-        lateral = _cross(np.array([0.0, 1.0, 0.0]), axis)
+        axis = env.state.axis
+        lateral = _cross(_UP, axis)
         lateral /= np.linalg.norm(lateral)
-        v_pen, _ = p.pen_twist()
         sign = frames[:, 2] @ lateral  # t2 is +-lateral
         offset = (p.tip_positions() - p.pen_com()) @ lateral
-        rate = sign * (J[2::3] @ p.hand_qvel()) - v_pen @ lateral
-        return -sign * (g.kp_lateral * offset + g.kv_lateral * rate)
+        rate = sign * (J[2::3] @ qvel) - env.state.velocity @ lateral
+        result: FloatArray = -sign * (g.kp_lateral * offset + g.kv_lateral * rate)
+        return result
+
+    def _slide_servo(
+        self,
+        env: PenHandEnv,
+        ref: PenReference,
+        sliding: dict[int, FloatArray],
+        J: FloatArray,
+        qvel: FloatArray,
+    ) -> FloatArray:
+        """Forces along t1 [N] that move sliding tips along their schedule (eq. 17)."""
+        assert ref.contact_x is not None and ref.contact_vx is not None
+        g = self.gains
+        s = env.state
+        mask = np.zeros(4)
+        mask[list(sliding)] = 1.0
+        # Velocity of each tip along the pen relative to the pen's centre, from J.
+        vx = J[1::3] @ qvel - s.velocity @ s.axis
+        error = ref.contact_x - s.tip_x
+        result: FloatArray = mask * (g.kp_slide * error + g.kv_slide * (ref.contact_vx - vx))
+        return result
 
     def action(self, env: PenHandEnv) -> FloatArray:
-        """The env action (normalised torques) for the current state."""
+        """The env action (normalised torques, clipped to [-1, 1]) for the current state."""
         tau = self.torques(env)
         return np.clip(tau / env._ctrl_max, -1.0, 1.0)
+
+
+def _ahead(ref: PenReference, lead: float) -> PenReference:
+    """The reference ``lead`` seconds ahead, extrapolated with its own derivatives."""
+    if lead == 0.0:
+        return ref
+    axis = ref.axis + lead * _cross(ref.omega, ref.axis)
+    return PenReference(
+        position=ref.position + lead * ref.velocity + 0.5 * lead**2 * ref.acceleration,
+        velocity=ref.velocity + lead * ref.acceleration,
+        acceleration=ref.acceleration,
+        axis=axis / np.linalg.norm(axis),
+        omega=ref.omega + lead * ref.alpha,
+        alpha=ref.alpha,
+        sliding=ref.sliding,
+        contact_x=ref.contact_x,
+        contact_vx=ref.contact_vx,
+    )
+
+
+def _damped_pinv(J: FloatArray, damping: float) -> FloatArray:
+    """``J+ = J^T (J J^T + damping I)^-1`` (eq. 32, damped near singular fingers)."""
+    result: FloatArray = J.T @ np.linalg.inv(J @ J.T + damping * np.eye(len(J)))
+    return result
+
+
+def _pinv_rows(W: FloatArray) -> FloatArray:
+    """``W+ = W^T (W W^T)^-1`` (eq. 5), least squares where a finger is missing (rank < 6)."""
+    try:
+        return W.T @ np.linalg.inv(W @ W.T)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(W)

@@ -55,11 +55,12 @@ class PenRotateEnv(PenHandEnv):
     motors' limit (0.5 N m). Values outside [-1, 1] are clipped; NaN/inf raise ValueError.
 
     ## Observation
-    ``Box(-inf, inf, (55,))``, float64, paper frame, SI units: hand joint angles (12) and
-    velocities (12); pen position relative to its nominal centre (3), roll-pitch-yaw (3),
-    linear (3) and angular velocity (3); measured contact wrench intensities c (12);
-    episode time fraction (1); the tilt error, the target tilt and the target tilt rate
-    about z (3); the pen's rotation error about the vertical y (1); sin and cos of w t (2).
+    ``Box(-inf, inf, (55,))``, float64, paper frame, SI: hand joint angles (12) and
+    velocities (12); pen centre relative to nominal (3), the pen's axis as a unit vector
+    (3), its linear (3) and angular velocity (3); the net force of each fingertip on the
+    pen (4 x 3); episode time fraction (1); the tilt error, target tilt and target tilt
+    rate about z (3); the pen's rotation error about the vertical y (1); sin and cos of
+    w t (2).
 
     ## Reward
     Sum of named terms, each in ``info["reward_<name>"]``: ``track`` =

@@ -57,13 +57,13 @@ class PenSlideEnv(PenHandEnv):
     motors' limit (0.5 N m). Values outside [-1, 1] are clipped; NaN/inf raise ValueError.
 
     ## Observation
-    ``Box(-inf, inf, (67,))``, float64, in the paper frame (x pen axis, y up, z lateral),
-    SI units: hand joint angles (12) and velocities (12); pen position relative to its
-    nominal centre (3), roll-pitch-yaw (3), linear (3) and angular velocity (3); measured
-    contact wrench intensities c (12, per finger normal/along-pen/lateral, eq. 3); episode
-    time fraction (1); per finger the position along the pen minus its target (4) and the
-    target's velocity (4); the phase as one-hot (hold, phases 1-4, settle: 6); the
-    targets' positions along the pen (4).
+    ``Box(-inf, inf, (67,))``, float64, paper frame (x pen axis, y up, z lateral), SI:
+    hand joint angles (12) and velocities (12); pen centre relative to nominal (3), the
+    pen's axis as a unit vector (3; roll about the axis is irrelevant here and omitted),
+    its linear (3) and angular velocity (3); the net force of each fingertip on the pen
+    (4 x 3, MuJoCo contact sensors); episode time fraction (1); per finger its position
+    along the pen minus its target (4) and the target's rate (4); the phase as one-hot
+    (hold, phases 1-4, settle: 6); the targets along the pen (4).
 
     ## Reward
     The sum of named terms, each copied into ``info["reward_<name>"]``:
