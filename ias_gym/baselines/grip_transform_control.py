@@ -50,6 +50,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv, PenReference
+from ias_gym.grasp.grip_transform import null_space_basis
 from ias_gym.grasp.internal_forces import (
     InfeasibleGraspError,
     InternalForceSettings,
@@ -133,6 +134,8 @@ class GripTransformController:
         self._last_c = np.tile([self.f0, 0.0, 0.0], 4)
         self._prev_W: FloatArray | None = None
         self._prev_J: FloatArray | None = None
+        self._N: FloatArray | None = None
+        self._extra = np.zeros(12)  # servo forces commanded last step [N]
 
     def object_acceleration(self, env: PenHandEnv, ref: PenReference) -> FloatArray:
         """Desired object acceleration ``[v'; omega']`` of eqs. (41), (43) [m/s^2, rad/s^2]."""
@@ -159,8 +162,21 @@ class GripTransformController:
         moment = inertia @ a_d[3:] + _cross(omega, inertia @ omega)
         return np.concatenate([force, moment])
 
-    def torques(self, env: PenHandEnv) -> FloatArray:
-        """Joint torques [N m] of eq. (45) for the env's current state and reference."""
+    def torques(
+        self,
+        env: PenHandEnv,
+        accel_offset: FloatArray | None = None,
+        internal_offset: FloatArray | None = None,
+    ) -> FloatArray:
+        """Joint torques [N m] of eq. (45) for the env's current state and reference.
+
+        Args:
+            env: the unwrapped environment.
+            accel_offset: added to the desired object acceleration ``a_d`` (6,)
+                [m/s^2, rad/s^2].
+            internal_offset: added to the internal forces ``f_int`` of the reference,
+                ``c_h^d += N offset`` (6,) [N] (eq. 7; N kept continuous along the episode).
+        """
         g = self.gains
         p = env.physics
         dt = env.config.control_dt
@@ -172,6 +188,8 @@ class GripTransformController:
         qvel = p.hand_qvel()
 
         a_d = self.object_acceleration(env, ref)
+        if accel_offset is not None:
+            a_d = a_d + accel_offset
         wrench = self.object_wrench(env, a_d)
         sliding = {k: s for k, s in ref.sliding.items() if active[k]}
         try:
@@ -188,16 +206,26 @@ class GripTransformController:
         dW = np.zeros_like(W) if self._prev_W is None else (W - self._prev_W) / dt
         c_p = W_pinv @ wrench
         c_h_d = c_ref - W_pinv @ (W @ c_ref)
-        c_h = c_measured - W_pinv @ (W @ c_measured)
+        if internal_offset is not None and np.any(internal_offset):
+            self._N = null_space_basis(W, self._N) if bool(active.all()) else self._N
+            if self._N is not None:
+                c_h_d = c_h_d + self._N @ internal_offset
+        # The servo forces below (lateral, sliding) are part of what the contacts carry but not
+        # of the grasp model's c; left in the measurement, eq. (44) would feed them back and
+        # amplify them by 1 / (delta dt) (measured: at delta dt = 0.25 the grasp broke).
+        c_model = c_measured - self._extra
+        c_h = c_model - W_pinv @ (W @ c_model)
         e_f = c_h - c_h_d
         # One explicit-Euler step of eq. (44): e_f' = -(delta I + W+ W') e_f.
         c_h_cmd = c_h_d + e_f - dt * (g.delta * e_f + W_pinv @ (dW @ e_f))
         c_cmd = c_p + c_h_cmd
 
-        f = c_cmd.copy()
-        f[2::3] += self._lateral_servo(env, contacts.frames, J, qvel)
+        extra = np.zeros_like(c_cmd)
+        extra[2::3] = self._lateral_servo(env, contacts.frames, J, qvel)
         if sliding and ref.contact_x is not None and ref.contact_vx is not None:
-            f[1::3] += self._slide_servo(env, ref, sliding, J, qvel)
+            extra[1::3] = self._slide_servo(env, ref, sliding, J, qvel)
+        self._extra = extra
+        f = c_cmd + extra
 
         # H of eq. (35): Coriolis/centrifugal forces (gravity is compensated by the model's
         # gravcomp). The joints' passive damping is deliberately NOT cancelled: sampled and
@@ -288,9 +316,14 @@ class GripTransformController:
         result: FloatArray = mask * (g.kp_slide * error + g.kv_slide * (ref.contact_vx - vx))
         return result
 
-    def action(self, env: PenHandEnv) -> FloatArray:
-        """The env action (normalised torques, clipped to [-1, 1]) for the current state."""
-        tau = self.torques(env)
+    def action(
+        self,
+        env: PenHandEnv,
+        accel_offset: FloatArray | None = None,
+        internal_offset: FloatArray | None = None,
+    ) -> FloatArray:
+        """The env action (normalised torques, clipped to [-1, 1]); see :meth:`torques`."""
+        tau = self.torques(env, accel_offset, internal_offset)
         return np.clip(tau / env._ctrl_max, -1.0, 1.0)
 
 
