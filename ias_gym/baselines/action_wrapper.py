@@ -12,7 +12,7 @@ from ias_gym.baselines.grip_transform_control import ControllerGains, GripTransf
 from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv
 
 
-class GripTransformAction(gym.ActionWrapper[FloatArray, FloatArray, Any]):
+class GripTransformAction(gym.ActionWrapper[FloatArray, Any, Any]):
     """Object-level actions turned into joint torques by the control law of Theorem 1.
 
     The action, ``Box(-1, 1, (12,))``, is a normalised offset of what the expert commands:

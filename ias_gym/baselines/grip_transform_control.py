@@ -354,6 +354,7 @@ def _damped_pinv(J: FloatArray, damping: float) -> FloatArray:
 def _pinv_rows(W: FloatArray) -> FloatArray:
     """``W+ = W^T (W W^T)^-1`` (eq. 5), least squares where a finger is missing (rank < 6)."""
     try:
-        return W.T @ np.linalg.inv(W @ W.T)
+        result: FloatArray = W.T @ np.linalg.inv(W @ W.T)
     except np.linalg.LinAlgError:
-        return np.linalg.pinv(W)
+        result = np.linalg.pinv(W)
+    return result
