@@ -356,5 +356,5 @@ def _pinv_rows(W: FloatArray) -> FloatArray:
     try:
         result: FloatArray = W.T @ np.linalg.inv(W @ W.T)
     except np.linalg.LinAlgError:
-        result = np.linalg.pinv(W)
+        result = np.linalg.pinv(W).astype(np.float64)
     return result
