@@ -20,6 +20,14 @@ def _figure_wrench_intensities(args: argparse.Namespace) -> int:
     return 0
 
 
+def _figure_control_error(args: argparse.Namespace) -> int:
+    from ias_gym.figures.control_error import write_control_error_figure
+
+    for path in write_control_error_figure(Path(args.out), initial_error=args.initial_error):
+        print(f"wrote {path}")
+    return 0
+
+
 def _evaluate(args: argparse.Namespace) -> int:
     import json
 
@@ -73,6 +81,18 @@ def build_parser() -> argparse.ArgumentParser:
         help="friction cone: the paper's linearised box (LP) or the exact Coulomb cone (SOCP)",
     )
     wrench.set_defaults(run=_figure_wrench_intensities)
+    control = figures.add_parser(
+        "control-error",
+        help="Fig. 9: the pen rotation under the control law from an initial error (CSV + PNG)",
+        description="Run the grip-transform expert on IAS-PenRotate-v0 from a tilt error and "
+        "write DIR/control_error.csv (t, e_roll, e_pitch, e_yaw, pos_err, "
+        "internal_force_err) and .png.",
+    )
+    control.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    control.add_argument(
+        "--initial-error", type=float, default=0.1, metavar="RAD", help="initial tilt error [rad]"
+    )
+    control.set_defaults(run=_figure_control_error)
 
     evaluate = commands.add_parser(
         "evaluate",

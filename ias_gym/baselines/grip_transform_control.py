@@ -236,16 +236,17 @@ class GripTransformController:
         dofs = p.hand_dof_ids
         coriolis = d.qfrc_bias[dofs] - d.qfrc_gravcomp[dofs]
         tau = J.T @ f + coriolis
+        if g.finger_inertia or g.damping_feedforward:
+            J_pinv = _damped_pinv(J, g.jacobian_damping)
+            touching = np.repeat(active, 3)
         if g.finger_inertia:
-            tau += self._finger_inertia(env, W, dW, J, qvel, a_d, active, dt)
+            tau += self._finger_inertia(env, W, dW, J, J_pinv, qvel, a_d, touching, dt)
         if g.damping_feedforward:
             # The joints' damping along the *reference* motion (never the measured one, which
             # would cancel the damping, see above): fingers that follow the object drag on
             # it otherwise (measured: a 23 ms lag of the pen's tilt behind its reference).
             v_ref = np.concatenate([ref.velocity, ref.omega])
-            qvel_ref = _damped_pinv(J, g.jacobian_damping) @ np.where(
-                np.repeat(active, 3), W.T @ v_ref, 0.0
-            )
+            qvel_ref = J_pinv @ np.where(touching, W.T @ v_ref, 0.0)
             tau += env.model.dof_damping[dofs] * qvel_ref
 
         self._prev_W, self._prev_J = W, J
@@ -258,9 +259,10 @@ class GripTransformController:
         W: FloatArray,
         dW: FloatArray,
         J: FloatArray,
+        J_pinv: FloatArray,
         qvel: FloatArray,
         a_d: FloatArray,
-        active: NDArrayBool,
+        touching: NDArrayBool,
         dt: float,
     ) -> FloatArray:
         """``M J+ (W^T a_d + W'^T v - J' theta')``: eqs. (32), (39), (45) with v_int = 0.
@@ -271,8 +273,8 @@ class GripTransformController:
         v = np.concatenate([s.velocity, s.omega])
         dJ_qvel = np.zeros(len(qvel)) if self._prev_J is None else (J - self._prev_J) @ qvel / dt
         contact_acc = W.T @ a_d + dW.T @ v - dJ_qvel
-        contact_acc[np.repeat(~active, 3)] = 0.0
-        qacc = _damped_pinv(J, self.gains.jacobian_damping) @ contact_acc
+        contact_acc[~touching] = 0.0
+        qacc = J_pinv @ contact_acc
         result: FloatArray = env.physics.hand_mass_matrix() @ qacc
         return result
 

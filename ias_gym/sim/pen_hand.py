@@ -45,6 +45,9 @@ FINGERS: tuple[str, ...] = ("f1", "f2", "f3", "f4")
 FINGER_JOINTS: tuple[str, ...] = ("abd", "mcp", "pip")
 #: Scene file in ``ias_gym.assets``.
 SCENE_FILE = "scene_pen.xml"
+#: Values of each ``fN_pen_contact`` sensor: found, force (3), dist, pos (3), normal (3),
+#: tangent (3).
+_CONTACT_SENSOR_DIM = 14
 #: Keyframe with the paper's four-finger grasp (phi = [3, 2, 2, 3] cm).
 GRASP_KEYFRAME = "grasp"
 
@@ -155,26 +158,23 @@ class FingertipContacts:
     """The fingertip-pen contacts of one instant, one row per finger (paper frame).
 
     Attributes:
-        index: MuJoCo contact index (into ``data.contact``) per finger, ``None`` if not touching.
         active: ``(k,)`` bool, finger touches the pen.
         points: ``(k, 3)`` contact points [m] (MuJoCo's: midway through the penetration),
             origin at the nominal pen centre; the tip-site centre for a finger not touching.
         frames: ``(k, 3, 3)`` rows normal, t1, t2. The normal is the direction in which the
             finger pushes on the pen; t1 is the pen's own axis (made orthogonal to the normal);
             t2 = +-(t1 x n), the sign fixed per finger so that t2 = +z for the untilted pen,
-            as eq. (16) uses (this makes the frames of the bottom fingers left-handed). For a
+            as eq. (16) uses (this makes the frames of the top fingers left-handed). For a
             finger not touching, the normal points from the tip centre to the pen's axis.
         depth: ``(k,)`` penetration [m] (positive = overlapping); 0 when not touching.
-        tip_is_geom1: ``(k,)`` bool, the tip is ``geom1`` of the MuJoCo contact (then MuJoCo's
-            contact normal is ours; otherwise it is flipped).
+        force: ``(k, 3)`` force of each fingertip on the pen [N] (zero when not touching).
     """
 
-    index: tuple[int | None, ...]
     active: BoolArray
     points: FloatArray
     frames: FloatArray
     depth: FloatArray
-    tip_is_geom1: BoolArray
+    force: FloatArray
 
 
 class PenHandPhysics:
@@ -243,6 +243,15 @@ class PenHandPhysics:
         self._tip_bodies = model.geom_bodyid[self.tip_geom_ids].copy()
         touch = [_lookup(model, obj.mjOBJ_SENSOR, f"{f}_touch") for f in fingers]
         self._touch_adr = model.sensor_adr[touch].copy()
+        contact = [_lookup(model, obj.mjOBJ_SENSOR, f"{f}_pen_contact") for f in fingers]
+        if np.any(model.sensor_dim[contact] != _CONTACT_SENSOR_DIM):
+            raise ValueError(
+                "the fN_pen_contact sensors must have data='found force dist pos normal "
+                f"tangent' ({_CONTACT_SENSOR_DIM} values each)"
+            )
+        self._contact_sensor_idx = (
+            model.sensor_adr[contact][:, None] + np.arange(_CONTACT_SENSOR_DIM)
+        ).ravel()
 
         self.pen_body_id = _lookup(model, obj.mjOBJ_BODY, pen)
         self.pen_geom_id = _lookup(model, obj.mjOBJ_GEOM, pen)
@@ -410,47 +419,33 @@ class PenHandPhysics:
     def fingertip_contacts(self) -> FingertipContacts:
         """The tip-pen contact of every finger, with the paper's contact frame (eq. 16).
 
-        When a tip touches the pen more than once (it cannot for sphere-capsule), the deepest
-        contact is used. Contacts excluded from the solver (no ``efc`` rows) do not count.
+        Read from the scene's contact sensors ``fN_pen_contact`` (MuJoCo fills them in the
+        forward pass: the deepest tip-pen contact's point, normal, first tangent and force,
+        oriented from the tip to the pen whichever geom MuJoCo lists first), so no Python
+        loop over ``data.contact`` is needed.
         """
         d, k = self.data, self.n_fingers
+        block = d.sensordata[self._contact_sensor_idx].reshape(k, _CONTACT_SENSOR_DIM)
+        active = block[:, 0] > 0
         # The pen's axis from the same forward pass as the contacts (not from qpos).
         axis_mj = d.xmat[self.pen_body_id, [0, 3, 6]]
         tips_mj = d.site_xpos[self.tip_site_ids]
-        # Geometric normal (tip -> nearest point of the pen's axis segment), kept for fingers
-        # that do not touch.
-        rel = tips_mj - d.xpos[self.pen_body_id]
-        u = rel @ axis_mj
-        h = self._pen_half_length
-        np.minimum(np.maximum(u, -h, out=u), h, out=u)
-        normal_mj = np.multiply.outer(u, axis_mj)
-        normal_mj -= rel
-        points_mj = tips_mj
-        depth = np.zeros(k)
-        tip_is_geom1 = np.zeros(k, dtype=bool)
-        index = np.full(k, -1)
-        if d.ncon:
-            con = d.contact
-            geom, dist = con.geom, con.dist
-            pen1 = geom[:, 1] == self.pen_geom_id
-            finger = np.where(pen1, self._finger_of_geom[geom[:, 0]], -1)
-            finger = np.where(
-                geom[:, 0] == self.pen_geom_id, self._finger_of_geom[geom[:, 1]], finger
-            )
-            sel = np.flatnonzero((finger >= 0) & (con.efc_address >= 0))
-            if sel.size:
-                # Deepest contact per finger: sort by finger, then depth; keep each finger's first.
-                sel = sel[np.lexsort((dist[sel], finger[sel]))]
-                fi = finger[sel]
-                keep = np.ones(fi.size, dtype=bool)
-                keep[1:] = fi[1:] != fi[:-1]
-                sel, fi = sel[keep], fi[keep]
-                index[fi] = sel
-                depth[fi] = -dist[sel]
-                tip_is_geom1[fi] = pen1[sel]
-                normal_mj[fi] = con.frame[sel, :3] * np.where(pen1[sel], 1.0, -1.0)[:, None]
-                points_mj[fi] = con.pos[sel]
+        normal_mj = block[:, 8:11].copy()
+        points_mj = np.where(active[:, None], block[:, 5:8], tips_mj)
+        if not active.all():
+            # Geometric normal (tip -> nearest point of the pen's axis segment) for fingers
+            # that do not touch.
+            rel = tips_mj - d.xpos[self.pen_body_id]
+            u = np.clip(rel @ axis_mj, -self._pen_half_length, self._pen_half_length)
+            geometric = np.multiply.outer(u, axis_mj) - rel
+            normal_mj[~active] = geometric[~active]
         normal_mj /= np.sqrt(np.einsum("ij,ij->i", normal_mj, normal_mj))[:, None]
+        # Force of the tip on the pen: MuJoCo's contact frame is (normal, tangent, n x t).
+        tangent = block[:, 11:14]
+        binormal = normal_mj[:, _YZX] * tangent[:, _ZXY] - normal_mj[:, _ZXY] * tangent[:, _YZX]
+        f = block[:, 1:4]
+        force_mj = f[:, :1] * normal_mj + f[:, 1:2] * tangent + f[:, 2:3] * binormal
+        force_mj[~active] = 0.0
 
         # Frame rows in MuJoCo coordinates, converted to the paper frame in one product.
         frames = np.empty((k, 3, 3))
@@ -463,12 +458,11 @@ class PenHandPhysics:
         np.subtract(t1[:, _YZX] * n[:, _ZXY], t1[:, _ZXY] * n[:, _YZX], out=t2)
         t2 *= self._t2_sign[:, None]
         return FingertipContacts(
-            index=tuple(None if j < 0 else j for j in index.tolist()),
-            active=index >= 0,
+            active=active,
             points=(points_mj - self.origin_mj) @ R_PAPER_TO_MJ,
             frames=frames @ R_PAPER_TO_MJ,
-            depth=depth,
-            tip_is_geom1=tip_is_geom1,
+            depth=np.where(active, -block[:, 4], 0.0),
+            force=force_mj @ R_PAPER_TO_MJ,
         )
 
     def wrench_matrix(
@@ -495,22 +489,11 @@ class PenHandPhysics:
         """The measured wrench intensities c of eq. (3), ``(3k,)`` [N].
 
         Per finger the force the finger applies to the pen along [normal, t1, t2] of its
-        contact frame (normal >= 0 pushes); zeros for a finger not touching. From
-        ``mj_contactForce`` (force of geom1 on geom2 in MuJoCo's contact frame), negated when
-        the pen is geom1. With the pen's other loads, ``W @ c`` is the fingers' net wrench.
+        contact frame (normal >= 0 pushes); zeros for a finger not touching. With the pen's
+        other loads, ``W @ c`` is the fingers' net wrench.
         """
         cts = self.fingertip_contacts() if contacts is None else contacts
-        out = np.zeros((self.n_fingers, 3))
-        con = self.data.contact
-        for i, idx in enumerate(cts.index):
-            if idx is None:
-                continue
-            mujoco.mj_contactForce(self.model, self.data, idx, self._force6)
-            force_mj = self._force6[:3] @ con.frame[idx].reshape(3, 3)
-            if not cts.tip_is_geom1[i]:
-                force_mj = -force_mj
-            out[i] = cts.frames[i] @ mj_to_paper(force_mj)
-        return out.reshape(-1)
+        return np.einsum("kij,kj->ki", cts.frames, cts.force).reshape(-1)
 
     def fingertip_jacobians(self, contacts: FingertipContacts | None = None) -> FloatArray:
         """The hand Jacobian J of eq. (30), ``(3k, n_hand_dofs)``.

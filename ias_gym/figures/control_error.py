@@ -1,0 +1,93 @@
+"""Figure 9 of the paper: the pen rotation under the control law, from an initial error."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+import ias_gym  # noqa: F401  (registers the ids)
+from ias_gym.baselines.action_wrapper import GripTransformAction
+from ias_gym.figures._io import save_png_atomic, write_csv_atomic
+
+CSV_NAME = "control_error.csv"
+PNG_NAME = "control_error.png"
+HEADER = ("t", "e_roll", "e_pitch", "e_yaw", "pos_err", "internal_force_err")
+
+
+def control_error_table(
+    initial_error: float = 0.1, amplitude: float = 0.2, frequency: float = 2.0, seed: int = 0
+) -> np.ndarray:
+    """Roll out the expert on IAS-PenRotate-v0 from a tilt error of ``initial_error``.
+
+    Returns:
+        ``(T, 6)``: t [s]; roll, pitch, yaw errors [rad] (paper frame, the yaw being the
+        tracked tilt ``A sin(w t)`` about z; roll about the pen's own axis is not controlled);
+        pen centre error [m]; internal-force error ``|c_h - c_h^d|`` [N] (eq. 29).
+    """
+    env = GripTransformAction(
+        gym.make(
+            "IAS-PenRotate-v0",
+            amplitude=amplitude,
+            frequency=frequency,
+            initial_error=(initial_error, initial_error),
+        )
+    )
+    pen = env.pen_env
+    env.reset(seed=seed)
+    rows = []
+    done = False
+    zero = np.zeros(env.action_space.shape)
+    while not done:
+        _, _, terminated, truncated, _ = env.step(zero)
+        done = terminated or truncated
+        position, rpy = pen.physics.pen_pose()
+        last = env.controller.last
+        assert last is not None
+        rows.append(
+            [
+                pen.time,
+                rpy[0],
+                rpy[1],
+                rpy[2] - pen.target()[0],
+                float(np.linalg.norm(position)),
+                float(np.linalg.norm(last.c_h_measured - last.c_h_desired)),
+            ]
+        )
+    env.close()
+    return np.array(rows)
+
+
+def write_control_error_figure(out_dir: Path, initial_error: float = 0.1) -> tuple[Path, Path]:
+    """Write ``control_error.csv`` and ``control_error.png`` into ``out_dir``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    table = control_error_table(initial_error)
+    csv_path = write_csv_atomic(Path(out_dir) / CSV_NAME, HEADER, table)
+    t = table[:, 0]
+    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7, 7), constrained_layout=True)
+    for col, label in ((1, "roll (free)"), (2, "pitch"), (3, "yaw = tilt about z")):
+        axes[0].plot(t, np.degrees(table[:, col]), label=label)
+    band = 0.1 * np.degrees(initial_error)
+    axes[0].axhspan(-band, band, color="C2", alpha=0.12, label="10 % of the initial error")
+    axes[0].set_ylabel("angle error [deg]")
+    axes[0].legend(fontsize=8)
+    axes[1].plot(t, 1000 * table[:, 4], color="C4")
+    axes[1].set_ylabel("centre error [mm]")
+    axes[2].plot(t, table[:, 5], color="C5")
+    axes[2].set_ylabel("$|c_h - c_h^d|$ [N]")
+    axes[2].set_xlabel("t [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    fig.suptitle(
+        "Pen rotation under the grip-transform control law (paper Fig. 9)\n"
+        f"target tilt 0.2 sin(2 t) rad about z, initial error {initial_error} rad",
+        fontsize=10,
+    )
+    png_path = save_png_atomic(fig, Path(out_dir) / PNG_NAME)
+    plt.close(fig)
+    return csv_path, png_path
