@@ -23,6 +23,11 @@ setup: $(STAMP)
 
 demo: setup
 	$(BIN)/ias-gym figure wrench-intensities --out $(OUT)
+	$(BIN)/ias-gym figure control-error --out $(OUT)
+	$(BIN)/ias-gym evaluate --env IAS-PenSlide-v0 --policy expert --episodes 10 --video $(OUT)/pen_slide_expert.mp4
+	$(BIN)/ias-gym evaluate --env IAS-PenRotate-v0 --policy expert --episodes 10 --video $(OUT)/pen_rotate_expert.mp4
+	$(BIN)/ias-gym evaluate --env IAS-PenSlide-v0 --policy random --episodes 10
+	@echo "make demo: figures, videos and the expert's scores are in $(OUT)/"
 
 lint: setup
 	$(BIN)/ruff check .

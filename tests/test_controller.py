@@ -1,0 +1,116 @@
+"""The control law of Theorem 1 (eq. 45) in closed loop: the paper's claims, and faults."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import ias_gym  # noqa: F401
+from ias_gym.baselines.action_wrapper import GripTransformAction
+from ias_gym.baselines.expert import ExpertPolicy
+from ias_gym.baselines.grip_transform_control import ControllerGains
+from ias_gym.figures.control_error import control_error_table
+from ias_gym.grasp.internal_forces import InfeasibleGraspError
+
+
+@pytest.mark.parametrize("env_id", ["IAS-PenSlide-v0", "IAS-PenRotate-v0"])
+def test_zero_action_is_the_expert_bit_for_bit(env_id: str) -> None:
+    plain = gym.make(env_id)
+    wrapped = GripTransformAction(gym.make(env_id))
+    expert = ExpertPolicy(plain)
+    obs_a, _ = plain.reset(seed=11)
+    obs_b, _ = wrapped.reset(seed=11)
+    for _ in range(40):
+        obs_a, *_ = plain.step(expert.predict(obs_a)[0])
+        obs_b, *_ = wrapped.step(np.zeros(12))
+    np.testing.assert_array_equal(obs_a, obs_b)
+
+
+def test_pose_error_decays_as_figure_9() -> None:
+    """From a 0.1 rad tilt error, after 2 s the error is below 10 % of it (paper Fig. 9)."""
+    table = control_error_table(initial_error=0.1)
+    t, e_yaw, pos_err = table[:, 0], table[:, 3], table[:, 4]
+    assert abs(e_yaw[0]) > 0.08  # it did start from the error
+    assert np.abs(e_yaw[t >= 2.0]).max() < 0.01
+    assert np.abs(e_yaw[t >= 1.0]).max() < np.abs(e_yaw[t < 0.2]).max()
+    assert pos_err.max() < 0.005
+
+
+@pytest.mark.parametrize("delta", [25.0, 50.0, 75.0])
+def test_internal_force_error_decays_at_the_rate_delta(delta: float) -> None:
+    """Eq. (44): after a step of the internal-force reference, e_f shrinks by (1 - delta dt).
+
+    Step the reference along each internal-force direction N[:, j] (through the wrapper's
+    action) and compare the error's first-step decay with the explicit-Euler factor of
+    e_f' = -delta e_f over one control period.
+    """
+    env = GripTransformAction(gym.make("IAS-PenSlide-v0"), gains=ControllerGains(delta=delta))
+    env.reset(seed=0)
+    for _ in range(20):
+        env.step(np.zeros(12))
+    ratios = []
+    for j in range(6):
+        action = np.zeros(12)
+        action[6 + j] = 1.0  # +0.1 N on f_int[j]
+        errors = []
+        for _ in range(2):
+            env.step(action)
+            last = env.controller.last
+            assert last is not None
+            errors.append(np.linalg.norm(last.c_h_measured - last.c_h_desired))
+        ratios.append(errors[1] / errors[0])
+        for _ in range(10):
+            env.step(np.zeros(12))
+    expected = 1.0 - delta * env.unwrapped.config.control_dt
+    assert np.median(ratios) == pytest.approx(expected, abs=0.1), ratios
+
+
+def test_lost_contact_is_reported_and_the_law_carries_on() -> None:
+    env = gym.make("IAS-PenSlide-v0")
+    expert = ExpertPolicy(env)
+    obs, _ = env.reset(seed=2)
+    for _ in range(30):
+        obs, *_ = env.step(expert.predict(obs)[0])
+    lift = expert.predict(obs)[0].copy()
+    lost = False
+    for _ in range(3):  # finger 1 pulls away from the pen
+        lift = expert.predict(obs)[0].copy()
+        lift[1] = -1.0
+        obs, _, terminated, _, info = env.step(lift)
+        lost = lost or not info["fingers_in_contact"][0]
+    assert lost, "pulling finger 1 away did not lose its contact"
+    for _ in range(60):  # the expert carries on with three fingers, then regains the fourth
+        obs, _, terminated, _, info = env.step(expert.predict(obs)[0])
+        assert not terminated
+    assert info["fingers_in_contact"].all()
+    assert info["max_position_error"] < 0.01
+
+
+def test_infeasible_problem_falls_back_and_is_counted(monkeypatch: pytest.MonkeyPatch) -> None:
+    env = GripTransformAction(gym.make("IAS-PenRotate-v0"))
+    env.reset(seed=0)
+    for _ in range(10):
+        env.step(np.zeros(12))
+    controller = env.controller
+    feasible_c = controller._last_c.copy()
+
+    def infeasible(*args: object, **kwargs: object) -> None:
+        raise InfeasibleGraspError("forced for the test")
+
+    monkeypatch.setattr(controller._solver, "solve", infeasible)
+    _, _, terminated, _, info = env.step(np.zeros(12))
+    assert info["internal_force_infeasible"] == 1 and not terminated
+    np.testing.assert_array_equal(controller._last_c, feasible_c)
+    assert controller.last is not None and not controller.last.feasible
+
+
+def test_wrapper_rejects_bad_actions() -> None:
+    env = GripTransformAction(gym.make("IAS-PenRotate-v0"))
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="NaN or inf"):
+        env.step(np.full(12, np.nan))
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros(6))
+    with pytest.raises(TypeError, match="IAS pen"):
+        GripTransformAction(gym.make("CartPole-v1"))  # type: ignore[arg-type]
