@@ -288,13 +288,13 @@ class GripTransformController:
         the vertical and the pen's axis, never from the pen's own (rolling) frame.
         """
         g = self.gains
-        p = env.physics
-        axis = env.state.axis
-        lateral = _cross(_UP, axis)
-        lateral /= np.linalg.norm(lateral)
+        s = env.state
+        x, _, z = s.axis.tolist()
+        norm = np.hypot(x, z)
+        lateral = np.array([z / norm, 0.0, -x / norm])  # up x axis, normalised
         sign = frames[:, 2] @ lateral  # t2 is +-lateral
-        offset = (p.tip_positions() - p.pen_com()) @ lateral
-        rate = sign * (J[2::3] @ qvel) - env.state.velocity @ lateral
+        offset = (env.physics.tip_positions() - s.position) @ lateral
+        rate = sign * (J[2::3] @ qvel) - s.velocity @ lateral
         result: FloatArray = -sign * (g.kp_lateral * offset + g.kv_lateral * rate)
         return result
 
@@ -348,9 +348,19 @@ def _ahead(ref: PenReference, lead: float) -> PenReference:
 
 
 def _damped_pinv(J: FloatArray, damping: float) -> FloatArray:
-    """``J+ = J^T (J J^T + damping I)^-1`` (eq. 32, damped near singular fingers)."""
-    result: FloatArray = J.T @ np.linalg.inv(J @ J.T + damping * np.eye(len(J)))
-    return result
+    """``J+ = J^T (J J^T + damping I)^-1`` (eq. 32, damped near singular fingers).
+
+    J is block diagonal, one 3 x 3 block per finger (eq. 35's ``diag(J_1 ... J_k)``), so the
+    blocks are inverted together in one batched call.
+    """
+    k = len(J) // 3
+    fingers = np.arange(k)
+    blocks = J.reshape(k, 3, k, 3)[fingers, :, fingers, :]  # (k, 3, 3)
+    blocks_t = blocks.transpose(0, 2, 1)
+    inverse = np.linalg.inv(blocks @ blocks_t + damping * np.eye(3))
+    result = np.zeros((k, 3, k, 3))
+    result[fingers, :, fingers, :] = blocks_t @ inverse
+    return result.reshape(3 * k, 3 * k)
 
 
 def _pinv_rows(W: FloatArray) -> FloatArray:

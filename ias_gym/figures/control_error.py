@@ -9,6 +9,7 @@ import numpy as np
 
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.baselines.action_wrapper import GripTransformAction
+from ias_gym.envs.pen_rotate import PenRotateEnv
 from ias_gym.figures._io import save_png_atomic, write_csv_atomic
 
 CSV_NAME = "control_error.csv"
@@ -35,10 +36,11 @@ def control_error_table(
         )
     )
     pen = env.pen_env
+    assert isinstance(pen, PenRotateEnv)
     env.reset(seed=seed)
     rows = []
     done = False
-    zero = np.zeros(env.action_space.shape)
+    zero = np.zeros(12)
     while not done:
         _, _, terminated, truncated, _ = env.step(zero)
         done = terminated or truncated

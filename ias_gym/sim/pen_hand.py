@@ -430,16 +430,17 @@ class PenHandPhysics:
         # The pen's axis from the same forward pass as the contacts (not from qpos).
         axis_mj = d.xmat[self.pen_body_id, [0, 3, 6]]
         tips_mj = d.site_xpos[self.tip_site_ids]
-        normal_mj = block[:, 8:11].copy()
-        points_mj = np.where(active[:, None], block[:, 5:8], tips_mj)
+        normal_mj = block[:, 8:11].copy()  # unit vectors from MuJoCo
+        points_mj = block[:, 5:8].copy()
         if not active.all():
-            # Geometric normal (tip -> nearest point of the pen's axis segment) for fingers
-            # that do not touch.
-            rel = tips_mj - d.xpos[self.pen_body_id]
+            # For fingers that do not touch: the tip centre, and the geometric normal from it
+            # to the nearest point of the pen's axis segment.
+            idle = ~active
+            rel = tips_mj[idle] - d.xpos[self.pen_body_id]
             u = np.clip(rel @ axis_mj, -self._pen_half_length, self._pen_half_length)
             geometric = np.multiply.outer(u, axis_mj) - rel
-            normal_mj[~active] = geometric[~active]
-        normal_mj /= np.sqrt(np.einsum("ij,ij->i", normal_mj, normal_mj))[:, None]
+            normal_mj[idle] = geometric / np.linalg.norm(geometric, axis=1, keepdims=True)
+            points_mj[idle] = tips_mj[idle]
         # Force of the tip on the pen: MuJoCo's contact frame is (normal, tangent, n x t).
         tangent = block[:, 11:14]
         binormal = normal_mj[:, _YZX] * tangent[:, _ZXY] - normal_mj[:, _ZXY] * tangent[:, _YZX]
