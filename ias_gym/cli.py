@@ -113,6 +113,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     evaluate.add_argument("--video", metavar="FILE", help="write an MP4 of the first episode")
     evaluate.set_defaults(run=_evaluate)
+
+    from ias_gym.skills.commands import add_skills_commands
+
+    add_skills_commands(commands)
     return parser
 
 

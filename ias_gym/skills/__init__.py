@@ -1,1 +1,47 @@
-"""ias_gym.skills."""
+"""The skill database: skills of paper sec. 3 (Proposition 1) with their demonstrations.
+
+- :class:`SkillDB` stores :class:`Skill` objects (a :class:`SkillModel` - contact schedule,
+  object trajectory, internal forces of G(t) - a :class:`Demonstration` and provenance) in
+  one SQLite file, one transaction per write, no pickle.
+- :func:`record_skills` rolls out a policy on a pen task and stores every episode.
+- :func:`export_minari` writes the demonstrations of a task as a Minari dataset (no jax).
+- :func:`add_skills_commands` adds ``ias-gym skills record|list|show|export``.
+"""
+
+from ias_gym.skills.commands import add_skills_commands
+from ias_gym.skills.db import (
+    SCHEMA_VERSION,
+    Demonstration,
+    Skill,
+    SkillDB,
+    SkillDBError,
+    SkillModel,
+    SkillNotFoundError,
+    SkillSummary,
+)
+from ias_gym.skills.minari_export import export_minari
+from ias_gym.skills.record import (
+    SkillModelRecorder,
+    policy_source,
+    record_episode,
+    record_skills,
+    stack_infos,
+)
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "Demonstration",
+    "Skill",
+    "SkillDB",
+    "SkillDBError",
+    "SkillModel",
+    "SkillModelRecorder",
+    "SkillNotFoundError",
+    "SkillSummary",
+    "add_skills_commands",
+    "export_minari",
+    "policy_source",
+    "record_episode",
+    "record_skills",
+    "stack_infos",
+]

@@ -1,0 +1,968 @@
+"""The skill database: skills (paper sec. 3, Proposition 1) and their demonstrations in SQLite.
+
+A *skill* is what the paper's skill acquisition produces: the time behaviour of the grip
+transform G(t) (Proposition 1) together with the object motion it realises and the
+demonstration it was analysed from. :class:`SkillDB` stores skills in one embedded SQLite
+file (stdlib :mod:`sqlite3`, WAL journal), one transaction per write, so a process killed at
+any moment leaves every stored skill complete or absent.
+
+What a skill holds:
+
+- :class:`SkillModel`, sampled at every observation (``T + 1`` samples for ``T`` steps):
+  contact schedule (which fingertips touch, which are scheduled to slide), object trajectory
+  (pen pose ``r, phi`` of eq. 25 and twist ``v, omega`` of eq. 15), the wrench intensities
+  ``c`` (eq. 3), their homogeneous part ``c_h = N N^T c`` (eqs. 4, 7), the external wrench
+  ``f_ext = W c`` and the internal forces ``f_int = N^T c`` (eqs. 9, 10). W itself is not
+  kept: ``(f_ext, f_int) = inv(G^T) c`` is the part of G(t) a skill is replayed from.
+- :class:`Demonstration`: observations (``T + 1``, including the reset and the final
+  observation, as Minari stores them), actions, rewards, terminations, truncations (``T``
+  each) and the numeric ``info`` entries (``T + 1`` rows each: the reset's info, then every
+  step's).
+- provenance: source (``"expert"``, ``"policy:<path>"``, ``"glove"``, ...), optional person
+  id, creation time (UTC, ISO 8601), package version, seed and the env's keyword arguments.
+
+Arrays are stored as raw bytes with their dtype (``numpy.dtype.str``, byte order included)
+and shape in their own columns; loading uses ``numpy.frombuffer``. Nothing is pickled and
+only numeric and bool dtypes are accepted, so a database file cannot run code.
+
+Validation (a bad skill raises ``ValueError`` saying what is wrong, and nothing is stored):
+an episode needs at least one step; lengths must agree; observations, actions and rewards
+must be finite (a NaN there is a broken rollout, and it would poison nearest-state queries
+and learning); ``c_h`` and ``f_int`` may be NaN, which marks samples where rank W < 6 and G
+is undefined; ``info`` arrays may hold any numbers (they are diagnostics).
+
+Opening checks the file: one that is not SQLite, is truncated or damaged in its header
+raises :class:`SkillDBError` naming the path and the remedy (restore a backup or delete
+it); damage deeper inside surfaces as the same error when it is read, and
+:meth:`SkillDB.integrity_check` runs SQLite's full check.
+
+Schema (``PRAGMA user_version`` is the schema version, ``PRAGMA application_id`` marks the
+file as a skill database; migrations run on open, each in one transaction; version 0 is a
+new, empty file, and an SQLite file of another application is refused, not changed)::
+
+    skills(id INTEGER PRIMARY KEY AUTOINCREMENT, name, task, source, person_id, created,
+           package_version, seed, env_kwargs (JSON), is_success, episode_return, length,
+           duration [s], observation_dim, initial_observation (float64 bytes))
+    arrays(id INTEGER PRIMARY KEY, skill_id -> skills(id) ON DELETE CASCADE,
+           part ('demo' | 'info' | 'model'), name, dtype, shape (JSON), data BLOB,
+           UNIQUE(skill_id, part, name))
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import sqlite3
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: The schema version this code writes (``PRAGMA user_version``).
+SCHEMA_VERSION = 1
+#: ``PRAGMA application_id`` of a skill database: ASCII "IASS".
+APPLICATION_ID = 0x49415353
+#: Seconds a connection waits for another process's write lock before failing.
+DEFAULT_TIMEOUT = 30.0
+#: dtype kinds an array may have: bool, signed and unsigned integers, floats.
+_SAFE_KINDS = frozenset("biuf")
+
+DEMO_ARRAYS: tuple[str, ...] = (
+    "observations",
+    "actions",
+    "rewards",
+    "terminations",
+    "truncations",
+)
+MODEL_ARRAYS: tuple[str, ...] = (
+    "time",
+    "touching",
+    "sliding",
+    "pen_position",
+    "pen_rpy",
+    "pen_velocity",
+    "pen_omega",
+    "c",
+    "c_h",
+    "f_ext",
+    "f_int",
+)
+#: Columns of ``skills`` that make up a :class:`SkillSummary` (in its field order).
+_SUMMARY_COLUMNS = (
+    "id, name, task, source, person_id, created, package_version, seed, env_kwargs, "
+    "is_success, episode_return, length, duration"
+)
+
+
+class SkillDBError(Exception):
+    """The skill database cannot be used: not a skill database, corrupt, newer, or locked."""
+
+
+class SkillNotFoundError(SkillDBError):
+    """No skill with the requested id."""
+
+
+# ---------------------------------------------------------------------------- data classes
+@dataclass(frozen=True, eq=False)
+class Demonstration:
+    """One episode as a learning agent sees it (Minari's layout).
+
+    Attributes:
+        observations: ``(T + 1, ...)``: the reset observation, then one per step.
+        actions: ``(T, ...)`` actions passed to ``env.step``.
+        rewards: ``(T,)`` float rewards.
+        terminations, truncations: ``(T,)`` bool; only the last step may be True.
+        infos: name -> ``(T + 1, ...)`` numeric or bool array (reset info, then each step's).
+    """
+
+    observations: NDArray[Any]
+    actions: NDArray[Any]
+    rewards: NDArray[Any]
+    terminations: NDArray[np.bool_]
+    truncations: NDArray[np.bool_]
+    infos: Mapping[str, NDArray[Any]] = field(default_factory=dict)
+
+    @property
+    def length(self) -> int:
+        """Number of steps T."""
+        return len(self.actions)
+
+    @property
+    def episode_return(self) -> float:
+        """Undiscounted sum of the rewards."""
+        return float(np.sum(self.rewards, dtype=np.float64))
+
+    def validate(self) -> None:
+        """Check shapes, dtypes and values.
+
+        Raises:
+            ValueError: saying which array is wrong and how.
+        """
+        arrays = {name: getattr(self, name) for name in DEMO_ARRAYS}
+        for name, value in arrays.items():
+            _check_array(f"demonstration.{name}", value)
+        T = len(self.actions)
+        if T == 0:
+            raise ValueError("empty episode: a demonstration needs at least one step (0 actions)")
+        if self.observations.ndim < 1 or len(self.observations) != T + 1:
+            raise ValueError(
+                f"observations must have T + 1 = {T + 1} rows (reset + one per step) for "
+                f"{T} actions, got shape {self.observations.shape}"
+            )
+        for name in ("rewards", "terminations", "truncations"):
+            if arrays[name].shape != (T,):
+                raise ValueError(f"{name} must have shape ({T},), got {arrays[name].shape}")
+        for name in ("terminations", "truncations"):
+            if arrays[name].dtype != np.bool_:
+                raise ValueError(f"{name} must be a bool array, got dtype {arrays[name].dtype}")
+        if arrays["rewards"].dtype.kind != "f":
+            raise ValueError(f"rewards must be floats, got dtype {arrays['rewards'].dtype}")
+        for name in ("observations", "actions", "rewards"):
+            if not np.all(np.isfinite(arrays[name])):
+                bad = np.argwhere(~np.isfinite(arrays[name]))[0].tolist()
+                raise ValueError(
+                    f"{name} contain NaN or inf (first at index {bad}); demonstrations must "
+                    "be finite"
+                )
+        if np.any(self.terminations[:-1] | self.truncations[:-1]):
+            first = int(np.flatnonzero(self.terminations[:-1] | self.truncations[:-1])[0])
+            raise ValueError(
+                f"step {first} of {T} is terminal or truncated: an episode ends at its first "
+                "termination or truncation"
+            )
+        for key, value in self.infos.items():
+            if not isinstance(key, str) or not key:
+                raise ValueError(f"info names must be non-empty strings, got {key!r}")
+            _check_array(f"infos[{key!r}]", value)
+            if value.ndim < 1 or len(value) != T + 1:
+                raise ValueError(
+                    f"infos[{key!r}] must have T + 1 = {T + 1} rows (reset + one per step), "
+                    f"got shape {value.shape}"
+                )
+
+
+@dataclass(frozen=True, eq=False)
+class SkillModel:
+    """The paper's skill model (sec. 3): contact schedule, object motion and G(t) along a skill.
+
+    One sample per observation of the demonstration (``T + 1`` rows); paper frame, SI units.
+
+    Attributes:
+        time: ``(T + 1,)`` time since reset [s].
+        touching: ``(T + 1, k)`` bool, fingertip i touches the object.
+        sliding: ``(T + 1, k)`` bool, fingertip i is scheduled to slide (eq. 20).
+        pen_position: ``(T + 1, 3)`` object centre r relative to its nominal position [m].
+        pen_rpy: ``(T + 1, 3)`` roll, pitch, yaw phi [rad] (eq. 25).
+        pen_velocity: ``(T + 1, 3)`` linear velocity v [m/s] (eq. 15).
+        pen_omega: ``(T + 1, 3)`` angular velocity omega [rad/s] (eq. 15).
+        c: ``(T + 1, n)`` measured wrench intensities [N] (eq. 3).
+        c_h: ``(T + 1, n)`` homogeneous (internal) part ``N N^T c`` [N] (eqs. 4, 7); NaN where
+            rank W < 6.
+        f_ext: ``(T + 1, 6)`` the contacts' net wrench ``W c`` [N, N m] (eq. 3).
+        f_int: ``(T + 1, n - 6)`` internal forces ``N^T c`` [N] (eqs. 7, 10); NaN where
+            rank W < 6. N is kept continuous along the skill (see ``null_space_basis``).
+    """
+
+    time: NDArray[np.float64]
+    touching: NDArray[np.bool_]
+    sliding: NDArray[np.bool_]
+    pen_position: NDArray[np.float64]
+    pen_rpy: NDArray[np.float64]
+    pen_velocity: NDArray[np.float64]
+    pen_omega: NDArray[np.float64]
+    c: NDArray[np.float64]
+    c_h: NDArray[np.float64]
+    f_ext: NDArray[np.float64]
+    f_int: NDArray[np.float64]
+
+    @property
+    def c_p(self) -> NDArray[np.float64]:
+        """The particular part ``c_p = c - c_h = W+ W c`` [N] (eqs. 4, 5)."""
+        return self.c - self.c_h
+
+    @property
+    def duration(self) -> float:
+        """Time spanned by the samples [s]."""
+        return float(self.time[-1] - self.time[0])
+
+    def validate(self, samples: int | None = None) -> None:
+        """Check shapes, dtypes and values.
+
+        Args:
+            samples: the number of samples required (``T + 1`` of the demonstration).
+
+        Raises:
+            ValueError: saying which array is wrong and how.
+        """
+        for name in MODEL_ARRAYS:
+            _check_array(f"model.{name}", getattr(self, name))
+        S = len(self.time) if samples is None else samples
+        if self.time.shape != (S,):
+            raise ValueError(f"model.time must have shape ({S},), got {self.time.shape}")
+        k = self.touching.shape[1] if self.touching.ndim == 2 else -1
+        n = self.c.shape[1] if self.c.ndim == 2 else -1
+        expected = {
+            "touching": (S, k),
+            "sliding": (S, k),
+            "pen_position": (S, 3),
+            "pen_rpy": (S, 3),
+            "pen_velocity": (S, 3),
+            "pen_omega": (S, 3),
+            "c": (S, n),
+            "c_h": (S, n),
+            "f_ext": (S, 6),
+            "f_int": (S, n - 6),
+        }
+        if k < 1 or n < 7:
+            raise ValueError(
+                f"model.touching must be (samples, fingers) and model.c (samples, n >= 7), "
+                f"got {self.touching.shape} and {self.c.shape}"
+            )
+        for name, shape in expected.items():
+            value = getattr(self, name)
+            if value.shape != shape:
+                raise ValueError(f"model.{name} must have shape {shape}, got {value.shape}")
+        for name in ("touching", "sliding"):
+            if getattr(self, name).dtype != np.bool_:
+                raise ValueError(f"model.{name} must be bool, got {getattr(self, name).dtype}")
+        for name in ("time", "pen_position", "pen_rpy", "pen_velocity", "pen_omega", "c", "f_ext"):
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise ValueError(f"model.{name} contains NaN or inf; it must be finite")
+        if S > 1 and not np.all(np.diff(self.time) > 0):
+            raise ValueError("model.time must increase strictly")
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready summary: duration, contact schedule, force ranges, object excursion.
+
+        Returns:
+            ``duration`` [s]; per finger ``fingers[i]`` with the fraction of samples
+            touching, the touching and sliding intervals ``[t_start, t_end]`` [s] and the
+            normal-force range [N] (column ``3 i`` of c); the range of each internal force
+            ``f_int`` [N] and of ``|c_h|`` [N] over samples where G is defined; the largest
+            pen excursion [m] and the range of roll/pitch/yaw [rad].
+        """
+        k = self.touching.shape[1]
+        n = self.c.shape[1]
+        fingers = []
+        for i in range(k):
+            entry: dict[str, Any] = {
+                "finger": i + 1,
+                "touching_fraction": float(np.mean(self.touching[:, i])),
+                "touching": _intervals(self.time, self.touching[:, i]),
+                "sliding": _intervals(self.time, self.sliding[:, i]),
+            }
+            if n == 3 * k:  # three intensities per finger: normal first (eq. 16)
+                normal = self.c[:, 3 * i]
+                entry["normal_force_range"] = [float(normal.min()), float(normal.max())]
+            fingers.append(entry)
+        defined = np.all(np.isfinite(self.f_int), axis=1)
+        f_int = self.f_int[defined]
+        c_h_norm = np.linalg.norm(self.c_h[defined], axis=1)
+        excursion = np.linalg.norm(self.pen_position, axis=1)
+        return {
+            "duration": self.duration,
+            "samples": len(self.time),
+            "grip_transform_defined_fraction": float(np.mean(defined)),
+            "fingers": fingers,
+            "f_int_range": _ranges(f_int),
+            "c_h_norm_range": _range(c_h_norm),
+            "max_pen_excursion": float(excursion.max()),
+            "pen_rpy_range": _ranges(self.pen_rpy),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class Skill:
+    """A stored skill: its model, its demonstration and where it came from.
+
+    Attributes:
+        name: a human-readable name (not unique).
+        task: the Gymnasium id of the env the skill was performed in.
+        source: ``"expert"``, ``"random"``, ``"policy:<path>"``, ``"glove"``, ...
+        demonstration: the episode.
+        model: the skill model sampled along the episode.
+        is_success: the env's ``is_success`` at the end of the episode.
+        seed: the episode's reset seed (``None``: not seeded, e.g. a glove session).
+        person_id: who demonstrated it (glove sessions), optional.
+        env_kwargs: keyword arguments the env was made with (JSON-serialisable).
+        id, created, package_version: filled in by the database (``None`` before storing).
+    """
+
+    name: str
+    task: str
+    source: str
+    demonstration: Demonstration
+    model: SkillModel
+    is_success: bool
+    seed: int | None = None
+    person_id: str | None = None
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    id: int | None = None
+    created: str | None = None
+    package_version: str | None = None
+
+    @property
+    def length(self) -> int:
+        """Number of steps of the demonstration."""
+        return self.demonstration.length
+
+    def validate(self) -> None:
+        """Check every field.
+
+        Raises:
+            ValueError: saying what is wrong.
+        """
+        for name in ("name", "task", "source"):
+            value = getattr(self, name)
+            if not isinstance(value, str) or not value.strip():
+                raise ValueError(f"skill {name} must be a non-empty string, got {value!r}")
+        if self.person_id is not None and not isinstance(self.person_id, str):
+            raise ValueError(f"person_id must be a string or None, got {self.person_id!r}")
+        if self.seed is not None and not isinstance(self.seed, (int, np.integer)):
+            raise ValueError(f"seed must be an int or None, got {self.seed!r}")
+        try:
+            json.dumps(dict(self.env_kwargs), allow_nan=False)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"env_kwargs must be JSON-serialisable: {exc}") from exc
+        self.demonstration.validate()
+        self.model.validate(samples=self.demonstration.length + 1)
+
+
+@dataclass(frozen=True)
+class SkillSummary:
+    """A skill's row without its arrays (what :meth:`SkillDB.list_skills` returns).
+
+    Attributes:
+        episode_return: undiscounted return of the demonstration.
+        length: number of steps.
+        duration: time spanned by the skill model [s].
+        (the others as in :class:`Skill`)
+    """
+
+    id: int
+    name: str
+    task: str
+    source: str
+    person_id: str | None
+    created: str
+    package_version: str
+    seed: int | None
+    env_kwargs: dict[str, Any]
+    is_success: bool
+    episode_return: float
+    length: int
+    duration: float
+
+    @classmethod
+    def _from_row(cls, row: tuple[Any, ...]) -> SkillSummary:
+        (id_, name, task, source, person, created, version, seed, kwargs) = row[:9]
+        success, ret, length, duration = row[9:13]
+        return cls(
+            id=int(id_),
+            name=name,
+            task=task,
+            source=source,
+            person_id=person,
+            created=created,
+            package_version=version,
+            seed=seed,
+            env_kwargs=json.loads(kwargs),
+            is_success=bool(success),
+            episode_return=float(ret),
+            length=int(length),
+            duration=float(duration),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict of every field (``return`` is the key of ``episode_return``)."""
+        out = dataclasses.asdict(self)
+        out["return"] = out.pop("episode_return")
+        return out
+
+
+# ---------------------------------------------------------------------------- the database
+class SkillDB:
+    """An embedded SQLite skill database in one file (created if missing).
+
+    Use it as a context manager (``with SkillDB(path) as db: ...``) or call :meth:`close`.
+    Several processes may read and write the same file (WAL journal; a writer waits up to
+    ``timeout`` seconds for another one). Every write is one transaction.
+
+    Args:
+        path: the database file; missing parent directories are created.
+        timeout: seconds to wait for another process's write lock [s].
+
+    Raises:
+        SkillDBError: the file is not a skill database or is corrupt (the message says the
+            path and what to do), was written by a newer ias-gym, or cannot be opened.
+    """
+
+    def __init__(self, path: str | Path, *, timeout: float = DEFAULT_TIMEOUT) -> None:
+        self.path = Path(path)
+        self._conn: sqlite3.Connection | None = None
+        if self.path.is_dir():
+            raise SkillDBError(f"{self.path} is a directory; pass the path of a database file")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        with self._errors("open"):
+            conn = sqlite3.connect(self.path, timeout=timeout, isolation_level=None)
+        self._conn = conn
+        try:
+            with self._errors("open"):
+                # Reading the header first: a file that is not SQLite or is truncated fails here.
+                version = self._pragma("user_version")
+                conn.execute("PRAGMA foreign_keys = ON")
+                # FULL: a committed skill survives power loss too, not only a killed process.
+                conn.execute("PRAGMA synchronous = FULL")
+                if version > 0:
+                    self._check_application_id()
+                if version > SCHEMA_VERSION:
+                    raise SkillDBError(
+                        f"{self.path} has skill-database schema version {version}, newer than "
+                        f"this ias-gym supports ({SCHEMA_VERSION}); upgrade ias-gym to open it"
+                    )
+                if version == 0:
+                    self._check_empty()  # before touching the file (again inside _migrate)
+                self._use_wal(timeout)
+                self._migrate()
+        except BaseException:
+            conn.close()
+            self._conn = None
+            raise
+
+    # ------------------------------------------------------------------ plumbing
+    @property
+    def conn(self) -> sqlite3.Connection:
+        """The open connection (raises SkillDBError after :meth:`close`)."""
+        if self._conn is None:
+            raise SkillDBError(f"skill database {self.path} is closed")
+        return self._conn
+
+    def _pragma(self, name: str) -> int:
+        return int(self.conn.execute(f"PRAGMA {name}").fetchone()[0])
+
+    def _errors(self, action: str) -> _ErrorTranslation:
+        return _ErrorTranslation(self.path, action)
+
+    def _check_application_id(self) -> None:
+        """A file with a schema version must carry the skill database's application id."""
+        app_id = self._pragma("application_id")
+        if app_id != APPLICATION_ID:
+            raise SkillDBError(
+                f"{self.path} is an SQLite database of another application (application_id "
+                f"{app_id:#x}), not a skill database; pass another path"
+            )
+
+    def _check_empty(self) -> None:
+        """A version-0 file must be empty: tables there belong to another application."""
+        tables = [
+            r[0]
+            for r in self.conn.execute(
+                "SELECT name FROM sqlite_master WHERE type = 'table' "
+                "AND name NOT LIKE 'sqlite_%' ORDER BY name"
+            )
+        ]
+        # Read after the tables: a concurrent migration that created them has set it too.
+        if tables and self._pragma("user_version") == 0:
+            raise SkillDBError(
+                f"{self.path} is an SQLite database but not a skill database (it has "
+                f"tables {tables} and no skill schema version); pass another path"
+            )
+
+    def _use_wal(self, timeout: float) -> None:
+        """Switch the file to the WAL journal (persistent; a no-op once done).
+
+        The switch needs the file to itself and SQLite does not wait for that with the busy
+        timeout, so it is retried while other connections (another process creating the
+        same new file) are busy, for up to ``timeout`` seconds.
+        """
+        if str(self.conn.execute("PRAGMA journal_mode").fetchone()[0]).lower() == "wal":
+            return
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                mode = self.conn.execute("PRAGMA journal_mode = WAL").fetchone()[0]
+                break
+            except sqlite3.OperationalError as exc:
+                if "locked" not in str(exc) or time.monotonic() > deadline:
+                    raise
+                time.sleep(0.005)
+        if str(mode).lower() != "wal":
+            raise SkillDBError(f"{self.path}: cannot switch to the WAL journal (got {mode})")
+
+    def _migrate(self) -> None:
+        """Bring the schema to :data:`SCHEMA_VERSION`, one transaction per version step."""
+        while True:
+            version = self._pragma("user_version")
+            if version >= SCHEMA_VERSION:
+                return
+            with self._transaction():
+                # Another process may have migrated between our read and the write lock.
+                version = self._pragma("user_version")
+                if version >= SCHEMA_VERSION:
+                    return
+                if version == 0:
+                    self._check_empty()
+                MIGRATIONS[version](self.conn)
+                self.conn.execute(f"PRAGMA user_version = {version + 1}")
+
+    def _transaction(self, mode: str = "IMMEDIATE") -> _Transaction:
+        return _Transaction(self.conn, mode)
+
+    @property
+    def schema_version(self) -> int:
+        """The schema version of the open file."""
+        with self._errors("read"):
+            return self._pragma("user_version")
+
+    def close(self) -> None:
+        """Close the connection (idempotent)."""
+        if self._conn is not None:
+            self._conn.close()
+            self._conn = None
+
+    def __enter__(self) -> SkillDB:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        conn = getattr(self, "_conn", None)
+        if conn is not None:
+            conn.close()
+
+    def __repr__(self) -> str:
+        state = "open" if self._conn is not None else "closed"
+        return f"SkillDB({str(self.path)!r}, {state})"
+
+    # ------------------------------------------------------------------ writes
+    def add(self, skill: Skill) -> int:
+        """Store a skill and its arrays in one transaction.
+
+        Returns:
+            The new skill's id.
+
+        Raises:
+            ValueError: the skill is invalid (nothing is stored; the message says why).
+            SkillDBError: the database cannot be written.
+        """
+        skill.validate()
+        demo, model = skill.demonstration, skill.model
+        rows: list[tuple[str, str, NDArray[Any]]] = [
+            ("demo", name, getattr(demo, name)) for name in DEMO_ARRAYS
+        ]
+        rows += [("info", key, value) for key, value in sorted(demo.infos.items())]
+        rows += [("model", name, getattr(model, name)) for name in MODEL_ARRAYS]
+        encoded = [(part, name, *_encode(value)) for part, name, value in rows]
+        from ias_gym import __version__
+
+        first = np.ascontiguousarray(demo.observations[0], dtype="<f8").ravel()
+        record = (
+            skill.name,
+            skill.task,
+            skill.source,
+            skill.person_id,
+            skill.created or datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            skill.package_version or __version__,
+            None if skill.seed is None else int(skill.seed),
+            json.dumps(dict(skill.env_kwargs), sort_keys=True),
+            int(bool(skill.is_success)),
+            demo.episode_return,
+            demo.length,
+            model.duration,
+            int(first.size),
+            first.tobytes(),
+        )
+        with self._errors("write"), self._transaction():
+            cur = self.conn.execute(
+                "INSERT INTO skills (name, task, source, person_id, created, package_version, "
+                "seed, env_kwargs, is_success, episode_return, length, duration, "
+                "observation_dim, initial_observation) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                record,
+            )
+            skill_id = cur.lastrowid
+            assert skill_id is not None
+            self.conn.executemany(
+                "INSERT INTO arrays (skill_id, part, name, dtype, shape, data) "
+                "VALUES (?, ?, ?, ?, ?, ?)",
+                [(skill_id, *row) for row in encoded],
+            )
+        return int(skill_id)
+
+    def delete(self, skill_id: int) -> None:
+        """Delete a skill and its arrays (one transaction).
+
+        Raises:
+            SkillNotFoundError: no skill has this id.
+        """
+        with self._errors("write"), self._transaction():
+            cur = self.conn.execute("DELETE FROM skills WHERE id = ?", (int(skill_id),))
+            if cur.rowcount == 0:
+                raise self._not_found(skill_id)
+
+    # ------------------------------------------------------------------ reads
+    def _not_found(self, skill_id: int) -> SkillNotFoundError:
+        row = self.conn.execute("SELECT count(*), min(id), max(id) FROM skills").fetchone()
+        have = "it holds no skills" if row[0] == 0 else f"it holds {row[0]} (ids {row[1]}-{row[2]})"
+        return SkillNotFoundError(f"no skill with id {skill_id} in {self.path}; {have}")
+
+    def list_skills(
+        self, task: str | None = None, success: bool | None = None
+    ) -> list[SkillSummary]:
+        """The stored skills, by id.
+
+        Args:
+            task: only skills of this env id.
+            success: only successful (``True``) or failed (``False``) ones; ``None``: all.
+        """
+        query = f"SELECT {_SUMMARY_COLUMNS} FROM skills"
+        where, params = _filters(task, success)
+        with self._errors("read"):
+            rows = self.conn.execute(f"{query}{where} ORDER BY id", params).fetchall()
+        return [SkillSummary._from_row(r) for r in rows]
+
+    def tasks(self) -> list[str]:
+        """The distinct task ids, sorted."""
+        with self._errors("read"):
+            return [r[0] for r in self.conn.execute("SELECT DISTINCT task FROM skills ORDER BY 1")]
+
+    def __len__(self) -> int:
+        with self._errors("read"):
+            return int(self.conn.execute("SELECT count(*) FROM skills").fetchone()[0])
+
+    def summary(self, skill_id: int) -> SkillSummary:
+        """One skill's row without its arrays.
+
+        Raises:
+            SkillNotFoundError: no skill has this id.
+        """
+        with self._errors("read"):
+            row = self.conn.execute(
+                f"SELECT {_SUMMARY_COLUMNS} FROM skills WHERE id = ?", (int(skill_id),)
+            ).fetchone()
+            if row is None:
+                raise self._not_found(skill_id)
+        return SkillSummary._from_row(row)
+
+    def get(self, skill_id: int) -> Skill:
+        """Load a skill with its demonstration and model (arrays bit-identical, dtypes kept).
+
+        Raises:
+            SkillNotFoundError: no skill has this id.
+            SkillDBError: the stored arrays are incomplete or inconsistent.
+        """
+        with self._errors("read"), self._transaction("DEFERRED"):  # one consistent snapshot
+            row = self.conn.execute(
+                f"SELECT {_SUMMARY_COLUMNS} FROM skills WHERE id = ?", (int(skill_id),)
+            ).fetchone()
+            if row is None:
+                raise self._not_found(skill_id)
+            arrays = self.conn.execute(
+                "SELECT part, name, dtype, shape, data FROM arrays WHERE skill_id = ?",
+                (int(skill_id),),
+            ).fetchall()
+        summary = SkillSummary._from_row(row)
+        parts: dict[str, dict[str, NDArray[Any]]] = {"demo": {}, "info": {}, "model": {}}
+        for part, name, dtype, shape, data in arrays:
+            parts[part][name] = _decode(self.path, skill_id, f"{part}/{name}", dtype, shape, data)
+        for part, names in (("demo", DEMO_ARRAYS), ("model", MODEL_ARRAYS)):
+            missing = sorted(set(names) - set(parts[part]))
+            if missing:
+                raise SkillDBError(
+                    f"skill {skill_id} in {self.path} is incomplete (missing {part} arrays "
+                    f"{missing}); delete it with SkillDB.delete({skill_id})"
+                )
+        skill = Skill(
+            name=summary.name,
+            task=summary.task,
+            source=summary.source,
+            demonstration=Demonstration(**parts["demo"], infos=parts["info"]),
+            model=SkillModel(**parts["model"]),
+            is_success=summary.is_success,
+            seed=summary.seed,
+            person_id=summary.person_id,
+            env_kwargs=summary.env_kwargs,
+            id=summary.id,
+            created=summary.created,
+            package_version=summary.package_version,
+        )
+        if skill.length != summary.length:
+            raise SkillDBError(
+                f"skill {skill_id} in {self.path} is inconsistent: {skill.length} actions "
+                f"stored, {summary.length} recorded"
+            )
+        return skill
+
+    def nearest_initial_state(
+        self, observation: Any, task: str | None = None, k: int = 1
+    ) -> list[tuple[SkillSummary, float]]:
+        """The skills whose demonstration starts closest to ``observation``.
+
+        Distance is Euclidean between ``observation`` and each demonstration's first
+        observation (flattened); skills whose observations have another size are skipped.
+
+        Args:
+            observation: an observation of the task's env.
+            task: only skills of this env id.
+            k: how many to return.
+
+        Returns:
+            Up to ``k`` pairs ``(summary, distance)``, nearest first; empty if none match.
+        """
+        obs = np.asarray(observation, dtype=np.float64).ravel()
+        if not np.all(np.isfinite(obs)):
+            raise ValueError("observation contains NaN or inf")
+        if k < 1:
+            raise ValueError(f"k must be >= 1, got {k}")
+        where, params = _filters(task, None)
+        where += (" AND " if where else " WHERE ") + "observation_dim = ?"
+        with self._errors("read"):
+            rows = self.conn.execute(
+                f"SELECT {_SUMMARY_COLUMNS}, initial_observation FROM skills{where} ORDER BY id",
+                (*params, obs.size),
+            ).fetchall()
+        if not rows:
+            return []
+        starts = np.stack([np.frombuffer(r[-1], dtype="<f8") for r in rows])
+        distance = np.linalg.norm(starts - obs, axis=1)
+        order = np.argsort(distance, kind="stable")[:k]
+        return [(SkillSummary._from_row(rows[i][:-1]), float(distance[i])) for i in order]
+
+    def integrity_check(self) -> None:
+        """Run SQLite's full ``PRAGMA integrity_check``.
+
+        Raises:
+            SkillDBError: the file is damaged (the message has SQLite's findings).
+        """
+        with self._errors("check"):
+            result = [r[0] for r in self.conn.execute("PRAGMA integrity_check")]
+        if result != ["ok"]:
+            raise SkillDBError(
+                f"{self.path} is corrupt ({'; '.join(result[:5])}); restore it from a backup "
+                "or delete it"
+            )
+
+
+# ---------------------------------------------------------------------------- migrations
+def _migrate_0_to_1(conn: sqlite3.Connection) -> None:
+    """Version 0 is an empty (new) file: create the version-1 schema."""
+    conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+    conn.execute(
+        """CREATE TABLE skills (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            name TEXT NOT NULL,
+            task TEXT NOT NULL,
+            source TEXT NOT NULL,
+            person_id TEXT,
+            created TEXT NOT NULL,
+            package_version TEXT NOT NULL,
+            seed INTEGER,
+            env_kwargs TEXT NOT NULL DEFAULT '{}',
+            is_success INTEGER NOT NULL CHECK (is_success IN (0, 1)),
+            episode_return REAL NOT NULL,
+            length INTEGER NOT NULL CHECK (length >= 1),
+            duration REAL NOT NULL,
+            observation_dim INTEGER NOT NULL,
+            initial_observation BLOB NOT NULL
+        )"""
+    )
+    conn.execute("CREATE INDEX skills_by_task ON skills (task, is_success)")
+    conn.execute(
+        """CREATE TABLE arrays (
+            id INTEGER PRIMARY KEY,
+            skill_id INTEGER NOT NULL REFERENCES skills (id) ON DELETE CASCADE,
+            part TEXT NOT NULL CHECK (part IN ('demo', 'info', 'model')),
+            name TEXT NOT NULL,
+            dtype TEXT NOT NULL,
+            shape TEXT NOT NULL,
+            data BLOB NOT NULL,
+            UNIQUE (skill_id, part, name)
+        )"""
+    )
+
+
+#: ``MIGRATIONS[v]`` turns a version-``v`` database into version ``v + 1`` (inside a
+#: transaction that also sets ``user_version``).
+MIGRATIONS: dict[int, Callable[[sqlite3.Connection], None]] = {0: _migrate_0_to_1}
+
+
+# ---------------------------------------------------------------------------- helpers
+class _Transaction:
+    """``BEGIN ... COMMIT``, rolled back on any exception (KeyboardInterrupt included)."""
+
+    def __init__(self, conn: sqlite3.Connection, mode: str) -> None:
+        self.conn, self.mode = conn, mode
+
+    def __enter__(self) -> None:
+        self.conn.execute(f"BEGIN {self.mode}")
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if exc_type is None:
+            self.conn.execute("COMMIT")
+        elif self.conn.in_transaction:
+            self.conn.execute("ROLLBACK")
+
+
+class _ErrorTranslation:
+    """Turns ``sqlite3`` errors into :class:`SkillDBError` naming the file and a remedy."""
+
+    def __init__(self, path: Path, action: str) -> None:
+        self.path, self.action = path, action
+
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if exc is None or not isinstance(exc, sqlite3.Error):
+            return
+        code = getattr(exc, "sqlite_errorname", "")
+        text = str(exc)
+        if code in ("SQLITE_NOTADB", "SQLITE_CORRUPT") or (
+            not isinstance(exc, sqlite3.OperationalError)
+            and isinstance(exc, sqlite3.DatabaseError)
+            and ("not a database" in text or "malformed" in text)
+        ):
+            raise SkillDBError(
+                f"{self.path} is not a skill database or is corrupt ({text}); restore it "
+                "from a backup or delete it to start a new one"
+            ) from exc
+        if "locked" in text or "busy" in text:
+            raise SkillDBError(
+                f"cannot {self.action} {self.path}: {text} (another process holds the write "
+                "lock); retry, or raise SkillDB(timeout=...)"
+            ) from exc
+        raise SkillDBError(f"cannot {self.action} skill database {self.path}: {text}") from exc
+
+
+def _check_array(what: str, value: Any) -> None:
+    if not isinstance(value, np.ndarray):
+        raise ValueError(f"{what} must be a numpy array, got {type(value).__name__}")
+    if value.dtype.kind not in _SAFE_KINDS:
+        raise ValueError(
+            f"{what} has dtype {value.dtype}; only bool, integer and float arrays are stored"
+        )
+
+
+def _encode(value: NDArray[Any]) -> tuple[str, str, bytes]:
+    """``(dtype, shape, bytes)`` of an array: C order, byte order kept in the dtype string."""
+    _check_array("array", value)
+    data = np.ascontiguousarray(value)
+    return data.dtype.str, json.dumps(list(data.shape)), data.tobytes()
+
+
+def _decode(
+    path: Path, skill_id: int, what: str, dtype: str, shape: str, data: bytes
+) -> NDArray[Any]:
+    try:
+        dt = np.dtype(dtype)
+        dims = tuple(int(d) for d in json.loads(shape))
+    except (TypeError, ValueError) as exc:
+        raise SkillDBError(f"skill {skill_id} in {path}: {what} has a bad dtype/shape") from exc
+    if dt.kind not in _SAFE_KINDS:
+        raise SkillDBError(f"skill {skill_id} in {path}: {what} has unsafe dtype {dtype!r}")
+    expected = dt.itemsize * math.prod(dims)
+    if len(data) != expected:
+        raise SkillDBError(
+            f"skill {skill_id} in {path} is corrupt: {what} holds {len(data)} bytes, "
+            f"{dtype}{list(dims)} needs {expected}; delete the skill or restore a backup"
+        )
+    return np.frombuffer(data, dtype=dt).reshape(dims).copy()
+
+
+def _filters(task: str | None, success: bool | None) -> tuple[str, tuple[Any, ...]]:
+    clauses: list[str] = []
+    params: list[Any] = []
+    if task is not None:
+        clauses.append("task = ?")
+        params.append(task)
+    if success is not None:
+        clauses.append("is_success = ?")
+        params.append(int(success))
+    return ((" WHERE " + " AND ".join(clauses)) if clauses else ""), tuple(params)
+
+
+def _intervals(time: NDArray[np.float64], flags: NDArray[np.bool_]) -> list[list[float]]:
+    """``[[t_start, t_end], ...]`` [s] of the runs where ``flags`` is True."""
+    padded = np.concatenate([[False], flags, [False]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(padded))
+    return [
+        [float(time[a]), float(time[b - 1])] for a, b in zip(edges[::2], edges[1::2], strict=True)
+    ]
+
+
+def _ranges(values: NDArray[np.float64]) -> list[list[float] | None]:
+    """Per column ``[min, max]``; ``None`` for every column when there are no rows."""
+    if len(values) == 0:
+        return [None] * (values.shape[1] if values.ndim == 2 else 0)
+    lo, hi = values.min(axis=0).tolist(), values.max(axis=0).tolist()
+    return [[a, b] for a, b in zip(lo, hi, strict=True)]
+
+
+def _range(values: NDArray[np.float64]) -> list[float] | None:
+    """``[min, max]`` of all values, ``None`` if there are none."""
+    if values.size == 0:
+        return None
+    return [float(values.min()), float(values.max())]

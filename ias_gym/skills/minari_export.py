@@ -1,0 +1,156 @@
+"""Export the demonstrations of a skill database as a Minari dataset (without jax).
+
+Minari's ``DataCollector`` needs jax (``minari[create]``); the dataset is written instead with
+``minari.create_dataset_from_buffers`` from one ``EpisodeBuffer`` per skill, which needs only
+``minari[hdf5]`` and pillow (the ``[datasets]`` extra; see DESIGN.md, "Demonstrations").
+The layout is Minari's: ``T + 1`` observations (reset and final included), ``T`` actions,
+rewards, terminations and truncations, and ``T + 1`` rows per info entry. The env spec
+(id plus the keyword arguments the skills were recorded with) goes into the dataset, so
+``minari.load_dataset(id).recover_environment()`` makes the same env. Datasets are written
+under ``MINARI_DATASETS_PATH`` (default ``~/.minari/datasets``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+import warnings
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+
+from ias_gym.skills.db import SkillDB
+
+#: The install hint of a missing Minari.
+INSTALL_HINT = "pip install 'ias-gym[datasets]'"
+#: Episodes loaded from the database and written to the dataset at a time.
+CHUNK_EPISODES = 16
+
+
+def _import_minari() -> Any:
+    try:
+        import minari
+        from minari.data_collector.episode_buffer import EpisodeBuffer  # noqa: F401
+    except ImportError as exc:
+        raise ImportError(
+            f"exporting to Minari needs minari[hdf5] and pillow: {INSTALL_HINT} ({exc})"
+        ) from exc
+    return minari
+
+
+def export_minari(
+    db_path: str | Path,
+    dataset_id: str,
+    task: str | None = None,
+    *,
+    success_only: bool = False,
+    author: str | None = None,
+    description: str | None = None,
+) -> Path:
+    """Write the stored demonstrations of one task as a Minari dataset.
+
+    Args:
+        db_path: the skill database.
+        dataset_id: Minari id, ``(namespace/)name-v<version>``, e.g. ``"ias/pen-rotate-expert-v0"``.
+        task: export only this env id's skills; required when the database holds several
+            tasks (or one task recorded with different env settings).
+        success_only: export only skills whose episode succeeded.
+        author: dataset author (default: the skills' person ids, else ``"ias-gym"``).
+        description: dataset description (default: generated from the skills).
+
+    Returns:
+        The dataset's directory.
+
+    Raises:
+        ImportError: minari is not installed (the message says which extra to install).
+        ValueError: no skills match, or they come from different envs or env settings.
+        FileExistsError: a dataset with this id exists already.
+    """
+    minari = _import_minari()
+    from minari.data_collector.episode_buffer import EpisodeBuffer
+    from minari.storage import get_dataset_path
+
+    import ias_gym
+
+    with SkillDB(db_path) as db:
+        summaries = db.list_skills(task=task, success=True if success_only else None)
+        if not summaries:
+            which = f" of task {task!r}" if task else ""
+            which += " that succeeded" if success_only else ""
+            raise ValueError(
+                f"no skills{which} in {db_path} (tasks there: {db.tasks()}); record some "
+                "with `ias-gym skills record`"
+            )
+        envs = sorted({(s.task, json.dumps(s.env_kwargs, sort_keys=True)) for s in summaries})
+        if len(envs) > 1:
+            raise ValueError(
+                f"a Minari dataset holds one environment, but the skills come from {envs} "
+                "(task, env kwargs); pass task= (--task) to choose one"
+            )
+        task_id, env_kwargs = summaries[0].task, summaries[0].env_kwargs
+        try:
+            registered = gym.spec(task_id)
+        except gym.error.Error as exc:
+            raise ValueError(
+                f"the skills' task {task_id!r} is not a registered Gymnasium id ({exc}); "
+                "import the package that registers it"
+            ) from exc
+        env_spec = dataclasses.replace(registered, kwargs={**registered.kwargs, **env_kwargs})
+        sources = sorted({s.source for s in summaries})
+        people = sorted({s.person_id for s in summaries if s.person_id})
+        path = Path(get_dataset_path(dataset_id))
+        if path.exists():
+            raise FileExistsError(
+                f"a Minari dataset {dataset_id!r} exists already at {path}; choose another id "
+                "(or version) or delete it"
+            )
+
+        def buffers(start: int) -> list[Any]:
+            out = []
+            for index in range(start, min(start + CHUNK_EPISODES, len(summaries))):
+                summary = summaries[index]
+                demo = db.get(summary.id).demonstration
+                out.append(
+                    EpisodeBuffer(
+                        id=index,
+                        seed=summary.seed,
+                        observations=demo.observations,
+                        actions=demo.actions,
+                        rewards=demo.rewards,
+                        terminations=demo.terminations,
+                        truncations=demo.truncations,
+                        infos=dict(demo.infos),
+                    )
+                )
+            return out
+
+        try:
+            with warnings.catch_warnings():
+                # Minari warns about every metadata field left None; a permalink and an
+                # email are not known here.
+                warnings.filterwarnings("ignore", message=r"`(code_permalink|author_email)` is")
+                dataset = minari.create_dataset_from_buffers(
+                    dataset_id=dataset_id,
+                    buffer=buffers(0),
+                    env=env_spec,
+                    eval_env=env_spec,
+                    algorithm_name=", ".join(sources),
+                    author=author or (", ".join(people) if people else "ias-gym"),
+                    description=description
+                    or (
+                        f"{len(summaries)} demonstrations of {task_id} (env kwargs "
+                        f"{env_kwargs}) from {', '.join(sources)}, exported from the ias-gym "
+                        f"skill database {Path(db_path).name}"
+                    ),
+                    requirements=[f"ias-gym>={ias_gym.__version__}"],
+                    data_format="hdf5",
+                )
+            # The rest in chunks, so memory holds a few episodes, not the whole database.
+            for start in range(CHUNK_EPISODES, len(summaries), CHUNK_EPISODES):
+                dataset.update_dataset_from_buffer(buffers(start))
+        except BaseException:
+            shutil.rmtree(path, ignore_errors=True)  # no half-written dataset left behind
+            raise
+    return path
