@@ -237,7 +237,7 @@ class GripTransformController:
         coriolis = d.qfrc_bias[dofs] - d.qfrc_gravcomp[dofs]
         tau = J.T @ f + coriolis
         if g.finger_inertia or g.damping_feedforward:
-            J_pinv = _damped_pinv(J, g.jacobian_damping)
+            J_pinv = _damped_pinv_blocks(J, g.jacobian_damping)
             touching = np.repeat(active, 3)
         if g.finger_inertia:
             tau += self._finger_inertia(env, W, dW, J, J_pinv, qvel, a_d, touching, dt)
@@ -246,7 +246,7 @@ class GripTransformController:
             # would cancel the damping, see above): fingers that follow the object drag on
             # it otherwise (measured: a 23 ms lag of the pen's tilt behind its reference).
             v_ref = np.concatenate([ref.velocity, ref.omega])
-            qvel_ref = J_pinv @ np.where(touching, W.T @ v_ref, 0.0)
+            qvel_ref = _apply_blocks(J_pinv, np.where(touching, W.T @ v_ref, 0.0))
             tau += env.model.dof_damping[dofs] * qvel_ref
 
         self._prev_W, self._prev_J = W, J
@@ -274,7 +274,7 @@ class GripTransformController:
         dJ_qvel = np.zeros(len(qvel)) if self._prev_J is None else (J - self._prev_J) @ qvel / dt
         contact_acc = W.T @ a_d + dW.T @ v - dJ_qvel
         contact_acc[~touching] = 0.0
-        qacc = J_pinv @ contact_acc
+        qacc = _apply_blocks(J_pinv, contact_acc)
         result: FloatArray = env.physics.hand_mass_matrix() @ qacc
         return result
 
@@ -347,20 +347,25 @@ def _ahead(ref: PenReference, lead: float) -> PenReference:
     )
 
 
-def _damped_pinv(J: FloatArray, damping: float) -> FloatArray:
-    """``J+ = J^T (J J^T + damping I)^-1`` (eq. 32, damped near singular fingers).
+def _damped_pinv_blocks(J: FloatArray, damping: float) -> FloatArray:
+    """The diagonal blocks of ``J+ = J^T (J J^T + damping I)^-1`` (eq. 32), ``(k, 3, 3)``.
 
-    J is block diagonal, one 3 x 3 block per finger (eq. 35's ``diag(J_1 ... J_k)``), so the
-    blocks are inverted together in one batched call.
+    J is block diagonal, one 3 x 3 block per finger (eq. 35's ``diag(J_1 ... J_k)``), so J+
+    is too; the blocks are inverted together in one batched call (damped near singular
+    fingers).
     """
     k = len(J) // 3
     fingers = np.arange(k)
-    blocks = J.reshape(k, 3, k, 3)[fingers, :, fingers, :]  # (k, 3, 3)
+    blocks = J.reshape(k, 3, k, 3)[fingers, :, fingers, :]
     blocks_t = blocks.transpose(0, 2, 1)
-    inverse = np.linalg.inv(blocks @ blocks_t + damping * np.eye(3))
-    result = np.zeros((k, 3, k, 3))
-    result[fingers, :, fingers, :] = blocks_t @ inverse
-    return result.reshape(3 * k, 3 * k)
+    result: FloatArray = blocks_t @ np.linalg.inv(blocks @ blocks_t + damping * np.eye(3))
+    return result
+
+
+def _apply_blocks(blocks: FloatArray, x: FloatArray) -> FloatArray:
+    """``blockdiag(blocks) @ x`` for ``(k, 3, 3)`` blocks and ``(3k,)`` x."""
+    result: FloatArray = np.einsum("kij,kj->ki", blocks, x.reshape(-1, 3)).reshape(-1)
+    return result
 
 
 def _pinv_rows(W: FloatArray) -> FloatArray:

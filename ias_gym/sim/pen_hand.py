@@ -483,7 +483,8 @@ class PenHandPhysics:
         """
         c = self.fingertip_contacts() if contacts is None else contacts
         w = _wrench_matrix(c.points, c.frames, reference=self.pen_com())
-        w[:, np.repeat(~c.active, 3)] = 0.0
+        if not c.active.all():
+            w[:, np.repeat(~c.active, 3)] = 0.0
         return w, c.active
 
     def contact_intensities(self, contacts: FingertipContacts | None = None) -> FloatArray:
