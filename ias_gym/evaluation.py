@@ -43,8 +43,9 @@ class EvaluationResult:
         }
         for key in self.metrics[0] if self.metrics else ():
             values = np.array([m[key] for m in self.metrics])
-            out[f"{key}_mean"] = float(values.mean())
-            out[f"{key}_max"] = float(values.max())
+            values = values[np.isfinite(values)]  # NaN: not defined for that episode
+            out[f"{key}_mean"] = float(values.mean()) if len(values) else None
+            out[f"{key}_max"] = float(values.max()) if len(values) else None
         return out
 
 

@@ -165,10 +165,14 @@ class PenRotateEnv(PenHandEnv):
         return bool(self.rms_error() < self.config.max_rms_error * self.config.amplitude)
 
     def episode_metrics(self, info: dict[str, Any]) -> dict[str, float]:
-        """Error metrics of a finished episode from its last ``info`` (SI units)."""
+        """Error metrics of a finished episode from its last ``info`` (SI units).
+
+        The RMS tilt error is NaN for an episode that ended before ``settle_time``.
+        """
+        rms = float(info["rms_tilt_error"]) if self._sq_error_count else float("nan")
         return {
-            "rms_tilt_error": float(info["rms_tilt_error"]),
-            "rms_tilt_error_fraction": float(info["rms_tilt_error"]) / self.config.amplitude,
+            "rms_tilt_error": rms,
+            "rms_tilt_error_fraction": rms / self.config.amplitude,
             "max_position_error": float(info["max_position_error"]),
         }
 

@@ -146,6 +146,8 @@ def friction_cone_residual(c: ArrayLike, mu: float, cone: Cone = "box") -> Float
     Returns:
         ``(m,)``: tangential measure minus ``mu c_n``; ``<= 0`` inside the cone, ``0`` on it.
     """
+    if cone not in ("box", "exact"):
+        raise ValueError(f"cone must be 'box' or 'exact', got {cone!r}")
     per_contact = np.asarray(c, dtype=float).reshape(-1, 3)
     t = per_contact[:, 1:]
     size = np.abs(t).max(axis=1) if cone == "box" else np.hypot(t[:, 0], t[:, 1])
@@ -187,8 +189,8 @@ def _check_problem(
     slides: dict[int, FloatArray] = {}
     for k, s in (sliding or {}).items():
         s_arr = np.asarray(s, dtype=float)
-        if not 0 <= k < m:
-            raise ValueError(f"sliding contact index {k} out of range for {m} contacts")
+        if not isinstance(k, (int, np.integer)) or not 0 <= k < m:
+            raise ValueError(f"sliding contact index {k!r} is not one of 0..{m - 1}")
         if s_arr.shape != (2,) or not np.isfinite(s_arr).all():
             raise ValueError(f"sliding direction of contact {k} must be a finite 2-vector")
         if abs(np.hypot(s_arr[0], s_arr[1]) - 1.0) > _UNIT_TOL:
@@ -254,7 +256,6 @@ def _infeasible(
     w_ext: FloatArray,
     sliding: dict[int, FloatArray],
     settings: InternalForceSettings,
-    cone: Cone,
     detail: str,
 ) -> InfeasibleGraspError:
     """The error for an infeasible problem, naming every contact and constraint."""
@@ -265,10 +266,21 @@ def _infeasible(
     wrench = ", ".join(f"{x:g}" for x in w_ext)
     return InfeasibleGraspError(
         f"no wrench intensities satisfy equilibrium W c = -w_ext (w_ext=[{wrench}]) with "
-        f"normals >= f0={settings.f0:g} N and friction cones (mu={settings.mu:g}, {cone}, "
+        f"normals >= f0={settings.f0:g} N and friction cones (mu={settings.mu:g}, {settings.cone}, "
         f"margin={settings.margin:g}, sliding {settings.sliding}) for contacts "
         f"[{contacts}] ({detail})"
     )
+
+
+def _unit_rows(A: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``A x = b`` with unit-norm rows (zero rows kept).
+
+    W's moment rows are ~r times its force rows; solvers hold every row to one absolute
+    tolerance (HiGHS: 1e-7), which on a raw moment row would leave 1e-7 / r N of slack.
+    """
+    norms = np.sqrt(np.einsum("ij,ij->i", A, A))
+    scale = 1.0 / np.where(norms > 0, norms, 1.0)
+    return A * scale[:, None], b * scale
 
 
 def _independent_equalities(A: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray] | None:
@@ -277,10 +289,7 @@ def _independent_equalities(A: FloatArray, b: FloatArray) -> tuple[FloatArray, F
     An interior-point method needs independent equalities, and two contacts already give a
     rank-deficient ``W`` (no moment about the line through them).
     """
-    # Unit rows: W's moment rows are ~r times its force rows; compare like with like.
-    norms = np.linalg.norm(A, axis=1)
-    norms[norms == 0] = 1.0
-    A, b = A / norms[:, None], b / norms
+    A, b = _unit_rows(A, b)
     U, sv, Vt = np.linalg.svd(A, full_matrices=False)
     rank = int((sv > _RANK_TOL * sv[0]).sum()) if sv.size and sv[0] > 0 else 0
     U = U[:, :rank]
@@ -311,9 +320,9 @@ def solve_lp(
 ) -> InternalForceResult:
     """The paper's internal-force LP, eqs. (19)-(24), with HiGHS (the reference solver).
 
-    Box friction cones; ``scipy.optimize.linprog(method="highs")`` (HiGHS's interior-point
-    method if the simplex reports numerical difficulties). The optimum is a vertex and need
-    not be unique (the pen's is not).
+    Box friction cones; ``scipy.optimize.linprog(method="highs")``, or Clarabel on the same LP
+    when HiGHS reports numerical difficulties (``result.solver`` says which). The optimum is
+    a vertex and need not be unique (the pen's is not).
 
     Args:
         W: ``(6, 3 m)`` wrench matrix of eq. (3), columns ``[normal, t1, t2]`` per contact.
@@ -328,6 +337,7 @@ def solve_lp(
     Raises:
         InfeasibleGraspError: no intensities satisfy the constraints.
         ValueError: bad shapes, non-finite inputs, or ``settings.cone == "exact"``.
+        RuntimeError: neither HiGHS nor Clarabel could decide (not seen so far).
     """
     settings = InternalForceSettings() if settings is None else settings
     _require_cone(settings, "box", "solve_lp")
@@ -335,28 +345,29 @@ def solve_lp(
     m = W.shape[1] // 3
     cost = _check_weights(settings, m)
     F, lower, upper = _friction_rows(m, slides, settings, sticking=True)
+    W_unit, rhs = _unit_rows(W, -w)
     eq = lower == upper
     has_up, has_lo = ~eq & np.isfinite(upper), ~eq & np.isfinite(lower)
     A_ub = np.vstack([F[has_up], -F[has_lo]])
     b_ub = np.concatenate([upper[has_up], -lower[has_lo]])
     # linprog's default bounds are (0, None): the tangential intensities must be free.
     bounds = [(settings.f0, None), (None, None), (None, None)] * m
-    problem: dict[str, Any] = {
-        "c": cost,
-        "A_ub": A_ub if len(A_ub) else None,
-        "b_ub": b_ub if len(b_ub) else None,
-        "A_eq": np.vstack([W, F[eq]]),
-        "b_eq": np.concatenate([-w, lower[eq]]),
-        "bounds": bounds,
-    }
-    res = linprog(**problem, method="highs")
+    res = linprog(
+        cost,
+        A_ub=A_ub if len(A_ub) else None,
+        b_ub=b_ub if len(b_ub) else None,
+        A_eq=np.vstack([W_unit, F[eq]]),
+        b_eq=np.concatenate([rhs, lower[eq]]),
+        bounds=bounds,
+        method="highs",
+    )
     if res.status == 4:
-        # HiGHS's simplex gives up on some problems at the very edge of feasibility (seen:
-        # three orthogonal contacts at mu = 0.5, where only c = 0 balances the normals);
-        # its interior-point method without presolve decides those.
-        res = linprog(**problem, method="highs-ipm", options={"presolve": False})
+        # HiGHS gives up ("numerical difficulties") on a few degenerate problems: three
+        # orthogonal contacts at mu = 0.5, where only c = 0 balances the normals; two
+        # coincident contacts. Clarabel's interior point decides those.
+        return _solve_clarabel(W, w, slides, settings)
     if res.status == 2:
-        raise _infeasible(m, w, slides, settings, "box", f"highs: {res.message}")
+        raise _infeasible(m, w, slides, settings, f"highs: {res.message}")
     if res.status != 0:
         raise RuntimeError(f"linprog(highs) failed on the internal-force LP: {res.message}")
     return _result(res.x, cost, "highs", str(res.message))
@@ -392,21 +403,30 @@ def solve_socp(
     Raises:
         InfeasibleGraspError: no intensities satisfy the constraints.
         ValueError: bad shapes, non-finite inputs, or ``settings.cone == "box"``.
+        RuntimeError: Clarabel could not decide (only seen at the very edge of feasibility).
     """
     settings = InternalForceSettings(cone="exact") if settings is None else settings
     _require_cone(settings, "exact", "solve_socp")
     W, w, slides = _check_problem(W, w_ext, sliding)
+    return _solve_clarabel(W, w, slides, settings)
+
+
+def _solve_clarabel(
+    W: FloatArray, w: FloatArray, slides: dict[int, FloatArray], settings: InternalForceSettings
+) -> InternalForceResult:
+    """Solve the checked problem with Clarabel, box or exact cones as ``settings.cone``."""
     m = W.shape[1] // 3
     n = 3 * m
     cost = _check_weights(settings, m)
-    F, lower, upper = _friction_rows(m, slides, settings, sticking=False)
+    exact = settings.cone == "exact"
+    F, lower, upper = _friction_rows(m, slides, settings, sticking=not exact)
     eq = lower == upper
     has_up, has_lo = ~eq & np.isfinite(upper), ~eq & np.isfinite(lower)
     equalities = _independent_equalities(np.vstack([W, F[eq]]), np.concatenate([-w, lower[eq]]))
     if equalities is None:
         detail = "equilibrium and the sliding equalities alone have no solution"
-        raise _infeasible(m, w, slides, settings, "exact", detail)
-    sticking = [j for j in range(m) if j not in slides]
+        raise _infeasible(m, w, slides, settings, detail)
+    sticking = [j for j in range(m) if j not in slides] if exact else []
     # Clarabel: A x + s = b with s in the cones, in this row order.
     soc = np.zeros((3 * len(sticking), n))
     for i, j in enumerate(sticking):  # s = (mu c_n, c_t1, c_t2) in the second-order cone
@@ -418,10 +438,10 @@ def solve_socp(
         (-F[has_lo], -lower[has_lo]),
         (soc, np.zeros(len(soc))),
     ]
-    A = sparse.csc_matrix(np.vstack([a for a, _ in blocks]))
-    b = np.concatenate([b for _, b in blocks])
+    A = sparse.csc_matrix(np.vstack([rows for rows, _ in blocks]))
+    b = np.concatenate([rhs for _, rhs in blocks])
     n_eq = len(blocks[0][1])
-    n_ineq = sum(len(b) for _, b in blocks[1:4])
+    n_ineq = sum(len(rhs) for _, rhs in blocks[1:4])
     cones: list[Any] = [clarabel.ZeroConeT(n_eq), clarabel.NonnegativeConeT(n_ineq)]
     cones += [clarabel.SecondOrderConeT(3) for _ in sticking]
     options = clarabel.DefaultSettings()
@@ -433,9 +453,9 @@ def solve_socp(
         clarabel.SolverStatus.PrimalInfeasible,
         clarabel.SolverStatus.AlmostPrimalInfeasible,
     ):
-        raise _infeasible(m, w, slides, settings, "exact", f"clarabel: {status}")
+        raise _infeasible(m, w, slides, settings, f"clarabel: {status}")
     if solution.status not in (clarabel.SolverStatus.Solved, clarabel.SolverStatus.AlmostSolved):
-        raise RuntimeError(f"clarabel failed on the internal-force SOCP: {status}")
+        raise RuntimeError(f"clarabel failed on the internal-force problem: {status}")
     return _result(np.asarray(solution.x), cost, "clarabel", status)
 
 
@@ -462,7 +482,7 @@ class InternalForceSolver:
     ``w_ext`` into a persistent DAQP workspace (a dual active-set QP solver) and warm-starts
     from the previous active set: about 5 us in DAQP, 25 us per call with the input checks,
     against about 1.6 ms for :func:`solve_lp`. A change of the sliding contacts rebuilds the
-    workspace (a cold start, about 15 us more).
+    workspace (a cold start, about 0.1 ms).
 
     The LP is solved as the QP ``min cost . c + (eps / 2) ||c||^2``, regularising every
     intensity so that the Hessian is positive definite as DAQP needs. For small enough ``eps``
@@ -476,8 +496,8 @@ class InternalForceSolver:
     warm-started needs about 90 us per call, most of it in the 72 ``changeCoeff`` calls;
     ``daqp.solve`` without a workspace about 50 us (``bench/bench_internal_forces.py``).
     If DAQP rejects a problem (equalities it cannot tell from inconsistent ones, possible
-    when ``W`` is rank-deficient) the call falls back to :func:`solve_lp`
-    (``result.solver == "highs"``). DAQP is imported when the solver is built, so the rest
+    when ``W`` is rank-deficient) the call falls back to :func:`solve_lp` (``result.solver``
+    then names HiGHS or Clarabel). DAQP is imported when the solver is built, so the rest
     of this module works without it.
     """
 
@@ -536,16 +556,14 @@ class InternalForceSolver:
         m, n = self.n_contacts, 3 * self.n_contacts
         if W.shape[1] != n:
             raise ValueError(f"W has {W.shape[1] // 3} contacts, this solver {m}")
-        # Unit-norm equilibrium rows: the moment rows are ~r times the force rows.
-        norms = np.sqrt(np.einsum("ij,ij->i", W, W))
-        scale = 1.0 / np.where(norms > 0, norms, 1.0)
+        W_unit, rhs = _unit_rows(W, -w)
         key = tuple((j, float(s[0]), float(s[1])) for j, s in sorted(slides.items()))
         if key == self._sliding_key:
-            self._A[:6] = W * scale[:, None]
-            self._lower[n : n + 6] = self._upper[n : n + 6] = -w * scale
+            self._A[:6] = W_unit
+            self._lower[n : n + 6] = self._upper[n : n + 6] = rhs
             ready = self._model.update(A=self._A, bupper=self._upper, blower=self._lower) >= 0
         else:
-            ready = self._setup(W * scale[:, None], -w * scale, slides)
+            ready = self._setup(W_unit, rhs, slides)
         if ready:
             x, _, flag, _ = self._model.solve()
             if flag == 1:
@@ -553,7 +571,7 @@ class InternalForceSolver:
                 return _result(x, self._cost, "daqp", "optimal")
             if flag == -1:
                 self._sliding_key = None
-                raise _infeasible(m, w, slides, self.settings, "box", "daqp: infeasible")
+                raise _infeasible(m, w, slides, self.settings, "daqp: infeasible")
         # DAQP refuses equalities it cannot tell apart from inconsistent ones (e.g. two
         # contacts: rank W = 5); rare, and the LP decides those.
         self._sliding_key = None
