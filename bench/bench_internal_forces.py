@@ -3,8 +3,9 @@
 The problem: the paper's pen (NOTES.md reference: mu = 0.25, r = 1 cm, m g = 1 N, f0 = 0.1 N)
 in phase 1 of eq. (17), finger 1 sliding to -x while phi_1 grows from 3 to 4 cm. Each
 repetition solves the next W along that slide, as a control loop would, so warm starts are
-honest. Also timed, as the alternatives we did not ship: DAQP called cold each time, and a
-persistent HiGHS model whose W coefficients are changed in place and warm-started.
+honest. Also timed, as the alternatives we did not ship (built here from the module's own
+friction rows): DAQP called cold each time, and a persistent HiGHS model whose W
+coefficients are changed in place and warm-started.
 
 Run: ``python bench/bench_internal_forces.py [--reps N]``.
 """
@@ -112,7 +113,7 @@ def time_solver(solve: Callable[[np.ndarray], float], ws: list[np.ndarray]) -> n
 
 
 def main() -> None:
-    """Print the table: solver, median and p90 per solve [us], ratio to linprog."""
+    """Print the table: solver, median and p90 per solve [us], linprog's median / its median."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--reps", type=int, default=2000, help="solves per solver")
     reps = parser.parse_args().reps
@@ -130,7 +131,7 @@ def main() -> None:
     stats = {name: time_solver(solve, ws) for name, solve in solvers.items()}
     ref = float(np.median(stats["linprog(highs) [reference]"]))
     print(f"pen, phase 1 (finger 1 sliding), {reps} solves each")
-    print(f"{'solver':36s} {'median us':>10s} {'p90 us':>10s} {'x faster':>9s}")
+    print(f"{'solver':36s} {'median us':>10s} {'p90 us':>10s} {'speed-up':>9s}")
     for name, t in stats.items():
         median, p90 = np.median(t), np.percentile(t, 90)
         print(f"{name:36s} {median:10.1f} {p90:10.1f} {ref / median:9.1f}")

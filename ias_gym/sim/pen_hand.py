@@ -277,9 +277,6 @@ class PenHandPhysics:
         hand_root = model.body_rootid[self._tip_bodies[0]]
         self._hand_geom = model.body_rootid[model.geom_bodyid] == hand_root
         self._hand_geom[self.tip_geom_ids] = False
-        # geom id -> finger index (-1: not a fingertip), for vectorised contact matching.
-        self._finger_of_geom = np.full(model.ngeom, -1)
-        self._finger_of_geom[self.tip_geom_ids] = np.arange(k)
 
         self.n_fingers = k
         self.n_hand_dofs = len(joints)
@@ -288,7 +285,6 @@ class PenHandPhysics:
         self._pen_geom, self._pen_qadr = self.pen_geom_id, self.pen_qpos_adr
         self._jacp = np.zeros((3, model.nv))
         self._full_m = np.zeros((model.nv, model.nv))
-        self._force6 = np.zeros(6)
         self._pen_rot_mj = np.zeros(9)
 
     # ------------------------------------------------------------------ construction
