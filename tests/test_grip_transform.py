@@ -154,10 +154,11 @@ def test_wrench_matrix_stacks_the_contact_bases(model: str) -> None:
     """The vectorised W equals the per-contact bases side by side, about any reference."""
     rng = np.random.default_rng(3)
     points, frames, ref = rng.normal(size=(4, 3)), rng.normal(size=(4, 3, 3)), rng.normal(size=3)
-    expected = np.concatenate(
-        [contact_wrench_basis(p, *f, model=model, reference=ref) for p, f in zip(points, frames)],
-        axis=1,
-    )
+    bases = [
+        contact_wrench_basis(p, *f, model=model, reference=ref)
+        for p, f in zip(points, frames, strict=True)
+    ]
+    expected = np.concatenate(bases, axis=1)
     np.testing.assert_allclose(wrench_matrix(points, frames, model, ref), expected, atol=1e-15)
     assert wrench_matrix(np.zeros((0, 3)), np.zeros((0, 3, 3))).shape == (6, 0)
     with pytest.raises(ValueError, match="contact points"):
