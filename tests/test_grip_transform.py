@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from paper_reference import eq16
 
 from ias_gym.grasp.contacts import contact_wrench_basis, wrench_matrix
 from ias_gym.grasp.grip_transform import (
@@ -22,18 +23,7 @@ R = 0.01
 
 def test_pen_wrench_matrix_is_eq16() -> None:
     """NOTES.md's corrected eq. (16), written out entry by entry."""
-    p1, p2, p3, p4 = 0.03, 0.02, 0.02, 0.03
-    expected = np.array(
-        [
-            [0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1, 0],
-            [-1, 0, 0, 1, 0, 0, 1, 0, 0, -1, 0, 0],
-            [0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1],
-            [0, 0, R, 0, 0, -R, 0, 0, -R, 0, 0, R],
-            [0, 0, p1, 0, 0, p2, 0, 0, -p3, 0, 0, -p4],
-            [p1, -R, 0, -p2, R, 0, p3, R, 0, -p4, -R, 0],
-        ]
-    )
-    np.testing.assert_allclose(PEN_W, expected, atol=1e-15)
+    np.testing.assert_allclose(PEN_W, eq16(), atol=1e-15)
     s = np.linalg.svd(PEN_W, compute_uv=False)
     np.testing.assert_allclose(s, [2, 2, 2, 0.05477, 0.05099, 0.02], rtol=1e-3)
 

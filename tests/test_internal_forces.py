@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import assume, event, given, settings
 from hypothesis import strategies as st
+from paper_reference import eq16
 
 from ias_gym.grasp.contacts import wrench_matrix
 from ias_gym.grasp.internal_forces import (
@@ -103,17 +104,7 @@ def assert_satisfies_constraints(
 
 
 def test_pen_geometry_reproduces_eq_16() -> None:
-    r, (p1, p2, p3, p4) = RADIUS, PHI
-    eq_16 = np.array(
-        [
-            [0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1, 0],
-            [-1, 0, 0, 1, 0, 0, 1, 0, 0, -1, 0, 0],
-            [0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1],
-            [0, 0, r, 0, 0, -r, 0, 0, -r, 0, 0, r],
-            [0, 0, p1, 0, 0, p2, 0, 0, -p3, 0, 0, -p4],
-            [p1, -r, 0, -p2, r, 0, p3, r, 0, -p4, -r, 0],
-        ]
-    )
+    eq_16 = eq16(PHI, RADIUS)
     np.testing.assert_allclose(pen_w(), eq_16, atol=1e-15)
 
 

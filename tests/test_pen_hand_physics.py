@@ -7,6 +7,7 @@ import importlib.resources
 import mujoco
 import numpy as np
 import pytest
+from paper_reference import eq16
 
 from ias_gym.sim import (
     FINGERS,
@@ -28,18 +29,7 @@ PHI = (0.03, 0.02, 0.02, 0.03)  # [m]
 
 def notes_w(phi: tuple[float, ...] = PHI, r: float = R_PEN) -> np.ndarray:
     """Eq. (16) as corrected in NOTES.md (written out independently of the package)."""
-    p1, p2, p3, p4 = phi
-    return np.array(
-        [
-            [0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1, 0],
-            [-1, 0, 0, 1, 0, 0, 1, 0, 0, -1, 0, 0],
-            [0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1],
-            [0, 0, r, 0, 0, -r, 0, 0, -r, 0, 0, r],
-            [0, 0, p1, 0, 0, p2, 0, 0, -p3, 0, 0, -p4],
-            [p1, -r, 0, -p2, r, 0, p3, r, 0, -p4, -r, 0],
-        ],
-        dtype=float,
-    )
+    return eq16(phi, r)
 
 
 @pytest.fixture(scope="module")
