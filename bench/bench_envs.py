@@ -2,9 +2,11 @@
 
 Run: ``python bench/bench_envs.py``. For each environment, from states of an expert-held
 grasp (the contacts that make stepping expensive), time blocks of ``env.step`` and, from
-the same states with the same controls, blocks of ``mujoco.mj_step(m, d, nstep=frame_skip)``;
-print the medians per step and their ratio, measured side by side in one run. Then the
-random-action rate (steps/s, resets included), as an RL library would see it.
+the same states with the same controls, blocks of the raw simulation: ``frame_skip`` calls
+of ``mujoco.mj_step(m, d)`` from Python ("loop"), and one ``mj_step(m, d, nstep=frame_skip)``
+("nstep", what the env calls). Print the medians per step and the ratios, measured side by
+side in one run. Then the random-action rate (steps/s, resets included), as an RL library
+would see it.
 """
 
 from __future__ import annotations
@@ -23,8 +25,8 @@ from ias_gym.baselines.grip_transform_control import GripTransformController
 ENV_IDS = ("IAS-PenSlide-v0", "IAS-PenRotate-v0")
 
 
-def time_env_vs_raw(env_id: str, blocks: int, block_steps: int) -> tuple[float, float]:
-    """Median time per step [s] of env.step and of the raw simulation, same states."""
+def time_env_vs_raw(env_id: str, blocks: int, block_steps: int) -> tuple[float, float, float]:
+    """Median time per step [s]: env.step, raw loop of mj_step, raw nstep; same states."""
     env = gym.make(env_id)
     u = env.unwrapped
     env.reset(seed=0)
@@ -42,7 +44,7 @@ def time_env_vs_raw(env_id: str, blocks: int, block_steps: int) -> tuple[float, 
         env.step(a)
     ctrl = [a * u._ctrl_max for a in actions]
 
-    env_times, raw_times = [], []
+    env_times, loop_times, raw_times = [], [], []
     for _ in range(blocks):
         mujoco.mj_setState(u.model, u.data, start, spec)
         for k, v in episode.items():
@@ -52,14 +54,22 @@ def time_env_vs_raw(env_id: str, blocks: int, block_steps: int) -> tuple[float, 
             u.step(a)
         env_times.append((time.perf_counter() - t0) / block_steps)
 
-        mujoco.mj_setState(u.model, u.data, start, spec)
         m, d, n, ids = u.model, u.data, u.frame_skip, u._act_ids
+        mujoco.mj_setState(m, d, start, spec)
+        t0 = time.perf_counter()
+        for c in ctrl:
+            d.ctrl[ids] = c
+            for _ in range(n):
+                mujoco.mj_step(m, d)
+        loop_times.append((time.perf_counter() - t0) / block_steps)
+
+        mujoco.mj_setState(m, d, start, spec)
         t0 = time.perf_counter()
         for c in ctrl:
             d.ctrl[ids] = c
             mujoco.mj_step(m, d, nstep=n)
         raw_times.append((time.perf_counter() - t0) / block_steps)
-    return float(np.median(env_times)), float(np.median(raw_times))
+    return float(np.median(env_times)), float(np.median(loop_times)), float(np.median(raw_times))
 
 
 def random_rate(env_id: str, steps: int) -> float:
@@ -83,13 +93,16 @@ def main() -> None:
     args = parser.parse_args()
     machine = platform.processor() or platform.machine()
     print(f"machine: {machine}, python {platform.python_version()}, mujoco {mujoco.__version__}")
-    header = ("env", "env.step [us]", "raw sim [us]", "ratio", "random [steps/s]")
-    print(f"{header[0]:<18} {header[1]:>14} {header[2]:>13} {header[3]:>6} {header[4]:>17}")
+    header = ("env", "env.step", "raw loop", "raw nstep", "/loop", "/nstep", "random")
+    print(f"{header[0]:<18}" + "".join(f"{h:>11}" for h in header[1:]))
+    print(f"{'':<18}{'[us]':>11}{'[us]':>11}{'[us]':>11}{'':>11}{'':>11}{'[steps/s]':>11}")
     for env_id in ENV_IDS:
-        t_env, t_raw = time_env_vs_raw(env_id, args.blocks, args.block_steps)
+        t_env, t_loop, t_raw = time_env_vs_raw(env_id, args.blocks, args.block_steps)
         rate = random_rate(env_id, args.random_steps)
-        ratio = t_env / t_raw
-        print(f"{env_id:<18} {t_env * 1e6:>14.0f} {t_raw * 1e6:>13.0f} {ratio:>6.2f} {rate:>17.0f}")
+        print(
+            f"{env_id:<18}{t_env * 1e6:>11.0f}{t_loop * 1e6:>11.0f}{t_raw * 1e6:>11.0f}"
+            f"{t_env / t_loop:>11.2f}{t_env / t_raw:>11.2f}{rate:>11.0f}"
+        )
 
 
 if __name__ == "__main__":

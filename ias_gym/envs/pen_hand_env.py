@@ -22,7 +22,7 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from ias_gym.sim.grasp_pose import place_grasp
-from ias_gym.sim.pen_hand import PenHandPhysics, load_pen_hand_model
+from ias_gym.sim.pen_hand import FINGERS, PenHandPhysics, load_pen_hand_model
 
 FloatArray = NDArray[np.float64]
 
@@ -33,8 +33,6 @@ POSITION_SCALE = 0.005  # [m]
 ANGLE_SCALE = math.radians(5.0)  # [rad]
 #: MuJoCo world -> paper frame: paper (x, y, z) = MuJoCo (x, z, -y).
 _TO_PAPER_INDEX = np.array([0, 2, 1])  # and negate the last
-_YZX = np.array([1, 2, 0])  # index permutations for a written-out cross product
-_ZXY = np.array([2, 0, 1])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -217,7 +215,10 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         self._pen_v = p.pen_dof_adr
         self._pen_body = p.pen_body_id
         self._tip_sites = p.tip_site_ids
-        self._contact_idx = p._contact_sensor_idx  # fN_pen_contact sensors, 14 values each
+        # fN_pen_force sensors: number of contacts, net force of the tip on the pen (world).
+        adr = np.array([self.model.sensor(f"{f}_pen_force").adr[0] for f in FINGERS])
+        self._found_adr = adr
+        self._force_adr = (adr[:, None] + np.arange(1, 4)).ravel()
         self._key = self.model.key("grasp").id
         self._rot = np.zeros(9)
         self._rows = np.zeros((8, 3))
@@ -370,17 +371,11 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         rows[1] = rot[:, 0]
         rows[2] = d.qvel[va : va + 3]
         np.dot(rot, d.qvel[va + 3 : va + 6], out=rows[3])  # body -> world
-        # Contact sensors: found, force in the contact frame (normal, tangent, n x t), dist,
-        # pos, normal, tangent; the force of the tip on the pen in the world frame is
-        # f_n n + f_t t + f_b (n x t).
-        block = d.sensordata[self._contact_idx].reshape(4, 14)
-        f, n, t = block[:, 1:4], block[:, 8:11], block[:, 11:14]
-        b = n[:, _YZX] * t[:, _ZXY] - n[:, _ZXY] * t[:, _YZX]
-        rows[4:] = f[:, :1] * n + f[:, 1:2] * t + f[:, 2:3] * b
+        rows[4:] = d.sensordata[self._force_adr].reshape(4, 3)
         paper = rows[:, _TO_PAPER_INDEX]
         paper[:, 2] *= -1.0
         tips = d.site_xpos[self._tip_sites] - d.xpos[self._pen_body]
-        self.state = PenState(paper.ravel(), block[:, 0] > 0, tips @ rot[:, 0])
+        self.state = PenState(paper.ravel(), d.sensordata[self._found_adr] > 0, tips @ rot[:, 0])
 
     def _start_episode(self) -> None:
         """Zero the episode's statistics for the current (just reset) state."""

@@ -100,6 +100,11 @@ class PenSlideEnv(PenHandEnv):
         steps = np.arange(self.max_steps + 1) * self.config.control_dt - self.config.hold_time
         self._target_table = OUTWARD * finger_distances(steps, SKILL)
         self._target_rate_table = OUTWARD * finger_velocities(steps, SKILL)
+        self._phase_table = [self._phase_at(t) for t in steps]
+        # The part of the observation that depends on time only: rates, phase, targets.
+        self._schedule_obs = np.column_stack(
+            [self._target_rate_table, _PHASES[self._phase_table], self._target_table]
+        )
         self._task_update()
 
     def schedule_time(self) -> float:
@@ -135,7 +140,12 @@ class PenSlideEnv(PenHandEnv):
 
     def phase(self) -> int:
         """0 while holding, i during phase i (1-4), 5 when settling."""
-        tau = self.schedule_time()
+        if not hasattr(self, "_phase_table"):  # during the base class's __init__
+            return self._phase_at(self.schedule_time())
+        return self._phase_table[min(self._steps, self.max_steps)]
+
+    @staticmethod
+    def _phase_at(tau: float) -> int:
         if tau < 0:
             return 0
         return min(int(np.searchsorted(SKILL.phase_times, tau, side="right")), 5)
@@ -147,8 +157,12 @@ class PenSlideEnv(PenHandEnv):
         self._max_tilt = tilt if self._steps == 0 else max(self._max_tilt, tilt)
 
     def _task_observation(self) -> FloatArray:
-        target, velocity = self.targets()
-        return np.concatenate([self._slide_errors, velocity, _PHASES[self.phase()], target])
+        if not hasattr(self, "_schedule_obs"):  # during the base class's __init__
+            target, velocity = self.targets()
+            return np.concatenate([self._slide_errors, velocity, _PHASES[self.phase()], target])
+        return np.concatenate(
+            [self._slide_errors, self._schedule_obs[min(self._steps, self.max_steps)]]
+        )
 
     def _task_reward(self) -> dict[str, float]:
         cfg = self.config
