@@ -136,6 +136,7 @@ class GripTransformController:
         self._prev_J: FloatArray | None = None
         self._N: FloatArray | None = None
         self._extra = np.zeros(12)  # servo forces commanded last step [N]
+        self._joint_damping: FloatArray | None = None
 
     def object_acceleration(self, env: PenHandEnv, ref: PenReference) -> FloatArray:
         """Desired object acceleration ``[v'; omega']`` of eqs. (41), (43) [m/s^2, rad/s^2]."""
@@ -247,7 +248,7 @@ class GripTransformController:
             # it otherwise (measured: a 23 ms lag of the pen's tilt behind its reference).
             v_ref = np.concatenate([ref.velocity, ref.omega])
             qvel_ref = _apply_blocks(J_pinv, np.where(touching, W.T @ v_ref, 0.0))
-            tau += env.model.dof_damping[dofs] * qvel_ref
+            tau += self._damping(env) * qvel_ref
 
         self._prev_W, self._prev_J = W, J
         self.last = ControlStep(tau, wrench, c_h_d, c_h, c_cmd, active, feasible)
@@ -277,6 +278,12 @@ class GripTransformController:
         qacc = _apply_blocks(J_pinv, contact_acc)
         result: FloatArray = env.physics.hand_mass_matrix() @ qacc
         return result
+
+    def _damping(self, env: PenHandEnv) -> FloatArray:
+        """The hand joints' damping coefficients [N m s/rad] (looked up once)."""
+        if self._joint_damping is None:
+            self._joint_damping = env.model.dof_damping[env.physics.hand_dof_ids].copy()
+        return self._joint_damping
 
     def _lateral_servo(
         self, env: PenHandEnv, frames: FloatArray, J: FloatArray, qvel: FloatArray

@@ -92,6 +92,7 @@ class PenSlideEnv(PenHandEnv):
 
     _max_tilt: float
     _slide_errors: FloatArray
+    _reference_step: int = -1  # the step _reference was made for (a cache)
 
     def __init__(self, render_mode: str | None = None, **config: Any) -> None:
         """Build the task; ``config``: fields of :class:`PenSlideConfig` to override."""
@@ -124,6 +125,12 @@ class PenSlideEnv(PenHandEnv):
 
     def reference(self) -> PenReference:
         """Pen at rest, untilted; the scheduled finger sliding (eq. 17)."""
+        k = min(self._steps, self.max_steps)
+        if k != self._reference_step:
+            self._reference_step, self._reference = k, self._reference_now()
+        return self._reference
+
+    def _reference_now(self) -> PenReference:
         zero = np.zeros(3)
         target, velocity = self.targets()
         return PenReference(
