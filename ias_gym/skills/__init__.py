@@ -11,11 +11,8 @@
 from ias_gym.skills.commands import add_skills_commands
 from ias_gym.skills.db import (
     SCHEMA_VERSION,
-    Demonstration,
-    Skill,
     SkillDB,
     SkillDBError,
-    SkillModel,
     SkillNotFoundError,
     SkillSummary,
 )
@@ -27,6 +24,7 @@ from ias_gym.skills.record import (
     record_skills,
     stack_infos,
 )
+from ias_gym.skills.skill import Demonstration, Skill, SkillModel
 
 __all__ = [
     "SCHEMA_VERSION",

@@ -20,7 +20,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ias_gym.grasp.grip_transform import GraspRankError, GripTransform
-from ias_gym.skills.db import Demonstration, Skill, SkillDB, SkillModel
+from ias_gym.skills.db import SkillDB
+from ias_gym.skills.skill import Demonstration, Skill, SkillModel
 
 if TYPE_CHECKING:
     from ias_gym.envs.pen_hand_env import PenHandEnv
