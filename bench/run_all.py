@@ -6,7 +6,12 @@ import subprocess
 import sys
 from pathlib import Path
 
-BENCHES = ("bench_internal_forces.py", "bench_envs.py", "bench_controller.py")
+BENCHES = (
+    "bench_internal_forces.py",
+    "bench_envs.py",
+    "bench_controller.py",
+    "bench_glove.py",
+)
 
 if __name__ == "__main__":
     here = Path(__file__).parent

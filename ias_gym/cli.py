@@ -117,6 +117,10 @@ def build_parser() -> argparse.ArgumentParser:
     from ias_gym.skills.commands import add_skills_commands
 
     add_skills_commands(commands)
+
+    from ias_gym.glove.commands import add_glove_commands
+
+    add_glove_commands(commands)
     return parser
 
 

@@ -1,0 +1,344 @@
+"""The human hand as the glove sees it: joint and sensor names, ranges, a person's parameters.
+
+Paper section 2.3: the glove has 10 degrees of freedom, "3 for the wrist, 3 for the index
+finger, 2 for the thumb and 2 for the rest of the fingers". This module fixes, in one place,
+
+- the 10 joint angles Θ of the kinematic hand model (:data:`JOINT_NAMES`, ranges in
+  :data:`JOINT_RANGES` [rad]; flexion positive);
+- the 10 sensor readings Ψ of the glove (:data:`SENSOR_NAMES`, the order in which the
+  hardware sends "the 10 readings"), all in [rad];
+- :class:`PersonParams`: the person-dependent part of the sensor model of eq. (1), sampled
+  reproducibly from a person id and a seed (hand size, segment lengths, how the glove sits);
+- the planar forward kinematics of index finger and thumb (the side view of Fig. 7): the
+  index finger flexes in its sagittal plane; the thumb is drawn in the same plane (a
+  stylised projection, our choice): its metacarpal leaves the CMC joint below and behind the
+  index MCP and swings palmar with the CMC rotation/abduction angle, its flexion bends MCP
+  and IP towards the index finger. Pinching = the two fingertips meet in this plane.
+
+Frame of the kinematics [m]: origin at the index MCP joint, x distal along the index
+metacarpal, y palmar (so flexion angles turn counter-clockwise). Points are complex numbers
+``x + 1j * y`` internally, ``(..., 2)`` arrays at the interface.
+
+Joint coupling of natural poses (our model, documented here): the index DIP follows the PIP,
+``θ3 ≈ κ θ2`` with a person's κ ≈ 2/3 (:attr:`PersonParams.dip_coupling`), but not in a pinch,
+where the contact sets the DIP (pad pinch: DIP nearly straight; tip pinch: flexed). The thumb's
+flexion θ_tf is shared by its MCP and IP joints (:data:`THUMB_FLEXION_SHARES`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+#: The joint angles Θ of the hand model, in this order (paper 2.3) [rad].
+JOINT_NAMES: tuple[str, ...] = (
+    "wrist_flexion",  # + flexion, - extension
+    "wrist_deviation",  # + ulnar, - radial
+    "wrist_pronation",  # + pronation, - supination
+    "index_mcp",  # θ1 of Fig. 4
+    "index_pip",  # θ2
+    "index_dip",  # θ3
+    "thumb_cmc",  # CMC rotation/abduction (palmar abduction towards opposition)
+    "thumb_flexion",  # MCP + IP flexion, shared (THUMB_FLEXION_SHARES)
+    "fingers_mcp",  # middle, ring, little finger MCP, moving together
+    "fingers_pip",  # their PIP (DIP follows, not measured)
+)
+N_JOINTS = len(JOINT_NAMES)
+
+#: (low, high) of each joint [rad]: physiological active ranges, rounded.
+JOINT_RANGES: dict[str, tuple[float, float]] = {
+    "wrist_flexion": (-1.0, 1.0),
+    "wrist_deviation": (-0.35, 0.45),
+    "wrist_pronation": (-1.2, 1.2),
+    "index_mcp": (0.0, 1.5),
+    "index_pip": (0.0, 1.7),
+    "index_dip": (0.0, 1.2),
+    "thumb_cmc": (0.0, 1.2),
+    "thumb_flexion": (0.0, 1.3),
+    "fingers_mcp": (0.0, 1.5),
+    "fingers_pip": (0.0, 1.7),
+}
+JOINT_LOW = np.array([JOINT_RANGES[n][0] for n in JOINT_NAMES])
+JOINT_HIGH = np.array([JOINT_RANGES[n][1] for n in JOINT_NAMES])
+
+#: The glove's sensor readings Ψ, in the order the hardware sends them [rad].
+SENSOR_NAMES: tuple[str, ...] = (
+    "wrist_flexion",  # potentiometers on the wrist gimbal (3)
+    "wrist_deviation",
+    "wrist_pronation",
+    "index_psi1",  # ψ1: the index linkage's base angle (Fig. 4)
+    "index_psi2",  # ψ2: the linkage's middle angle (Fig. 4)
+    "thumb_flexion",  # bend sensor over thumb MCP + IP
+    "thumb_rotation",  # potentiometer of the thumb's CMC linkage
+    "thumb_web",  # thumb-index web (abduction) linkage: couples thumb and index
+    "fingers_mcp",  # bend sensors over the other fingers (2)
+    "fingers_pip",
+)
+N_SENSORS = len(SENSOR_NAMES)
+
+#: Indices into Θ of the finger groups.
+WRIST_JOINTS = (0, 1, 2)
+INDEX_JOINTS = (3, 4, 5)
+THUMB_JOINTS = (6, 7)
+FINGERS_JOINTS = (8, 9)
+
+#: Share of the thumb flexion θ_tf taken by the thumb's MCP and IP joints (sum 1).
+THUMB_FLEXION_SHARES = (0.55, 0.45)
+#: Direction of the thumb metacarpal at θ_cmc = 0 [rad], counter-clockwise from +x (x distal,
+#: y palmar): the adducted thumb lies along the index metacarpal, slightly dorsal.
+THUMB_REST_ANGLE = -0.35
+
+#: Nominal adult segment lengths [m] (scale 1): index proximal, middle, distal phalanx.
+NOMINAL_INDEX_LENGTHS = (0.045, 0.026, 0.019)
+#: Thumb metacarpal, proximal and distal phalanx [m].
+NOMINAL_THUMB_LENGTHS = (0.046, 0.032, 0.026)
+#: Thumb CMC joint relative to the index MCP [m] (proximal, palmar).
+NOMINAL_THUMB_BASE = (-0.052, 0.030)
+
+
+def joint_index(name: str) -> int:
+    """Index of joint ``name`` in Θ.
+
+    Raises:
+        KeyError: listing the joint names that exist.
+    """
+    try:
+        return JOINT_NAMES.index(name)
+    except ValueError:
+        raise KeyError(f"unknown joint {name!r}; joints: {list(JOINT_NAMES)}") from None
+
+
+def sensor_index(name: str) -> int:
+    """Index of sensor ``name`` in Ψ.
+
+    Raises:
+        KeyError: listing the sensor names that exist.
+    """
+    try:
+        return SENSOR_NAMES.index(name)
+    except ValueError:
+        raise KeyError(f"unknown sensor {name!r}; sensors: {list(SENSOR_NAMES)}") from None
+
+
+def _person_rng(person_id: str, seed: int) -> np.random.Generator:
+    # sha256, not hash(): Python salts str hashes per process.
+    digest = int.from_bytes(hashlib.sha256(person_id.encode()).digest()[:8], "little")
+    return np.random.default_rng([digest, seed])
+
+
+@dataclass(frozen=True)
+class PersonParams:
+    """The person-dependent part of the sensor model Ψ = g_person(Θ) (eq. (1) inverted).
+
+    Sample one with :meth:`sample`; :meth:`nominal` is the average person with a perfectly
+    mounted glove. Lengths in [m], angles in [rad], forces in [N].
+
+    Attributes:
+        person_id: who this is.
+        seed: the seed the parameters were sampled with (with ``person_id``).
+        hand_scale: overall hand size (1 = nominal adult), ~U(0.85, 1.15).
+        index_lengths: index proximal, middle, distal phalanx [m] = nominal x scale x a
+            per-segment ratio ~U(0.93, 1.07).
+        thumb_lengths: thumb metacarpal, proximal, distal phalanx [m], likewise.
+        thumb_base: thumb CMC joint (x, y) relative to the index MCP [m], scaled, +-2 mm.
+        dip_coupling: κ of the natural DIP-PIP coupling θ3 ≈ κ θ2, ~U(0.6, 0.75).
+        linkage_base: the pivot of the glove's index linkage (ψ1's potentiometer) relative to
+            the person's MCP [m]: fixed on the glove at (-18, -24) mm (behind the MCP, on the
+            back of the hand), so it sits differently on every hand (+-3 mm).
+        linkage_attach: where the linkage's ring and thimble sit: fraction along the
+            proximal phalanx, fraction along the distal phalanx (-).
+        finger_thickness: dorsal height of the rings above the bone line [m], scaled.
+        gains: per-sensor gain (-), ~U(0.95, 1.05).
+        offsets: per-sensor zero offset [rad], ~N(0, 0.05).
+        wrist_mount: rotation of the wrist gimbal's flexion/deviation axes relative to the
+            anatomical axes [rad], ~N(0, 0.06).
+        thumb_crosstalk: thumb_cmc seen by the thumb flexion bend sensor (-), ~U(0.05, 0.15).
+        fingers_crosstalk: the fingers' MCP seen by their PIP bend sensor (-), ~U(0.05, 0.15).
+        pad_contact: fingertip distance [m] below which thumb and index pads touch,
+            6 mm x scale.
+        pad_stiffness: pinch force per metre of pad compression [N/m], ~U(800, 1200).
+        push_linkage: contact force turning the index's thimble, added to ψ2 [rad/N],
+            ~U(0.025, 0.04).
+        push_web: contact force opening the thumb-index web sensor [rad/N], ~U(0.03, 0.05).
+        push_thumb: contact force extending the thumb's bend sensor [rad/N] (enters
+            negatively), ~U(0.01, 0.02).
+    """
+
+    person_id: str
+    seed: int
+    hand_scale: float
+    index_lengths: tuple[float, float, float]
+    thumb_lengths: tuple[float, float, float]
+    thumb_base: tuple[float, float]
+    dip_coupling: float
+    linkage_base: tuple[float, float]
+    linkage_attach: tuple[float, float]
+    finger_thickness: float
+    gains: tuple[float, ...]
+    offsets: tuple[float, ...]
+    wrist_mount: float
+    thumb_crosstalk: float
+    fingers_crosstalk: float
+    pad_contact: float
+    pad_stiffness: float
+    push_linkage: float
+    push_web: float
+    push_thumb: float
+
+    def __post_init__(self) -> None:
+        for name in ("gains", "offsets"):
+            value = getattr(self, name)
+            if len(value) != N_SENSORS:
+                raise ValueError(f"{name} must have {N_SENSORS} entries, got {len(value)}")
+        if min(self.index_lengths + self.thumb_lengths) <= 0 or self.hand_scale <= 0:
+            raise ValueError("lengths and hand_scale must be positive")
+
+    @classmethod
+    def nominal(cls, person_id: str = "nominal") -> PersonParams:
+        """The average person (scale 1) with a perfectly mounted glove."""
+        return cls(
+            person_id=person_id,
+            seed=0,
+            hand_scale=1.0,
+            index_lengths=NOMINAL_INDEX_LENGTHS,
+            thumb_lengths=NOMINAL_THUMB_LENGTHS,
+            thumb_base=NOMINAL_THUMB_BASE,
+            dip_coupling=2.0 / 3.0,
+            linkage_base=(-0.018, -0.024),
+            linkage_attach=(0.6, 0.5),
+            finger_thickness=0.009,
+            gains=(1.0,) * N_SENSORS,
+            offsets=(0.0,) * N_SENSORS,
+            wrist_mount=0.0,
+            thumb_crosstalk=0.1,
+            fingers_crosstalk=0.1,
+            pad_contact=0.006,
+            pad_stiffness=1000.0,
+            push_linkage=0.03,
+            push_web=0.04,
+            push_thumb=0.015,
+        )
+
+    @classmethod
+    def sample(cls, person_id: str, seed: int = 0) -> PersonParams:
+        """Sample a person's parameters, reproducibly from ``(person_id, seed)``."""
+        rng = _person_rng(person_id, seed)
+        s = float(rng.uniform(0.85, 1.15))
+
+        def lengths(nominal: tuple[float, float, float]) -> tuple[float, float, float]:
+            r = rng.uniform(0.93, 1.07, size=3)
+            return (
+                float(nominal[0] * s * r[0]),
+                float(nominal[1] * s * r[1]),
+                float(nominal[2] * s * r[2]),
+            )
+
+        index_lengths = lengths(NOMINAL_INDEX_LENGTHS)
+        thumb_lengths = lengths(NOMINAL_THUMB_LENGTHS)
+        base = np.array(NOMINAL_THUMB_BASE) * s + rng.uniform(-0.002, 0.002, size=2)
+        linkage = np.array([-0.018, -0.024]) + rng.uniform(-0.003, 0.003, size=2)
+        return cls(
+            person_id=person_id,
+            seed=seed,
+            hand_scale=s,
+            index_lengths=index_lengths,
+            thumb_lengths=thumb_lengths,
+            thumb_base=(float(base[0]), float(base[1])),
+            dip_coupling=float(rng.uniform(0.6, 0.75)),
+            linkage_base=(float(linkage[0]), float(linkage[1])),
+            linkage_attach=(float(rng.uniform(0.5, 0.7)), float(rng.uniform(0.4, 0.6))),
+            finger_thickness=float(0.009 * s),
+            gains=tuple(float(g) for g in rng.uniform(0.95, 1.05, size=N_SENSORS)),
+            offsets=tuple(float(o) for o in rng.normal(0.0, 0.05, size=N_SENSORS)),
+            wrist_mount=float(rng.normal(0.0, 0.06)),
+            thumb_crosstalk=float(rng.uniform(0.05, 0.15)),
+            fingers_crosstalk=float(rng.uniform(0.05, 0.15)),
+            pad_contact=float(0.006 * s),
+            pad_stiffness=float(rng.uniform(800.0, 1200.0)),
+            push_linkage=float(rng.uniform(0.025, 0.04)),
+            push_web=float(rng.uniform(0.03, 0.05)),
+            push_thumb=float(rng.uniform(0.01, 0.02)),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-able dict (tuples as lists)."""
+        out: dict[str, Any] = {}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            out[f.name] = list(value) if isinstance(value, tuple) else value
+        return out
+
+
+def _e(angle: NDArray[np.float64]) -> NDArray[np.complex128]:
+    return np.exp(1j * angle)
+
+
+def index_points(theta: ArrayLike, lengths: tuple[float, float, float]) -> NDArray[np.complex128]:
+    """Index MCP, PIP, DIP and fingertip as complex ``x + iy`` [m], shape ``(..., 4)``.
+
+    Args:
+        theta: ``(..., 3)`` index angles θ1 (MCP), θ2 (PIP), θ3 (DIP) [rad].
+        lengths: proximal, middle, distal phalanx [m].
+    """
+    th = np.asarray(theta, dtype=np.float64)
+    phi = np.cumsum(th, axis=-1)
+    segments = np.asarray(lengths) * _e(phi)
+    zero = np.zeros((*th.shape[:-1], 1), dtype=np.complex128)
+    return np.concatenate([zero, np.cumsum(segments, axis=-1)], axis=-1)
+
+
+def thumb_directions(theta: ArrayLike) -> NDArray[np.float64]:
+    """Directions of the thumb's metacarpal, proximal and distal phalanx [rad], ``(..., 3)``.
+
+    Args:
+        theta: ``(..., 2)`` thumb CMC rotation/abduction and flexion [rad].
+    """
+    th = np.asarray(theta, dtype=np.float64)
+    a1 = THUMB_REST_ANGLE + th[..., 0]  # abduction swings the metacarpal palmar
+    # Thumb flexion bends MCP and IP back towards the index finger (clockwise here).
+    a2 = a1 - THUMB_FLEXION_SHARES[0] * th[..., 1]
+    a3 = a2 - THUMB_FLEXION_SHARES[1] * th[..., 1]
+    return np.stack([a1, a2, a3], axis=-1)
+
+
+def thumb_points(
+    theta: ArrayLike, lengths: tuple[float, float, float], base: tuple[float, float]
+) -> NDArray[np.complex128]:
+    """Thumb CMC, MCP, IP and tip as complex ``x + iy`` [m], shape ``(..., 4)``.
+
+    Args:
+        theta: ``(..., 2)`` thumb CMC rotation/abduction and flexion [rad].
+        lengths: metacarpal, proximal, distal phalanx [m].
+        base: CMC position relative to the index MCP [m].
+    """
+    segments = np.asarray(lengths) * _e(thumb_directions(theta))
+    origin = np.full((*segments.shape[:-1], 1), complex(base[0], base[1]))
+    return np.concatenate([origin, origin + np.cumsum(segments, axis=-1)], axis=-1)
+
+
+def hand_points(
+    theta: ArrayLike, person: PersonParams
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Index and thumb stick figures of full poses Θ: two ``(..., 4, 2)`` arrays [m]."""
+    th = np.asarray(theta, dtype=np.float64)
+    idx = index_points(th[..., list(INDEX_JOINTS)], person.index_lengths)
+    thb = thumb_points(th[..., list(THUMB_JOINTS)], person.thumb_lengths, person.thumb_base)
+    return (np.stack([idx.real, idx.imag], -1), np.stack([thb.real, thb.imag], -1))
+
+
+def tip_vector(theta: ArrayLike, person: PersonParams) -> NDArray[np.float64]:
+    """Thumb tip minus index tip (x, y) [m] of poses Θ, shape ``(..., 2)``."""
+    th = np.asarray(theta, dtype=np.float64)
+    idx = index_points(th[..., list(INDEX_JOINTS)], person.index_lengths)[..., -1]
+    thb = thumb_points(th[..., list(THUMB_JOINTS)], person.thumb_lengths, person.thumb_base)
+    d = thb[..., -1] - idx
+    return np.stack([d.real, d.imag], axis=-1)
+
+
+def fingertip_gap(theta: ArrayLike, person: PersonParams) -> NDArray[np.float64]:
+    """Distance between the thumb tip and the index tip [m] of poses Θ, shape ``(...)``."""
+    return np.asarray(np.linalg.norm(tip_vector(theta, person), axis=-1))
