@@ -1,0 +1,239 @@
+"""Learning end to end, tiny: record, clone, save, reload, fine-tune with PPO, the scripts.
+
+Short episodes (``duration``) keep the whole module to seconds; the properties checked would
+catch a broken pipeline: the cloned policy must reproduce the demonstrated actions far
+better than an untrained one, and what is saved must be what is loaded.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+pytest.importorskip("stable_baselines3")
+
+from stable_baselines3 import PPO  # noqa: E402
+
+from ias_gym.baselines.bc import (  # noqa: E402
+    GaussianActionNoise,
+    KeepBestPolicy,
+    ObservationNormalizer,
+    action_mse,
+    behaviour_clone,
+    discounted_returns,
+    fine_tune,
+    load_demonstrations,
+    make_vec_env,
+    policy_kwargs,
+    predicted_actions,
+    record_noisy_expert,
+)
+from ias_gym.evaluation import load_policy  # noqa: E402
+from ias_gym.skills import SkillDB, record_skills  # noqa: E402
+
+ENV_ID = "IAS-PenRotate-v0"
+DURATION = 0.3  # [s]: 30 steps of 10 ms
+STEPS = 30
+EPOCHS = 40  # cloning epochs on the 120 demonstrated steps
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(autouse=True)
+def _one_thread() -> None:
+    torch.set_num_threads(1)
+
+
+@pytest.fixture(scope="module")
+def demo_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Two clean and two noise-injected expert demonstrations of 30 steps each."""
+    path = tmp_path_factory.mktemp("learning") / "skills.db"
+    kwargs = {"duration": DURATION}
+    record_skills(ENV_ID, "expert", 2, path, seed=0, progress=False, env_kwargs=kwargs)
+    record_noisy_expert(ENV_ID, 2, path, noise=0.001, seed=10, progress=False, env_kwargs=kwargs)
+    return path
+
+
+def _env() -> gym.Env:
+    return gym.make(ENV_ID, duration=DURATION)
+
+
+def test_discounted_returns() -> None:
+    np.testing.assert_allclose(discounted_returns(np.array([1.0, 2.0]), 0.5, False), [2.0, 2.0])
+    # Truncated: the last reward continues forever, r / (1 - gamma) from the last step.
+    np.testing.assert_allclose(discounted_returns(np.array([1.0, 2.0]), 0.5, True), [3.0, 4.0])
+
+
+def test_load_demonstrations_filters_and_aligns(demo_db: Path) -> None:
+    with SkillDB(demo_db) as db:
+        sources = [s.source for s in db.list_skills()]
+    assert sources == ["expert", "expert", "expert+noise:0.001", "expert+noise:0.001"]
+    everything = load_demonstrations(demo_db, ENV_ID)
+    assert everything.observations.shape == (4 * STEPS, 55)
+    assert everything.actions.shape == (4 * STEPS, 12)
+    assert everything.returns.shape == (4 * STEPS,)
+    noisy = load_demonstrations(demo_db, ENV_ID, source="expert+noise")
+    assert len(noisy.actions) == 2 * STEPS
+    first = load_demonstrations(demo_db, ENV_ID, max_episodes=1)
+    with SkillDB(demo_db) as db:
+        demo = db.get(db.list_skills()[0].id).demonstration
+    # Observation t is paired with action t; the final observation has no action.
+    np.testing.assert_array_equal(first.observations, demo.observations[:-1].astype(np.float32))
+    np.testing.assert_array_equal(first.actions, demo.actions)
+    with pytest.raises(ValueError, match="no successful skills"):
+        load_demonstrations(demo_db, "IAS-PenSlide-v0")
+    with pytest.raises(FileNotFoundError):
+        load_demonstrations(demo_db.with_name("missing.db"), ENV_ID)
+
+
+def test_noisy_recording_labels_clean_expert_actions(demo_db: Path) -> None:
+    """DART: the stored actions are the expert's; the env was stepped with them plus noise."""
+    with SkillDB(demo_db) as db:
+        skill = db.get(db.list_skills(task=ENV_ID)[2].id)
+    assert (skill.source, skill.seed) == ("expert+noise:0.001", 10)
+    demo = skill.demonstration
+
+    def replay(env: gym.Env) -> np.ndarray:
+        observations = [env.reset(seed=10)[0]]
+        for action in demo.actions:
+            observations.append(env.step(action)[0])
+        return np.stack(observations)
+
+    # The same noise (seeded by the reset seed) on the stored actions reproduces the run ...
+    np.testing.assert_array_equal(
+        replay(GaussianActionNoise(_env(), noise=0.001)), demo.observations
+    )
+    # ... and without the noise it does not: the labels are not what the env was stepped with.
+    assert not np.allclose(replay(_env()), demo.observations)
+
+
+def test_behaviour_cloning_fits_saves_and_loads(demo_db: Path, tmp_path: Path) -> None:
+    demos = load_demonstrations(demo_db, ENV_ID)
+    env = _env()
+    untrained = behaviour_clone(
+        env, demos.observations, demos.actions, epochs=1, lr=1e-12, progress=False
+    )
+    model = behaviour_clone(env, *demos, epochs=EPOCHS, batch_size=32, progress=False)
+    mse = action_mse(model, demos.observations, demos.actions)
+    assert mse < action_mse(untrained, demos.observations, demos.actions) / 10
+    assert mse < 1e-5  # the actions themselves are of order 0.01-0.05
+    # Exploration noise after cloning: the residual's size, not SB3's default of 1.
+    assert float(model.policy.log_std.detach().max()) < -4
+    # The normalisation is part of the policy, with the demonstrations' statistics.
+    extractor = model.policy.features_extractor
+    assert isinstance(extractor, ObservationNormalizer)
+    np.testing.assert_allclose(
+        extractor.mean.numpy(), demos.observations.mean(axis=0), rtol=1e-4, atol=1e-6
+    )
+
+    path = tmp_path / "bc.zip"
+    model.save(path)
+    act = load_policy(str(path), env)  # what `ias-gym evaluate --policy PATH` uses
+    expected = predicted_actions(model, demos.observations[:5])
+    np.testing.assert_allclose(
+        np.stack([act(o) for o in demos.observations[:5]]), expected, rtol=1e-5, atol=1e-7
+    )
+    # Same seed, same data: the same weights (deterministic on CPU).
+    again = behaviour_clone(env, *demos, epochs=EPOCHS, batch_size=32, progress=False)
+    np.testing.assert_array_equal(
+        predicted_actions(again, demos.observations), predicted_actions(model, demos.observations)
+    )
+
+
+def test_bc_then_ppo_runs_and_saves(demo_db: Path, tmp_path: Path) -> None:
+    demos = load_demonstrations(demo_db, ENV_ID)
+    env = make_vec_env(ENV_ID, 2, seed=0, env_kwargs={"duration": DURATION})
+    model = behaviour_clone(
+        env,
+        *demos,
+        epochs=10,
+        progress=False,
+        ppo_kwargs={"n_steps": 64, "batch_size": 64, "n_epochs": 2, "learning_rate": 1e-4},
+    )
+    cloned = predicted_actions(model, demos.observations)
+    log_std = model.policy.log_std.detach().clone()
+    values = model.policy.predict_values(torch.as_tensor(demos.observations)).detach()
+    # Critic warm-up: the value function learns, the actor stays the cloned one exactly.
+    fine_tune(model, 128, critic_warmup=128, progress=False)
+    np.testing.assert_array_equal(predicted_actions(model, demos.observations), cloned)
+    assert torch.equal(model.policy.log_std.detach(), log_std)
+    after_warmup = model.policy.predict_values(torch.as_tensor(demos.observations)).detach()
+    assert not torch.equal(after_warmup, values)
+    # Then PPO moves the actor, a little.
+    fine_tune(model, 256, critic_warmup=0, progress=False)
+    assert model.num_timesteps == 256
+    tuned = predicted_actions(model, demos.observations)
+    assert not np.array_equal(tuned, cloned)
+    assert float(np.abs(tuned - cloned).max()) < 0.05
+    # With validation, the model ends with the best policy it saw, scored exactly as seen.
+    keep = KeepBestPolicy(ENV_ID, [7, 8], eval_freq=128, env_kwargs={"duration": DURATION})
+    fine_tune(model, 256, critic_warmup=0, progress=False, keep_best=keep)
+    assert [h[0] for h in keep.history] == [0, 128, 256]
+    assert keep.best == max(h[1:] for h in keep.history)
+    assert keep.validate() == keep.best
+    tuned = predicted_actions(model, demos.observations)
+    path = tmp_path / "bc_ppo.zip"
+    model.save(path)
+    loaded = PPO.load(path, device="cpu")
+    np.testing.assert_array_equal(predicted_actions(loaded, demos.observations), tuned)
+    env.close()
+
+
+def test_policy_kwargs_build_sac() -> None:
+    from stable_baselines3 import SAC
+
+    env = _env()
+    space = env.observation_space
+    assert isinstance(space, gym.spaces.Box)
+    mean, std = np.zeros(space.shape, np.float32), np.ones(space.shape, np.float32)
+    model = SAC("MlpPolicy", env, policy_kwargs=policy_kwargs(mean, std, (16,)), device="cpu")
+    assert isinstance(model.actor.features_extractor, ObservationNormalizer)
+    with pytest.raises(ValueError, match="observation size"):
+        ObservationNormalizer(space, mean=[0.0], std=[1.0])
+
+
+@pytest.mark.parametrize("script", ["bc.py", "bc_ppo.py", "ppo.py", "sac.py"])
+def test_training_scripts_have_help(script: str) -> None:
+    result = subprocess.run(
+        [sys.executable, str(ROOT / "train" / script), "--help"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert "--out" in result.stdout
+
+
+def test_bc_script_end_to_end(demo_db: Path, tmp_path: Path) -> None:
+    out = tmp_path / "bc_script.zip"
+    result = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "train" / "bc.py"),
+            "--env",
+            ENV_ID,
+            "--db",
+            str(demo_db),
+            "--episodes",
+            "2",
+            "--epochs",
+            "2",
+            "--out",
+            str(out),
+            "--eval-episodes",
+            "0",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert str(out) in result.stdout
+    assert isinstance(load_policy(str(out), _env())(np.zeros(55)), np.ndarray)

@@ -1,0 +1,173 @@
+"""Behaviour cloning, then PPO fine-tuning of the cloned policy (SB3), saved as ``FILE.zip``.
+
+    python train/bc_ppo.py --env IAS-PenSlide-v0 --db out/slide_dart.db --record \\
+        --episodes 50 --steps 100000 --out out/bc_ppo_slide.zip
+
+The cloned policy (:func:`ias_gym.baselines.bc.behaviour_clone`: actor fitted to the
+demonstrations, exploration noise set to the cloning residual, critic fitted to the
+demonstrations' returns) is saved to ``--bc-out`` first and then fine-tuned with PPO's small
+steps (:func:`ias_gym.baselines.bc.fine_tune`, :data:`~ias_gym.baselines.bc.FINE_TUNE_PPO`;
+the actor frozen for the first ``--critic-warmup`` steps). The deterministic policy is
+validated on ``--val-episodes`` held-out seeds every ``--val-freq`` steps and the best one
+seen (the cloned one included) is saved to ``--out``. Both load with
+``ias-gym evaluate --env ID --policy FILE.zip``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Command-line options."""
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    parser.add_argument("--env", default="IAS-PenSlide-v0", help="environment id")
+    parser.add_argument("--db", required=True, metavar="PATH", help="skill database")
+    parser.add_argument("--out", required=True, metavar="FILE.zip", help="fine-tuned model")
+    parser.add_argument(
+        "--bc-out",
+        default=None,
+        metavar="FILE.zip",
+        help="cloned model before fine-tuning (default: OUT with a _bc suffix)",
+    )
+    parser.add_argument(
+        "--episodes", type=int, default=50, help="demonstrations to record and/or use (at most)"
+    )
+    parser.add_argument(
+        "--record",
+        action="store_true",
+        help="first record --episodes noise-injected expert demonstrations into --db",
+    )
+    parser.add_argument(
+        "--noise", type=float, default=0.001, help="std of the injected noise [normalised torque]"
+    )
+    parser.add_argument("--record-seed", type=int, default=0, help="seed of the first recording")
+    parser.add_argument("--source", default=None, help="use skills whose source starts with this")
+    parser.add_argument("--epochs", type=int, default=100, help="cloning: passes over the data")
+    parser.add_argument("--bc-lr", type=float, default=1e-3, help="cloning: learning rate")
+    parser.add_argument(
+        "--net-arch", default="256,256", help="hidden layer sizes of actor and critic"
+    )
+    parser.add_argument("--steps", type=int, default=100_000, help="PPO environment steps")
+    parser.add_argument("--n-envs", type=int, default=4, help="parallel envs (sequential)")
+    parser.add_argument(
+        "--lr", type=float, default=None, help="PPO learning rate (default: FINE_TUNE_PPO's)"
+    )
+    parser.add_argument(
+        "--critic-warmup", type=int, default=20_000, help="first PPO steps with the actor frozen"
+    )
+    parser.add_argument(
+        "--max-minutes", type=float, default=19.0, help="stop PPO after this wall-clock time"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="training seed")
+    parser.add_argument(
+        "--val-episodes",
+        type=int,
+        default=20,
+        help="validation episodes for keeping the best policy (0: keep the last one)",
+    )
+    parser.add_argument("--val-seed", type=int, default=2000, help="first validation seed")
+    parser.add_argument("--val-freq", type=int, default=20_000, help="validate every N steps")
+    parser.add_argument("--eval-episodes", type=int, default=20, help="evaluation (0: skip)")
+    parser.add_argument("--eval-seed", type=int, default=1000, help="first evaluation seed")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads")
+    parser.add_argument("--verbose", type=int, default=0, help="SB3 verbosity (1: statistics)")
+    return parser
+
+
+def _report(env_id: str, path: Path, episodes: int, seed: int, what: str) -> None:
+    from ias_gym.evaluation import evaluate
+
+    if episodes < 1:
+        return
+    summary = evaluate(env_id, str(path), episodes, seed=seed, progress=True).summary()
+    print(
+        f"{what} on {env_id}: success {summary['success_rate']:.0%} over {episodes} episodes, "
+        f"mean return {summary['mean_return']:.1f}"
+    )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Record (optionally), clone, fine-tune, save, evaluate."""
+    args = build_parser().parse_args(argv)
+    import torch
+
+    from ias_gym.baselines.bc import (
+        KeepBestPolicy,
+        WallClockLimit,
+        behaviour_clone,
+        fine_tune,
+        load_demonstrations,
+        make_vec_env,
+        record_noisy_expert,
+    )
+
+    torch.set_num_threads(args.threads)
+    out = Path(args.out)
+    bc_out = Path(args.bc_out) if args.bc_out else out.with_name(f"{out.stem}_bc{out.suffix}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    bc_out.parent.mkdir(parents=True, exist_ok=True)
+    source = args.source
+    if args.record:
+        ids = record_noisy_expert(
+            args.env, args.episodes, args.db, args.noise, seed=args.record_seed
+        )
+        print(f"recorded {len(ids)} demonstrations into {args.db}")
+        if source is None:
+            source = "expert" if args.noise == 0 else f"expert+noise:{args.noise:g}"
+    demos = load_demonstrations(args.db, args.env, args.episodes, source=source or "expert")
+    print(f"cloning {len(demos.actions)} steps of demonstrations from {args.db}")
+
+    env = make_vec_env(args.env, args.n_envs, seed=args.seed)
+    start = time.perf_counter()
+    model = behaviour_clone(
+        env,
+        demos.observations,
+        demos.actions,
+        demos.returns,
+        epochs=args.epochs,
+        lr=args.bc_lr,
+        net_arch=[int(n) for n in args.net_arch.split(",")],
+        seed=args.seed,
+        ppo_kwargs={} if args.lr is None else {"learning_rate": args.lr},
+    )
+    model.save(bc_out)
+    print(f"saved the cloned policy to {bc_out} ({time.perf_counter() - start:.0f} s)")
+    _report(args.env, bc_out, args.eval_episodes, args.eval_seed, "cloned policy")
+
+    start = time.perf_counter()
+    model.verbose = args.verbose
+    limit = WallClockLimit(60.0 * args.max_minutes)
+    keep_best = None
+    if args.val_episodes > 0:
+        seeds = range(args.val_seed, args.val_seed + args.val_episodes)
+        keep_best = KeepBestPolicy(args.env, seeds, args.val_freq)
+    fine_tune(
+        model, args.steps, critic_warmup=args.critic_warmup, callback=limit, keep_best=keep_best
+    )
+    if keep_best is not None:
+        for steps, success, mean_return in keep_best.history:
+            print(f"validation at {steps} steps: success {success:.0%}, return {mean_return:.1f}")
+        print(f"keeping the policy of step {keep_best.best_steps}")
+    model.save(out)
+    seconds = time.perf_counter() - start
+    stopped = ", stopped by --max-minutes" if limit.stopped else ""
+    print(
+        f"saved the fine-tuned policy to {out} ({model.num_timesteps} steps, {seconds:.0f} s"
+        f"{stopped})"
+    )
+    env.close()
+    _report(args.env, out, args.eval_episodes, args.eval_seed, "fine-tuned policy")
+    print(f"evaluate with: ias-gym evaluate --env {args.env} --policy {out} --episodes 100")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
