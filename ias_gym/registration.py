@@ -8,6 +8,7 @@ import gymnasium as gym
 ENV_SPECS: dict[str, tuple[str, int]] = {
     "IAS-PenSlide-v0": ("ias_gym.envs.pen_slide:PenSlideEnv", 475),
     "IAS-PenRotate-v0": ("ias_gym.envs.pen_rotate:PenRotateEnv", 400),
+    "IAS-GloveGrasp-v0": ("ias_gym.envs.glove_grasp:GloveGraspEnv", 400),
 }
 
 
