@@ -39,21 +39,43 @@ def controller_times(env_id: str, steps: int) -> np.ndarray:
     return np.array(times)
 
 
-def rollout_rate(env_id: str, policy: str, steps: int) -> float:
-    """Env steps per second with the expert or random actions (resets included)."""
-    env = gym.make(env_id)
-    env.action_space.seed(0)
-    expert = ExpertPolicy(env) if policy == "expert" else None
-    obs, _ = env.reset(seed=0)
-    t0 = time.perf_counter()
-    for _ in range(steps):
-        action = expert.predict(obs)[0] if expert else env.action_space.sample()
-        obs, _, terminated, truncated, _ = env.step(action)
-        if terminated or truncated:
-            obs, _ = env.reset()
-            if expert:
-                expert.reset()
-    return steps / (time.perf_counter() - t0)
+class Rollout:
+    """An env stepped by the expert or by random actions, resumable block by block."""
+
+    def __init__(self, env_id: str, policy: str) -> None:
+        self.env = gym.make(env_id)
+        self.env.action_space.seed(0)
+        self.expert = ExpertPolicy(self.env) if policy == "expert" else None
+        self.obs, _ = self.env.reset(seed=0)
+
+    def rate(self, steps: int) -> float:
+        """Run ``steps`` env steps (resets included); return steps per second."""
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            if self.expert is not None:
+                action = self.expert.predict(self.obs)[0]
+            else:
+                action = self.env.action_space.sample()
+            self.obs, _, terminated, truncated, _ = self.env.step(action)
+            if terminated or truncated:
+                self.obs, _ = self.env.reset()
+                if self.expert is not None:
+                    self.expert.reset()
+        return steps / (time.perf_counter() - t0)
+
+
+def rollout_rates(env_id: str, steps: int, blocks: int = 10) -> tuple[float, float]:
+    """Median steps/s of the expert and of random actions, in alternating blocks.
+
+    Alternating makes both see the same machine: this VM's speed drifts by tens of percent
+    over seconds, which back-to-back runs would put into the ratio.
+    """
+    expert, random = Rollout(env_id, "expert"), Rollout(env_id, "random")
+    expert_rates, random_rates = [], []
+    for _ in range(blocks):
+        expert_rates.append(expert.rate(steps // blocks))
+        random_rates.append(random.rate(steps // blocks))
+    return float(np.median(expert_rates)), float(np.median(random_rates))
 
 
 def main() -> None:
@@ -67,8 +89,7 @@ def main() -> None:
     for env_id in ENV_IDS:
         t = controller_times(env_id, args.steps)
         period = gym.make(env_id).unwrapped.config.control_dt  # type: ignore[attr-defined]
-        expert = rollout_rate(env_id, "expert", args.steps)
-        random = rollout_rate(env_id, "random", args.steps)
+        expert, random = rollout_rates(env_id, args.steps)
         median = float(np.median(t))
         print(
             f"{env_id:<18}{median * 1e6:>17.0f}{np.percentile(t, 90) * 1e6:>17.0f}"
