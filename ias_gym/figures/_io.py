@@ -16,6 +16,7 @@ def write_csv_atomic(path: Path, header: Sequence[str], rows: ArrayLike, fmt: st
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; a figure's data is not secret
         with os.fdopen(fd, "w") as f:
             np.savetxt(
                 f, np.asarray(rows), delimiter=",", header=",".join(header), comments="", fmt=fmt
@@ -25,6 +26,12 @@ def write_csv_atomic(path: Path, header: Sequence[str], rows: ArrayLike, fmt: st
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def save_png_atomic(fig: object, path: Path, dpi: int = 120) -> Path:
