@@ -60,7 +60,6 @@ except ImportError as exc:  # pragma: no cover - depends on the installed extras
     ) from exc
 
 from ias_gym.skills.db import SkillDB
-from ias_gym.skills.record import record_episode
 
 FloatArray = NDArray[np.float32]
 
@@ -295,38 +294,19 @@ def record_noisy_expert(
     Returns:
         The new skills' ids.
     """
-    from tqdm import tqdm
+    from ias_gym.skills import record_skills
 
-    from ias_gym.baselines.expert import ExpertPolicy
-
-    if episodes < 1:
-        raise ValueError(f"episodes must be >= 1, got {episodes}")
-    kwargs = dict(env_kwargs or {})
-    source = "expert" if noise == 0 else f"expert+noise:{noise:g}"
-    ids: list[int] = []
-    with SkillDB(db_path) as db:
-        env = GaussianActionNoise(gym.make(env_id, **kwargs), noise)
-        try:
-            expert = ExpertPolicy(env)
-            bar = tqdm(
-                range(episodes), desc=f"{env_id} / {source}", unit="episode", disable=not progress
-            )
-            successes = 0
-            for episode in bar:
-                expert.reset()
-                skill = record_episode(
-                    env,
-                    lambda obs: expert.predict(obs)[0],
-                    seed=seed + episode,
-                    source=source,
-                    env_kwargs=kwargs,
-                )
-                ids.append(db.add(skill))
-                successes += skill.is_success
-                bar.set_postfix(success=f"{successes}/{episode + 1}", refresh=False)
-        finally:
-            env.close()
-    return ids
+    return record_skills(
+        env_id,
+        "expert",
+        episodes,
+        db_path,
+        seed,
+        progress,
+        env_kwargs=env_kwargs,
+        wrapper=lambda env: GaussianActionNoise(env, noise),
+        source="expert" if noise == 0 else f"expert+noise:{noise:g}",
+    )
 
 
 def observation_statistics(

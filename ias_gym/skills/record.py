@@ -203,6 +203,8 @@ def record_skills(
     *,
     env_kwargs: Mapping[str, Any] | None = None,
     person_id: str | None = None,
+    wrapper: Callable[[gym.Env[Any, Any]], gym.Env[Any, Any]] | None = None,
+    source: str | None = None,
 ) -> list[int]:
     """Roll out ``policy_spec`` for ``episodes`` episodes and store each as a skill.
 
@@ -220,6 +222,9 @@ def record_skills(
         progress: show a tqdm progress bar (on stderr).
         env_kwargs: configuration overrides for ``gym.make`` (e.g. ``{"duration": 0.5}``).
         person_id: stored as the skills' person id.
+        wrapper: wraps the env the policy acts in (e.g. action noise); the stored action is
+            the policy's, before the wrapper.
+        source: provenance to store (default: from ``policy_spec``).
 
     Returns:
         The new skills' ids, in episode order.
@@ -231,10 +236,12 @@ def record_skills(
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     kwargs = dict(env_kwargs or {})
-    source = policy_source(policy_spec)
+    source = source or policy_source(policy_spec)
     ids: list[int] = []
     with SkillDB(db_path) as db:  # opened first: a bad path fails before any rollout
         env = gym.make(env_id, **kwargs)
+        if wrapper is not None:
+            env = wrapper(env)
         try:
             act = load_policy(policy_spec, env, seed)
             bar = tqdm(
