@@ -146,6 +146,20 @@ def evaluate(
     return result
 
 
+def report(env_id: str, policy: str, episodes: int, seed: int, what: str = "policy") -> None:
+    """Evaluate ``policy`` over ``episodes`` episodes (none if < 1) and print one summary line.
+
+    What the ``train/`` scripts print after training, and the command to evaluate further.
+    """
+    if episodes >= 1:
+        summary = evaluate(env_id, policy, episodes, seed=seed, progress=True).summary()
+        print(
+            f"{what} on {env_id}: success {summary['success_rate']:.0%} over {episodes} "
+            f"episodes, mean return {summary['mean_return']:.1f}"
+        )
+    print(f"evaluate with: ias-gym evaluate --env {env_id} --policy {policy} --episodes 100")
+
+
 def write_video(path: Path, frames: list[np.ndarray], fps: float) -> Path:
     """Write RGB frames to an MP4 with imageio (replaced atomically)."""
     import imageio.v2 as imageio

@@ -74,7 +74,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     import torch
 
     from ias_gym.baselines.bc import behaviour_clone, load_demonstrations, record_noisy_expert
-    from ias_gym.evaluation import evaluate
+    from ias_gym.evaluation import report
 
     torch.set_num_threads(args.threads)
     source = args.source
@@ -103,15 +103,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     model.save(out)
     print(f"saved the cloned policy to {out} ({time.perf_counter() - start:.0f} s)")
-    if args.eval_episodes > 0:
-        summary = evaluate(
-            args.env, str(out), args.eval_episodes, seed=args.eval_seed, progress=True
-        ).summary()
-        print(
-            f"{args.env}: success {summary['success_rate']:.0%} over {args.eval_episodes} "
-            f"episodes, mean return {summary['mean_return']:.1f}"
-        )
-    print(f"evaluate with: ias-gym evaluate --env {args.env} --policy {out} --episodes 100")
+    report(args.env, str(out), args.eval_episodes, args.eval_seed)
     return 0
 
 

@@ -82,18 +82,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _report(env_id: str, path: Path, episodes: int, seed: int, what: str) -> None:
-    from ias_gym.evaluation import evaluate
-
-    if episodes < 1:
-        return
-    summary = evaluate(env_id, str(path), episodes, seed=seed, progress=True).summary()
-    print(
-        f"{what} on {env_id}: success {summary['success_rate']:.0%} over {episodes} episodes, "
-        f"mean return {summary['mean_return']:.1f}"
-    )
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Record (optionally), clone, fine-tune, save, evaluate."""
     args = build_parser().parse_args(argv)
@@ -108,6 +96,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         make_vec_env,
         record_noisy_expert,
     )
+    from ias_gym.evaluation import report
 
     torch.set_num_threads(args.threads)
     out = Path(args.out)
@@ -140,7 +129,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     model.save(bc_out)
     print(f"saved the cloned policy to {bc_out} ({time.perf_counter() - start:.0f} s)")
-    _report(args.env, bc_out, args.eval_episodes, args.eval_seed, "cloned policy")
+    report(args.env, str(bc_out), args.eval_episodes, args.eval_seed, "cloned policy")
 
     start = time.perf_counter()
     model.verbose = args.verbose
@@ -164,8 +153,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"{stopped})"
     )
     env.close()
-    _report(args.env, out, args.eval_episodes, args.eval_seed, "fine-tuned policy")
-    print(f"evaluate with: ias-gym evaluate --env {args.env} --policy {out} --episodes 100")
+    report(args.env, str(out), args.eval_episodes, args.eval_seed, "fine-tuned policy")
     return 0
 
 

@@ -66,7 +66,7 @@ def main(algo: str, description: str, argv: Sequence[str] | None = None) -> int:
         policy_kwargs,
         rollout_statistics,
     )
-    from ias_gym.evaluation import evaluate
+    from ias_gym.evaluation import report
 
     torch.set_num_threads(args.threads)
     out = Path(args.out)
@@ -96,13 +96,5 @@ def main(algo: str, description: str, argv: Sequence[str] | None = None) -> int:
     print(
         f"saved {out} ({model.num_timesteps} steps, {time.perf_counter() - start:.0f} s{stopped})"
     )
-    if args.eval_episodes > 0:
-        summary = evaluate(
-            args.env, str(out), args.eval_episodes, seed=args.eval_seed, progress=True
-        ).summary()
-        print(
-            f"{args.env}: success {summary['success_rate']:.0%} over {args.eval_episodes} "
-            f"episodes, mean return {summary['mean_return']:.1f}"
-        )
-    print(f"evaluate with: ias-gym evaluate --env {args.env} --policy {out} --episodes 100")
+    report(args.env, str(out), args.eval_episodes, args.eval_seed)
     return 0
