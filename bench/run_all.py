@@ -11,6 +11,7 @@ BENCHES = (
     "bench_envs.py",
     "bench_controller.py",
     "bench_glove.py",
+    "bench_glove_loop.py",
 )
 
 if __name__ == "__main__":

@@ -121,6 +121,10 @@ def build_parser() -> argparse.ArgumentParser:
     from ias_gym.glove.commands import add_glove_commands
 
     add_glove_commands(commands)
+
+    from ias_gym.hardware.commands import add_hardware_commands
+
+    add_hardware_commands(commands)
     return parser
 
 

@@ -10,10 +10,20 @@ ENV_SPECS: dict[str, tuple[str, int]] = {
     "IAS-PenRotate-v0": ("ias_gym.envs.pen_rotate:PenRotateEnv", 400),
     "IAS-GloveGrasp-v0": ("ias_gym.envs.glove_grasp:GloveGraspEnv", 400),
 }
+#: Envs that need a device (a glove on a CAN bus, or its emulator): same layout.
+HARDWARE_ENV_SPECS: dict[str, tuple[str, int]] = {
+    "IAS-GloveHardware-v0": ("ias_gym.hardware.env:GloveHardwareEnv", 400),
+}
 
 
 def register_envs() -> None:
     """Register every ``IAS-*`` id once; calling again is harmless."""
-    for env_id, (entry_point, max_steps) in ENV_SPECS.items():
+    for env_id, (entry_point, max_steps) in {**ENV_SPECS, **HARDWARE_ENV_SPECS}.items():
         if env_id not in gym.registry:
-            gym.register(id=env_id, entry_point=entry_point, max_episode_steps=max_steps)
+            gym.register(
+                id=env_id,
+                entry_point=entry_point,
+                max_episode_steps=max_steps,
+                # a live glove is a person: the same seed does not give the same readings
+                nondeterministic=env_id in HARDWARE_ENV_SPECS,
+            )

@@ -80,7 +80,8 @@ def test_api_info_and_reward_terms(env: GloveGraspEnv) -> None:
         assert set(info) == keys
         assert reward == pytest.approx(sum(info[f"reward_{t}"] for t in REWARD_TERMS))
         assert info["feedback_torques"].shape == (len(ACTUATED_JOINTS),)
-    assert env.glove is not None and len(env.glove.feedback) == 5  # type: ignore[attr-defined]
+    # reset starts the force display, each step continues it
+    assert env.glove is not None and len(env.glove.feedback) == 6  # type: ignore[attr-defined]
 
 
 def test_nan_action_raises(env: GloveGraspEnv) -> None:

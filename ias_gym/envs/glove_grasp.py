@@ -307,8 +307,9 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     Termination:
         terminated when the pen falls ``drop_height`` below its start or leaves
         ``max_distance`` of it; truncated at ``duration`` (also by the registered
-        ``max_episode_steps``). ``info["is_success"]``: pen >= ``lift_height`` above its
-        start and touching neither the support nor the floor.
+        ``max_episode_steps``) or when the glove reports a fault (``info["fault"]`` says
+        which, e.g. a CAN watchdog trip; ``""`` otherwise). ``info["is_success"]``: pen >=
+        ``lift_height`` above its start and touching neither the support nor the floor.
 
     Force display: the contact forces of the pen on the index and thumb geoms, f [N], give
     ``tau = J^T f`` [N m] on the actuated joints (MuJoCo Jacobians at the contact points; the
@@ -409,6 +410,15 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self._renderer: Any = None
 
     # ------------------------------------------------------------------ glove
+    def _open_glove(self, seed: int) -> GloveDevice:
+        """The glove of a new episode: a fresh device from ``glove_factory`` (the previous
+        one closed), armed with :meth:`~GloveDevice.enable`."""
+        if self.glove is not None:
+            self.glove.close()
+        glove = self.glove_factory(seed)
+        glove.enable()
+        return glove
+
     def _read_theta(self) -> FloatArray:
         assert self.glove is not None
         theta = self.calibration.predict(self.glove.read().psi)
@@ -466,9 +476,10 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             ]
         )
 
-    def _info(self, terms: dict[str, float], rest: bool) -> dict[str, Any]:
+    def _info(self, terms: dict[str, float], rest: bool, fault: str) -> dict[str, Any]:
         dz = float(self.data.xpos[self._pen_body][2] - self._pen_start[2])
         return {
+            "fault": fault,
             **{f"reward_{k}": v for k, v in terms.items()},
             "is_success": bool(dz >= self.config.lift_height and not rest),
             "pen_height": dz,
@@ -492,9 +503,7 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[FloatArray, dict[str, Any]]:
         super().reset(seed=seed)
-        if self.glove is not None:
-            self.glove.close()
-        self.glove = self.glove_factory(int(self.np_random.integers(2**31)))
+        self.glove = self._open_glove(int(self.np_random.integers(2**31)))
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         theta = self._theta = self._read_theta()
@@ -505,8 +514,9 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self._pen_start = d.xpos[self._pen_body].copy()
         self._steps = 0
         self._feedback, self._touch, self._pinch_force, rest = self._force_display()
+        self.glove.write_feedback(self._feedback)  # the force display starts with the episode
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
-        return self._observation(), self._info(terms, rest)
+        return self._observation(), self._info(terms, rest, "")
 
     def step(self, action: NDArray[Any]) -> tuple[FloatArray, float, bool, bool, dict[str, Any]]:
         if self.glove is None:
@@ -520,6 +530,7 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         # Low-pass the calibrated angles: the sensor noise, amplified by the calibration,
         # would shake the fingers at the glove's rate and shake the pen loose.
         self._theta += self._alpha * (self._read_theta() - self._theta)
+        fault = self.glove.fault or ""
         target = self._theta + self.config.action_scale * a
         self.data.ctrl[self._act] = np.clip(target, self._ctrl_lo, self._ctrl_hi)
         mujoco.mj_step(self.model, self.data, self.frame_skip)
@@ -534,8 +545,8 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         terminated = bool(
             offset[2] < -cfg.drop_height or float(np.linalg.norm(offset)) > cfg.max_distance
         )
-        truncated = self._steps >= self.max_steps
-        return self._observation(), reward, terminated, truncated, self._info(terms, rest)
+        truncated = self._steps >= self.max_steps or bool(fault)
+        return self._observation(), reward, terminated, truncated, self._info(terms, rest, fault)
 
     def render(self) -> NDArray[np.uint8] | None:
         if self.render_mode != "rgb_array":

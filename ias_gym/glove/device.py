@@ -116,6 +116,17 @@ class GloveDevice(abc.ABC):
     def close(self) -> None:
         """Release the device (idempotent); zero torques first where there are actuators."""
 
+    @property
+    def fault(self) -> str | None:
+        """Why the device's readings cannot be trusted now (e.g. a watchdog trip), or None.
+
+        A device with a fault keeps its actuators off until :meth:`enable`.
+        """
+        return None
+
+    def enable(self) -> None:  # noqa: B027 - a no-op unless the device has actuators to arm
+        """Arm the actuators and clear a fault (the explicit re-enable after a trip)."""
+
     def __enter__(self) -> GloveDevice:
         return self
 

@@ -1,0 +1,172 @@
+"""``ias-gym glove-emulator`` and ``ias-gym glove-bench`` (thin: parse, call, print)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import subprocess
+import sys
+import threading
+from typing import Any
+
+from ias_gym.glove.hand import PersonParams
+
+
+def _bus_arguments(p: argparse.ArgumentParser, channel: str) -> None:
+    p.add_argument(
+        "--interface",
+        default="virtual",
+        metavar="NAME",
+        help="python-can interface: virtual, socketcan, pcan, kvaser, udp_multicast, ...",
+    )
+    p.add_argument("--channel", default=channel, metavar="CH", help="the interface's channel")
+    p.add_argument("--fd", action="store_true", help="CAN FD sensor frames (default classic)")
+    p.add_argument("--bitrate", type=int, metavar="BPS", help="passed to can.Bus (real buses)")
+
+
+def _bus_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    return {} if args.bitrate is None else {"bitrate": args.bitrate}
+
+
+def _emulator(args: argparse.Namespace) -> int:
+    from ias_gym.hardware.emulator import GloveEmulator
+
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    emulator = GloveEmulator(
+        args.interface,
+        args.channel,
+        person=PersonParams.sample(args.person),
+        seed=args.seed,
+        rate_hz=args.rate,
+        fd=args.fd,
+        **_bus_kwargs(args),
+    )
+    with emulator:
+        print(
+            f"glove emulator: person {args.person}, {args.rate:g} Hz on "
+            f"{args.interface}:{args.channel} ({'CAN FD' if args.fd else 'classic CAN'}); "
+            "Ctrl-C stops",
+            flush=True,
+        )
+        stop.wait(args.seconds)
+    s = emulator.stats
+    print(
+        f"sent {s.samples} samples ({s.frames_sent} frames); commands: {s.commands} applied, "
+        f"{s.commands_rejected} rejected, {s.commands_lost} lost, {s.safety_commands} safety; "
+        f"watchdog trips {s.watchdog_trips}; late cycles {s.late_cycles}",
+        flush=True,
+    )
+    return 0
+
+
+def _emulator_process(args: argparse.Namespace) -> subprocess.Popen[str]:
+    cmd = [
+        sys.executable,
+        "-m",
+        "ias_gym.cli",
+        "glove-emulator",
+        "--interface",
+        args.interface,
+        "--channel",
+        str(args.channel),
+        "--rate",
+        str(args.rate),
+    ]
+    if args.fd:
+        cmd.append("--fd")
+    process = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True)
+    assert process.stdout is not None
+    process.stdout.readline()  # its banner: the bus is open and samples are going out
+    return process
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from ias_gym.hardware.bench import run_glove_bench
+    from ias_gym.hardware.can_glove import GloveTimeoutError
+    from ias_gym.hardware.protocol import bus_load
+
+    if args.emulator is None:
+        args.emulator = "thread" if args.interface == "virtual" else "none"
+    if args.emulator == "thread" and args.interface != "virtual":
+        print("note: an in-process emulator on a real bus shares it with the glove", flush=True)
+    if args.emulator == "process" and args.interface == "virtual":
+        print(
+            "error: python-can's virtual bus does not leave the process; use --emulator "
+            "thread, or an interface such as udp_multicast",
+            file=sys.stderr,
+        )
+        return 2
+    process = _emulator_process(args) if args.emulator == "process" else None
+    try:
+        result = run_glove_bench(
+            args.interface,
+            args.channel,
+            rate_hz=args.rate,
+            seconds=args.seconds,
+            fd=args.fd,
+            emulate=args.emulator == "thread",
+            bus_kwargs=_bus_kwargs(args),
+        )
+    except GloveTimeoutError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    finally:
+        if process is not None:
+            process.send_signal(signal.SIGINT)
+            try:
+                process.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                process.kill()
+    out = result.as_dict()
+    out["bus_load_worst_case"] = bus_load(args.rate, fd=args.fd)["total"]
+    width = max(len(k) for k in out)
+    print(f"glove bench: {args.rate:g} Hz for {args.seconds:g} s on {args.interface}")
+    for key, value in out.items():
+        text = f"{value:.4g}" if isinstance(value, float) else str(value)
+        print(f"  {key:<{width}}  {text}")
+    if args.json:
+        print(json.dumps(out))
+    return 0
+
+
+def add_hardware_commands(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> None:
+    """Add ``glove-emulator`` and ``glove-bench`` to the ``ias-gym`` sub-commands."""
+    emu = subparsers.add_parser(
+        "glove-emulator",
+        help="speak the glove's CAN protocol with a simulated person behind it",
+        description="Run the device side of the glove protocol (ias_gym.hardware.DBC_PATH) on "
+        "a python-can bus: sensor frames at --rate, force-display torques applied, the "
+        "device watchdog (no command for 20 ms -> torque off). Runs until Ctrl-C or --seconds.",
+    )
+    _bus_arguments(emu, "ias-glove")
+    emu.add_argument("--rate", type=float, default=1000.0, metavar="HZ", help="sample rate")
+    emu.add_argument("--person", default="p1", metavar="ID", help="simulated wearer")
+    emu.add_argument("--seed", type=int, default=0, metavar="S", help="sensor noise seed")
+    emu.add_argument("--seconds", type=float, metavar="S", help="stop after S seconds")
+    emu.set_defaults(run=_emulator)
+
+    bench = subparsers.add_parser(
+        "glove-bench",
+        help="measure the host loop against the glove (or its emulator)",
+        description="Run the host loop (read sensors -> calibrate -> step the virtual world -> "
+        "send force display) of IAS-GloveHardware-v0 at --rate for --seconds and print its "
+        "period statistics, dropped frames and watchdog trips.",
+    )
+    _bus_arguments(bench, "ias-glove-bench")
+    bench.add_argument("--rate", type=float, default=1000.0, metavar="HZ", help="loop rate")
+    bench.add_argument("--seconds", type=float, default=5.0, metavar="S", help="how long")
+    bench.add_argument(
+        "--emulator",
+        choices=("thread", "process", "none"),
+        default=None,
+        help="where the glove emulator runs: a thread of this process (default on the "
+        "virtual bus), a second process (needs a bus that crosses processes), or none "
+        "(a real glove; the default on other interfaces)",
+    )
+    bench.add_argument("--json", action="store_true", help="print one JSON object last")
+    bench.set_defaults(run=_bench)

@@ -1,0 +1,130 @@
+"""IAS-GloveHardware-v0: IAS-GloveGrasp-v0 with the real glove on a CAN bus.
+
+The virtual world, observation, action and reward are IAS-GloveGrasp-v0's
+(:class:`~ias_gym.envs.glove_grasp.GloveGraspEnv`); the glove is a
+:class:`~ias_gym.hardware.can_glove.CanGlove` opened once for the env's lifetime. Live, the
+env runs in real time: every ``step`` first waits for its deadline (``control_dt`` apart,
+:class:`~ias_gym.hardware.loop.LoopClock`), then reads the newest sample, calibrates it with
+the person's profile, steps the world and sends the force display. A glove fault (the
+watchdog: no valid sample for ``watchdog_timeout``) truncates the episode with the reason in
+``info["fault"]``; ``reset`` re-enables the glove.
+
+``record=PATH`` writes the session to a python-can log; ``replay=PATH`` plays such a log
+back (no bus, not paced) and reproduces the recorded observations exactly.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.glove.device import GloveDevice
+from ias_gym.glove.hand import PersonParams
+from ias_gym.glove.profile import DEFAULT_GLOVE_ID, load_profile
+from ias_gym.hardware.can_glove import CanGlove
+from ias_gym.hardware.loop import LoopClock
+from ias_gym.hardware.replay import ReplayGlove
+
+
+class GloveHardwareEnv(GloveGraspEnv):
+    """The glove-driven pinch-and-lift of IAS-GloveGrasp-v0 with a CAN glove
+    (``IAS-GloveHardware-v0``).
+
+    Observation, action, reward, termination: as IAS-GloveGrasp-v0; in addition an episode
+    is truncated when the glove reports a fault (``info["fault"]`` non-empty).
+
+    Version history:
+        v0: first version.
+    """
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        interface: str = "virtual",
+        channel: str | int = "ias-glove",
+        bus_kwargs: dict[str, Any] | None = None,
+        profile: str | Path | None = None,
+        fd: bool = False,
+        watchdog_timeout: float = 0.02,
+        glove_id: str = DEFAULT_GLOVE_ID,
+        record: str | Path | None = None,
+        replay: str | Path | None = None,
+        realtime: bool | None = None,
+        **config: Any,
+    ) -> None:
+        """Open the glove and build the world.
+
+        Args:
+            render_mode: ``None`` or ``"rgb_array"``.
+            interface, channel, bus_kwargs: the bus (``can.Bus(interface=..., channel=...,
+                **bus_kwargs)``); any python-can backend.
+            profile: the wearer's calibration profile (JSON, ``ias-gym calibrate``); its
+                person id picks the hand model. Default: the simulated person
+                ``config["person_id"]``'s cached calibration (for the emulator).
+            fd: CAN FD sensor frames.
+            watchdog_timeout: host-side watchdog [s].
+            glove_id: the glove's id (the profile must be for it).
+            record: write the session (every frame in and out) to this python-can log.
+            replay: play this recorded log back instead of opening a bus.
+            realtime: pace steps at ``control_dt`` in wall-clock time (default: live yes,
+                replay no).
+            **config: fields of :class:`~ias_gym.envs.glove_grasp.GloveGraspConfig`.
+
+        Raises:
+            ValueError: both ``record`` and ``replay``.
+            ~ias_gym.glove.profile.ProfileError: a bad profile, or one for another glove.
+        """
+        if record is not None and replay is not None:
+            raise ValueError("record and replay exclude each other")
+        calibration = None
+        if profile is not None:
+            loaded = load_profile(profile, glove_id=glove_id)
+            config = {**config, "person_id": loaded.person_id}
+            calibration = loaded.calibration
+        person = PersonParams.sample(config.get("person_id", "p1"))
+        device: GloveDevice
+        if replay is not None:
+            device = ReplayGlove(replay, fd=fd, glove_id=glove_id)
+        else:
+            device = CanGlove(
+                interface,
+                channel,
+                fd=fd,
+                watchdog_timeout=watchdog_timeout,
+                glove_id=glove_id,
+                log_path=record,
+                **(bus_kwargs or {}),
+            )
+        self.device = device
+        try:
+            super().__init__(
+                render_mode,
+                person=person,
+                calibration=calibration,
+                glove_factory=lambda seed: device,
+                **config,
+            )
+        except BaseException:
+            device.close()
+            raise
+        self.realtime = replay is None if realtime is None else bool(realtime)
+        self.clock = LoopClock(self.config.control_dt)
+
+    def _open_glove(self, seed: int) -> GloveDevice:
+        """The one device, re-enabled, with a sample newer than the enable."""
+        self.device.enable()
+        if isinstance(self.device, CanGlove):
+            self.device.wait_for_sample()
+        self.clock.restart()
+        return self.device
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        if self.realtime and self.glove is not None:
+            self.clock.wait()
+        return super().step(action)
+
+    def close(self) -> None:
+        super().close()
+        self.device.close()
