@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike
 from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, GloveReading
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.hardware.protocol import (
+    BITRATE,
     Frame,
     encode_host_command,
     encode_torque,
@@ -84,7 +85,8 @@ class CanGlove(GloveDevice):
         log_path: record every frame received and sent to this python-can log file
             (``.asc``, ``.blf``, ``.log``, ``.csv``: the suffix picks the format); a session
             replays from it (:class:`~ias_gym.hardware.replay.ReplayGlove`).
-        **bus_kwargs: passed to ``can.Bus`` (``bitrate``, ``data_bitrate``, ...).
+        **bus_kwargs: passed to ``can.Bus`` (``bitrate``: default 1 Mbit/s as the DBC;
+            CAN FD timing such as ``data_bitrate`` as the backend wants it).
     """
 
     def __init__(
@@ -106,6 +108,7 @@ class CanGlove(GloveDevice):
         self.glove_id = glove_id
         self.watchdog_timeout = float(watchdog_timeout)
         self.startup_timeout = float(startup_timeout)
+        bus_kwargs.setdefault("bitrate", BITRATE)  # the protocol's 1 Mbit/s (backends differ)
         if fd:
             bus_kwargs.setdefault("fd", True)
         self._bus = can.Bus(interface=interface, channel=channel, **bus_kwargs)

@@ -33,6 +33,7 @@ from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.glove.sensor_model import sensor_readings
 from ias_gym.hardware.can_glove import SEND_TIMEOUT, require_can, to_message
 from ias_gym.hardware.protocol import (
+    BITRATE,
     HOST_COMMAND,
     TORQUE_COMMAND,
     Frame,
@@ -149,7 +150,7 @@ class GloveEmulator:
         self.watchdog_timeout = float(watchdog_timeout)
         self.faults = faults if faults is not None else FaultInjection()
         self.glove_id = glove_id
-        self._bus_kwargs = dict(bus_kwargs)
+        self._bus_kwargs = {"bitrate": BITRATE, **bus_kwargs}
         if fd:
             self._bus_kwargs.setdefault("fd", True)
         self._rng = np.random.default_rng(self.faults.seed)
