@@ -5,7 +5,8 @@ IAS hand holding the pen of the paper's sec. 3.2) in the spirit of dm_control's 
 names are looked up once in ``__init__``, every method then indexes by id and answers one
 question in the paper's terms - the wrench matrix W (eqs. 3, 16), the contact intensities c,
 the hand Jacobian J (eq. 30), the hand's M and H (eq. 35), the pen's pose (eq. 25), twist
-(eq. 15), mass and inertia (eq. 33).
+(eq. 15), mass and inertia (eq. 33). The pen's part (:class:`FreePenPhysics`: pose, twist,
+mass of a pen on a free joint) is shared with the glove scene's physics.
 
 Frames. The paper frame has x = pen axis, y = vertical (up), z = lateral. MuJoCo's world has
 z up, so ``paper x = MuJoCo x``, ``paper y = MuJoCo z``, ``paper z = -MuJoCo y``
@@ -153,6 +154,98 @@ def load_pen_hand_model(scene: str = SCENE_FILE) -> mujoco.MjModel:
         return mujoco.MjModel.from_xml_path(str(path))
 
 
+class FreePenPhysics:
+    """Named questions about a pen on a free joint: its pose, twist and mass (paper frame).
+
+    The part of a scene's physics that only depends on the pen, shared by the pen-hand
+    scene (:class:`PenHandPhysics`) and the glove scene
+    (:class:`~ias_gym.sim.glove_contacts.GlovePenPhysics`). Positions have their origin at
+    the pen's nominal centre (its position in the model's ``qpos0``); SI units.
+
+    Args:
+        model: compiled scene with a pen body on a free joint, its centre of mass at the
+            body origin.
+        data: its data.
+        pen: name of the pen's body, free joint and geom (a capsule).
+
+    Attributes:
+        model, data: as given.
+        pen_body_id, pen_geom_id, pen_qpos_adr, pen_dof_adr: the pen's body and geom ids and
+            its free joint's addresses (``qpos[adr:adr+7]`` = position, quaternion w-x-y-z;
+            ``qvel[adr:adr+6]`` = linear velocity (world), angular velocity (body frame)).
+        origin_mj: the nominal pen centre [m] in MuJoCo's world frame (origin of the paper
+            frame; the pen body's position in the XML).
+
+    Raises:
+        NameNotFoundError: a name is missing; the message lists the names that exist.
+        ValueError: the pen's joint is not free, or its centre of mass is off its origin.
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, pen: str = "pen") -> None:
+        self.model = model
+        self.data = data
+        obj = mujoco.mjtObj
+        self.pen_body_id = _lookup(model, obj.mjOBJ_BODY, pen)
+        self.pen_geom_id = _lookup(model, obj.mjOBJ_GEOM, pen)
+        pen_joint = _lookup(model, obj.mjOBJ_JOINT, pen)
+        if int(model.jnt_type[pen_joint]) != int(mujoco.mjtJoint.mjJNT_FREE):
+            raise ValueError(f"joint {pen!r} must be a free joint")
+        # qpos[0:3] of the free joint is then the centre of mass, as r of eq. (25) wants.
+        if not np.allclose(model.body_ipos[self.pen_body_id], 0.0, atol=1e-9):
+            raise ValueError("the pen's centre of mass must be at its body origin")
+        self.pen_qpos_adr = int(model.jnt_qposadr[pen_joint])
+        self.pen_dof_adr = int(model.jnt_dofadr[pen_joint])
+        #: Nominal pen centre in MuJoCo's world frame [m]: the origin of the paper frame.
+        self.origin_mj: FloatArray = model.qpos0[self.pen_qpos_adr : self.pen_qpos_adr + 3].copy()
+        # The pen's capsule: half-length of its cylindrical part [m] (for closest-point queries).
+        self._pen_half_length = float(model.geom_size[self.pen_geom_id, 1])
+        self._pen_rot_mj = np.zeros(9)  # reused by _pen_rot: no allocation per call
+
+    def _pen_rot(self) -> FloatArray:
+        """The pen's rotation matrix in MuJoCo's world frame, from ``qpos`` (a reused buffer)."""
+        mujoco.mju_quat2Mat(
+            self._pen_rot_mj, self.data.qpos[self.pen_qpos_adr + 3 : self.pen_qpos_adr + 7]
+        )
+        return self._pen_rot_mj.reshape(3, 3)
+
+    def pen_rotation(self) -> FloatArray:
+        """Orientation of the pen's frame in the paper frame, ``(3, 3)`` (identity at rest)."""
+        return R_PAPER_TO_MJ.T @ self._pen_rot() @ R_PAPER_TO_MJ
+
+    def pen_pose(self) -> tuple[FloatArray, FloatArray]:
+        """The pen's pose as in eq. (25): ``(r, phi)``.
+
+        Returns:
+            r: centre-of-mass position [m], paper frame, relative to the nominal pen centre.
+            phi: roll, pitch, yaw [rad] of the pen in the paper frame, fixed axes x-y-z
+                (``R = Rz(yaw) Ry(pitch) Rx(roll)``, see :func:`rpy_to_matrix`): roll about
+                the pen axis, the see-saw tilt of sec. 4.3 is yaw.
+        """
+        pos = mj_to_paper(
+            self.data.qpos[self.pen_qpos_adr : self.pen_qpos_adr + 3] - self.origin_mj
+        )
+        return pos, matrix_to_rpy(self.pen_rotation())
+
+    def pen_twist(self) -> tuple[FloatArray, FloatArray]:
+        """The pen's twist ``(v, omega)`` of eq. (15), paper frame.
+
+        Returns:
+            v: centre-of-mass velocity [m/s].
+            omega: angular velocity [rad/s] in the (world-aligned) paper frame. MuJoCo keeps a
+                free joint's angular velocity ``qvel[3:6]`` in the body frame; it is rotated here.
+        """
+        qv = self.data.qvel[self.pen_dof_adr : self.pen_dof_adr + 6]
+        return mj_to_paper(qv[:3]), mj_to_paper(self._pen_rot() @ qv[3:])
+
+    def pen_com(self) -> FloatArray:
+        """Pen centre of mass [m], paper frame (from the last forward pass)."""
+        return mj_to_paper(self.data.xipos[self.pen_body_id] - self.origin_mj)
+
+    def pen_mass(self) -> float:
+        """Pen mass m [kg] of eq. (33)."""
+        return float(self.model.body_mass[self.pen_body_id])
+
+
 @dataclass(frozen=True)
 class FingertipContacts:
     """The fingertip-pen contacts of one instant, one row per finger (paper frame).
@@ -177,7 +270,7 @@ class FingertipContacts:
     force: FloatArray
 
 
-class PenHandPhysics:
+class PenHandPhysics(FreePenPhysics):
     """Named, vectorised questions about the pen-hand scene (paper frame, SI units).
 
     Args:
@@ -193,11 +286,8 @@ class PenHandPhysics:
         hand_qpos_ids, hand_dof_ids, hand_actuator_ids: ``(3k,)`` indices into ``qpos``,
             ``qvel``/``qfrc_*`` and ``ctrl``, in the order f1 abd, mcp, pip, f2 ...
         tip_site_ids, tip_geom_ids: ``(k,)`` fingertip sites and collision spheres.
-        pen_body_id, pen_geom_id, pen_qpos_adr, pen_dof_adr: the pen's body and geom ids and
-            its free joint's addresses (``qpos[adr:adr+7]`` = position, quaternion w-x-y-z;
-            ``qvel[adr:adr+6]`` = linear velocity (world), angular velocity (body frame)).
-        origin_mj: the nominal pen centre [m] in MuJoCo's world frame (origin of the paper
-            frame; the pen body's position in the XML).
+        pen_body_id, pen_geom_id, pen_qpos_adr, pen_dof_adr, origin_mj: the pen's ids, its
+            free joint's addresses and its nominal centre [m] (:class:`FreePenPhysics`).
 
     Raises:
         NameNotFoundError: a name is missing; the message lists the names that exist.
@@ -210,8 +300,7 @@ class PenHandPhysics:
         fingers: Sequence[str] = FINGERS,
         pen: str = "pen",
     ) -> None:
-        self.model = model
-        self.data = data
+        super().__init__(model, data, pen)
         self.fingers: tuple[str, ...] = tuple(fingers)
         k = len(self.fingers)
         obj = mujoco.mjtObj
@@ -253,20 +342,6 @@ class PenHandPhysics:
             model.sensor_adr[contact][:, None] + np.arange(_CONTACT_SENSOR_DIM)
         ).ravel()
 
-        self.pen_body_id = _lookup(model, obj.mjOBJ_BODY, pen)
-        self.pen_geom_id = _lookup(model, obj.mjOBJ_GEOM, pen)
-        pen_joint = _lookup(model, obj.mjOBJ_JOINT, pen)
-        if int(model.jnt_type[pen_joint]) != int(mujoco.mjtJoint.mjJNT_FREE):
-            raise ValueError(f"joint {pen!r} must be a free joint")
-        if not np.allclose(model.body_ipos[self.pen_body_id], 0.0, atol=1e-9):
-            raise ValueError("the pen's centre of mass must be at its body origin")
-        self.pen_qpos_adr = int(model.jnt_qposadr[pen_joint])
-        self.pen_dof_adr = int(model.jnt_dofadr[pen_joint])
-        #: Nominal pen centre in MuJoCo's world frame [m]: the origin of the paper frame.
-        self.origin_mj: FloatArray = model.qpos0[self.pen_qpos_adr : self.pen_qpos_adr + 3].copy()
-        # The pen's capsule: half-length of its cylindrical part [m] (for closest-point queries).
-        self._pen_half_length = float(model.geom_size[self.pen_geom_id, 1])
-
         # t2 = sign * (t1 x n): -1 for fingers above the pen axis (push down), +1 below, so
         # that t2 = +z (paper) for all fingers at the untilted pen (eq. 16).
         scratch = mujoco.MjData(model)
@@ -285,7 +360,6 @@ class PenHandPhysics:
         self._pen_geom, self._pen_qadr = self.pen_geom_id, self.pen_qpos_adr
         self._jacp = np.zeros((3, model.nv))
         self._full_m = np.zeros((model.nv, model.nv))
-        self._pen_rot_mj = np.zeros(9)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -354,52 +428,11 @@ class PenHandPhysics:
         return self.data.sensordata[self._touch_adr]
 
     # ------------------------------------------------------------------ pen
-    def _pen_rot(self) -> FloatArray:
-        mujoco.mju_quat2Mat(
-            self._pen_rot_mj, self.data.qpos[self.pen_qpos_adr + 3 : self.pen_qpos_adr + 7]
-        )
-        return self._pen_rot_mj.reshape(3, 3)
-
-    def pen_rotation(self) -> FloatArray:
-        """Orientation of the pen's frame in the paper frame, ``(3, 3)`` (identity at rest)."""
-        return R_PAPER_TO_MJ.T @ self._pen_rot() @ R_PAPER_TO_MJ
-
-    def pen_pose(self) -> tuple[FloatArray, FloatArray]:
-        """The pen's pose as in eq. (25): ``(r, phi)``.
-
-        Returns:
-            r: centre-of-mass position [m], paper frame, relative to the nominal pen centre.
-            phi: roll, pitch, yaw [rad] of the pen in the paper frame, fixed axes x-y-z
-                (``R = Rz(yaw) Ry(pitch) Rx(roll)``, see :func:`rpy_to_matrix`): roll about
-                the pen axis, the see-saw tilt of sec. 4.3 is yaw.
-        """
-        pos = mj_to_paper(
-            self.data.qpos[self.pen_qpos_adr : self.pen_qpos_adr + 3] - self.origin_mj
-        )
-        return pos, matrix_to_rpy(self.pen_rotation())
+    # pen_rotation, pen_pose, pen_twist, pen_com and pen_mass: from FreePenPhysics.
 
     def pen_axis(self) -> FloatArray:
         """Unit vector along the pen's axis (its own x), paper frame; independent of roll."""
         return mj_to_paper(self._pen_rot()[:, 0])
-
-    def pen_twist(self) -> tuple[FloatArray, FloatArray]:
-        """The pen's twist ``(v, omega)`` of eq. (15), paper frame.
-
-        Returns:
-            v: centre-of-mass velocity [m/s].
-            omega: angular velocity [rad/s] in the (world-aligned) paper frame. MuJoCo keeps a
-                free joint's angular velocity ``qvel[3:6]`` in the body frame; it is rotated here.
-        """
-        qv = self.data.qvel[self.pen_dof_adr : self.pen_dof_adr + 6]
-        return mj_to_paper(qv[:3]), mj_to_paper(self._pen_rot() @ qv[3:])
-
-    def pen_com(self) -> FloatArray:
-        """Pen centre of mass [m], paper frame (from the last forward pass)."""
-        return mj_to_paper(self.data.xipos[self.pen_body_id] - self.origin_mj)
-
-    def pen_mass(self) -> float:
-        """Pen mass m [kg] of eq. (33)."""
-        return float(self.model.body_mass[self.pen_body_id])
 
     def pen_inertia(self) -> FloatArray:
         """Pen inertia tensor about its centre of mass [kg m^2], paper frame (eq. 33's J).
