@@ -422,3 +422,39 @@ def test_glove_bench_prints_its_statistics_as_json(
     assert keys <= set(result)
     assert result["cycles"] == 199 and result["watchdog_trips"] == 0
     assert 0 < result["period_median_ms"] <= result["period_p99_ms"] <= result["period_max_ms"]
+
+
+def test_a_can_glove_session_is_recorded_as_a_skill(channel: str, tmp_path: Path) -> None:
+    from ias_gym.skills import SkillDB
+    from ias_gym.skills.record import record_skills
+
+    db = tmp_path / "skills.db"
+    with GloveEmulator(channel=channel, rate_hz=500):
+        (skill_id,) = record_skills(
+            "IAS-GloveHardware-v0",
+            "teleop",
+            1,
+            db,
+            progress=False,
+            env_kwargs={"channel": channel, "control_dt": 0.004, "duration": 1.2},
+        )
+    with SkillDB(db) as skills:
+        skill = skills.get(skill_id)
+    assert skill.task == "IAS-GloveHardware-v0" and skill.person_id == "p1"
+    assert skill.source.startswith("glove:")
+    model = skill.model
+    assert model.time.shape[0] == skill.demonstration.length + 1 == 301
+    touching = model.touching.all(axis=1)  # index and thumb on the pen
+    assert touching[-50:].all()  # the pinch closes within the 1.2 s
+    assert np.isfinite(model.c[touching]).all()
+
+
+def test_skills_record_says_when_the_can_glove_is_silent(
+    channel: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    kwargs = json.dumps({"channel": channel})
+    code = main(
+        ["skills", "record", "--env", "IAS-GloveHardware-v0", "--policy", "teleop",
+         "--db", str(tmp_path / "s.db"), "--env-kwargs", kwargs, "--no-progress"]
+    )  # fmt: skip
+    assert code != 0 and "glove-emulator" in capsys.readouterr().err

@@ -3,7 +3,8 @@
 - :class:`SkillDB` stores :class:`Skill` objects (a :class:`SkillModel` - contact schedule,
   object trajectory, internal forces of G(t) - a :class:`Demonstration` and provenance) in
   one SQLite file, one transaction per write, no pickle.
-- :func:`record_skills` rolls out a policy on a pen task and stores every episode.
+- :func:`record_skills` rolls out a policy on a pen task, or records glove sessions of
+  ``IAS-GloveGrasp-v0`` (policy ``teleop``), and stores every episode.
 - :func:`export_minari` writes the demonstrations of a task as a Minari dataset (no jax).
 - :func:`add_skills_commands` adds ``ias-gym skills record|list|show|export``.
 """
@@ -16,30 +17,46 @@ from ias_gym.skills.db import (
     SkillNotFoundError,
     SkillSummary,
 )
+from ias_gym.skills.glove_session import (
+    TELEOP,
+    GloveSkillModelRecorder,
+    glove_session_source,
+    teleop_policy,
+)
 from ias_gym.skills.minari_export import export_minari
 from ias_gym.skills.record import (
     SkillModelRecorder,
+    SkillSampler,
+    load_recording_policy,
     policy_source,
     record_episode,
     record_skills,
+    skill_model_recorder,
     stack_infos,
 )
 from ias_gym.skills.skill import Demonstration, Skill, SkillModel
 
 __all__ = [
     "SCHEMA_VERSION",
+    "TELEOP",
     "Demonstration",
+    "GloveSkillModelRecorder",
     "Skill",
     "SkillDB",
     "SkillDBError",
     "SkillModel",
     "SkillModelRecorder",
     "SkillNotFoundError",
+    "SkillSampler",
     "SkillSummary",
     "add_skills_commands",
     "export_minari",
+    "glove_session_source",
+    "load_recording_policy",
     "policy_source",
     "record_episode",
     "record_skills",
+    "skill_model_recorder",
     "stack_infos",
+    "teleop_policy",
 ]

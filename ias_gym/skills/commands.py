@@ -23,9 +23,17 @@ def _fail(message: str) -> int:
 
 
 def _expected_errors() -> tuple[type[BaseException], ...]:
+    from ias_gym.hardware.can_glove import GloveTimeoutError  # a CAN glove that is silent
     from ias_gym.skills.db import SkillDBError
 
-    return (SkillDBError, ValueError, FileNotFoundError, FileExistsError, ImportError)
+    return (
+        SkillDBError,
+        ValueError,
+        FileNotFoundError,
+        FileExistsError,
+        ImportError,
+        GloveTimeoutError,
+    )
 
 
 def _record(args: argparse.Namespace) -> int:
@@ -120,10 +128,11 @@ def _show(args: argparse.Namespace) -> int:
                 else ""
             )
         )
-    print(
-        f"  grip transform defined (rank W = 6) in {model['grip_transform_defined_fraction']:.0%}"
-        " of the samples"
-    )
+    defined = f"{model['grip_transform_defined_fraction']:.0%} of the samples"
+    if skill.model.is_pinch:  # two fingers: no G (rank W <= 5), one internal force
+        print(f"  pinch squeeze f_int defined (both fingers touch, rank W = 5) in {defined}")
+    else:
+        print(f"  grip transform defined (rank W = 6) in {defined}")
     for i, span in enumerate(model["f_int_range"], start=1):
         text = "undefined" if span is None else f"[{span[0]:+.4f}, {span[1]:+.4f}]"
         print(f"  f_int[{i}] {text} N")
@@ -178,14 +187,18 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
         "record",
         help="roll out a policy and store every episode as a skill",
         description="Run N seeded episodes (seeds S, S+1, ...) and store each, successful "
-        "or not, with its skill model and demonstration; prints the new ids.",
+        "or not, with its skill model and demonstration; prints the new ids. On a glove env "
+        "(IAS-GloveGrasp-v0) each episode is a glove session (--policy teleop).",
     )
-    record.add_argument("--env", required=True, metavar="ID", help="e.g. IAS-PenRotate-v0")
+    record.add_argument(
+        "--env", required=True, metavar="ID", help="e.g. IAS-PenRotate-v0, IAS-GloveGrasp-v0"
+    )
     record.add_argument(
         "--policy",
         default="expert",
-        metavar="expert|random|PATH",
-        help="the grip-transform expert, uniform random actions, or a saved SB3 model (.zip)",
+        metavar="expert|teleop|random|PATH",
+        help="the grip-transform expert (pen tasks), teleop (glove envs: zero action, a glove "
+        "session), uniform random actions, or a saved SB3 model (.zip)",
     )
     record.add_argument("--episodes", type=int, default=1, metavar="N", help="default 1")
     db_argument(record)
@@ -196,7 +209,12 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
         metavar="JSON",
         help="env configuration overrides, e.g. '{\"duration\": 0.5}'",
     )
-    record.add_argument("--person", metavar="ID", help="person id stored with the skills")
+    record.add_argument(
+        "--person",
+        metavar="ID",
+        help="person id stored with the skills (glove envs: the env's person, the default; "
+        "choose it with --env-kwargs '{\"person_id\": ...}')",
+    )
     record.add_argument("--no-progress", action="store_true", help="no progress bar")
     record.set_defaults(run=_record)
 

@@ -1,4 +1,4 @@
-"""Recording skills: roll out a policy on a pen task and store each episode as a skill.
+"""Recording skills: roll out a policy on a pen task or a glove session, store each episode.
 
 Each step the skill model is sampled from the unwrapped env's physics (paper sec. 3):
 W from the fingertip contacts (eq. 16), the measured intensities c (eq. 3), and, when
@@ -7,13 +7,19 @@ null-space basis N stays continuous; from it ``c_h = N N^T c`` (eq. 7) and
 ``f_int = N^T c`` (eq. 10). Where rank W < 6 (a finger lost, a degenerate grasp), G does
 not exist and those rows are NaN. The samples are taken after reset and after every step,
 aligned with the observations.
+
+The sampler follows the env's type (:func:`skill_model_recorder`): the pen-hand tasks
+(``IAS-Pen*``, :class:`SkillModelRecorder`) or the glove env ``IAS-GloveGrasp-v0`` and its
+subclasses (:class:`~ias_gym.skills.glove_session.GloveSkillModelRecorder`: a two-finger
+pinch, whose one internal force is the squeeze). A glove session is recorded with the
+``teleop`` policy (zero action); its skills carry the env's person and the glove's id.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import gymnasium as gym
 import numpy as np
@@ -21,7 +27,8 @@ from numpy.typing import NDArray
 
 from ias_gym.grasp.grip_transform import GraspRankError, GripTransform
 from ias_gym.skills.db import SkillDB
-from ias_gym.skills.skill import Demonstration, Skill, SkillModel
+from ias_gym.skills.glove_session import TELEOP, glove_session_source, teleop_policy
+from ias_gym.skills.skill import Demonstration, Skill, SkillModel, SkillModelSamples
 
 if TYPE_CHECKING:
     from ias_gym.envs.pen_hand_env import PenHandEnv
@@ -29,11 +36,24 @@ if TYPE_CHECKING:
 Policy = Callable[[NDArray[Any]], Any]
 
 
-class SkillModelRecorder:
+class SkillSampler(Protocol):
+    """What :func:`record_episode` needs of a skill-model sampler."""
+
+    def sample(self, env: Any) -> None:
+        """Append one sample of the unwrapped ``env``'s skill model (after reset / a step)."""
+
+    def __len__(self) -> int: ...
+
+    def model(self) -> SkillModel:
+        """The samples so far as a :class:`SkillModel`."""
+        ...
+
+
+class SkillModelRecorder(SkillModelSamples):
     """Samples the skill model of a pen env, one :meth:`sample` per observation."""
 
     def __init__(self) -> None:
-        self._rows: dict[str, list[NDArray[Any]]] = {}
+        super().__init__()
         self._previous: GripTransform | None = None
 
     def sample(self, env: PenHandEnv) -> None:
@@ -59,32 +79,9 @@ class SkillModelRecorder:
         self._previous = G  # after a rank loss N restarts from a fresh SVD basis
         sliding = np.zeros(len(active), dtype=bool)
         sliding[list(env.reference().sliding)] = True
-        position, rpy = p.pen_pose()
-        velocity, omega = p.pen_twist()
-        row = {
-            "time": np.float64(env.time),
-            "touching": np.asarray(active, dtype=bool),
-            "sliding": sliding,
-            "pen_position": position,
-            "pen_rpy": rpy,
-            "pen_velocity": velocity,
-            "pen_omega": omega,
-            "c": c,
-            "c_h": c_h,
-            "f_ext": W @ c,
-            "f_int": f_int,
-        }
-        for key, value in row.items():
-            self._rows.setdefault(key, []).append(np.array(value, copy=True))
-
-    def __len__(self) -> int:
-        return len(self._rows.get("time", ()))
-
-    def model(self) -> SkillModel:
-        """The samples so far as a :class:`SkillModel`."""
-        if not self._rows:
-            raise ValueError("no samples recorded; call sample() after reset and each step")
-        return SkillModel(**{key: np.stack(rows) for key, rows in self._rows.items()})
+        self._append(
+            time=env.time, pen=p, W=W, touching=active, sliding=sliding, c=c, c_h=c_h, f_int=f_int
+        )
 
 
 def stack_infos(infos: Sequence[Mapping[str, Any]]) -> dict[str, NDArray[Any]]:
@@ -112,11 +109,64 @@ def stack_infos(infos: Sequence[Mapping[str, Any]]) -> dict[str, NDArray[Any]]:
     return out
 
 
+def skill_model_recorder(env: gym.Env[Any, Any]) -> SkillSampler:
+    """A fresh skill-model sampler for the unwrapped ``env``, chosen by its type.
+
+    Raises:
+        TypeError: neither a pen-hand env nor a glove env (no physics to read a model from).
+    """
+    from ias_gym.envs.glove_grasp import GloveGraspEnv
+    from ias_gym.envs.pen_hand_env import PenHandEnv
+    from ias_gym.skills.glove_session import GloveSkillModelRecorder
+
+    if isinstance(env, GloveGraspEnv):  # IAS-GloveGrasp-v0 and the envs built on it
+        return GloveSkillModelRecorder()
+    if isinstance(env, PenHandEnv):
+        return SkillModelRecorder()
+    raise TypeError(
+        "skills are recorded from IAS pen environments (IAS-PenSlide-v0, IAS-PenRotate-v0) "
+        f"and glove environments (IAS-GloveGrasp-v0), got {type(env).__name__}"
+    )
+
+
 def policy_source(policy_spec: str) -> str:
-    """Provenance string of a policy spec: ``expert``, ``random`` or ``policy:<abs path>``."""
-    if policy_spec in ("expert", "random"):
+    """Provenance string of a policy spec: ``expert``, ``random``, ``teleop`` or
+    ``policy:<abs path>`` (a glove session's is refined by :func:`record_episode`)."""
+    if policy_spec in ("expert", "random", TELEOP):
         return policy_spec
     return f"policy:{Path(policy_spec).resolve()}"
+
+
+def load_recording_policy(
+    policy_spec: str, env: gym.Env[Any, Any], seed: int | None = None
+) -> Policy:
+    """``obs -> action`` for ``policy_spec`` on ``env``: :func:`ias_gym.evaluation.load_policy`
+    plus ``teleop`` (zero action) for glove envs.
+
+    Raises:
+        ValueError: ``teleop`` on an env without a glove, or ``expert`` on a glove env (it
+            has none: the person is the demonstrator).
+        FileNotFoundError, ImportError: as :func:`~ias_gym.evaluation.load_policy`.
+    """
+    from ias_gym.envs.glove_grasp import GloveGraspEnv
+    from ias_gym.evaluation import load_policy
+
+    glove = isinstance(env.unwrapped, GloveGraspEnv)
+    name = env.spec.id if env.spec is not None else type(env.unwrapped).__name__
+    if policy_spec == TELEOP:
+        if not glove:
+            raise ValueError(
+                f"policy {TELEOP!r} (zero action: the glove drives the hand) needs a glove "
+                f"env such as IAS-GloveGrasp-v0, not {name}; use expert, random or a model"
+            )
+        return teleop_policy(env)
+    if policy_spec == "expert" and glove:
+        raise ValueError(
+            f"{name} has no expert: a glove session is demonstrated by the person wearing "
+            f"the glove; use --policy {TELEOP} (zero action, pure teleoperation), random, "
+            "or a saved SB3 model acting on top of the glove"
+        )
+    return load_policy(policy_spec, env, seed)
 
 
 def record_episode(
@@ -131,29 +181,46 @@ def record_episode(
 ) -> Skill:
     """Roll out one episode and return it as a (not yet stored) :class:`Skill`.
 
+    A glove session (``IAS-GloveGrasp-v0`` or an env built on it) is stored with the
+    env's person as ``person_id`` and with the glove named in its source
+    (:func:`~ias_gym.skills.glove_session.glove_session_source`: ``teleop`` becomes
+    ``glove:<glove_id>``).
+
     Args:
-        env: an ``IAS-Pen*`` env (wrappers allowed; the skill model reads the unwrapped one).
+        env: an ``IAS-Pen*`` or glove env (wrappers allowed; the skill model reads the
+            unwrapped one).
         policy: ``obs -> action``; a stateful expert must be fresh for this episode.
         seed: reset seed.
         source: provenance (see :func:`policy_source`).
-        name: skill name; default ``"<task> <source> seed <seed>"``.
-        person_id: who demonstrated it, if a person did.
+        name: skill name; default ``"<task> <source> seed <seed>"`` (glove sessions:
+            ``"<task> <source> <person> seed <seed>"``).
+        person_id: who demonstrated it, if a person did (glove env: default and must be
+            the env's person).
         env_kwargs: keyword arguments ``env`` was made with (stored for re-creating it).
 
     Raises:
-        TypeError: the env is not a pen-hand env (no physics to read the skill model from).
+        TypeError: neither a pen-hand nor a glove env (no physics to read the model from).
+        ValueError: ``person_id`` is not the glove env's person.
     """
-    from ias_gym.envs.pen_hand_env import PenHandEnv
+    from ias_gym.envs.glove_grasp import GloveGraspEnv
 
     unwrapped = env.unwrapped
-    if not isinstance(unwrapped, PenHandEnv):
-        raise TypeError(
-            f"skills are recorded from IAS pen environments, got {type(unwrapped).__name__}"
-        )
+    recorder = skill_model_recorder(unwrapped)
     task = env.spec.id if env.spec is not None else type(unwrapped).__name__
-    recorder = SkillModelRecorder()
+    glove_env = unwrapped if isinstance(unwrapped, GloveGraspEnv) else None
+    if glove_env is not None:
+        person = glove_env.person.person_id
+        if person_id is not None and person_id != person:
+            raise ValueError(
+                f"person {person_id!r} was given, but the glove env's hand and calibration belong "
+                f"to {person!r}; choose the person with env kwargs "
+                f'{{"person_id": "{person_id}"}}'
+            )
+        person_id = person
     obs, info = env.reset(seed=seed)
     recorder.sample(unwrapped)
+    if glove_env is not None and glove_env.glove is not None:  # reset opens the glove
+        source = glove_session_source(source, glove_env.glove.glove_id)
     observations, infos = [obs], [info]
     actions: list[NDArray[Any]] = []
     rewards: list[float] = []
@@ -180,8 +247,9 @@ def record_episode(
         truncations=np.asarray(truncations, dtype=bool),
         infos=stack_infos(infos),
     )
+    default_name = f"{task} {source} {person_id} seed {seed}" if glove_env is not None else None
     return Skill(
-        name=name or f"{task} {source} seed {seed}",
+        name=name or default_name or f"{task} {source} seed {seed}",
         task=task,
         source=source,
         demonstration=demo,
@@ -214,24 +282,27 @@ def record_skills(
     :func:`ias_gym.evaluation.evaluate` does.
 
     Args:
-        env_id: a registered id, e.g. ``"IAS-PenRotate-v0"``.
-        policy_spec: ``"expert"``, ``"random"`` or a path to a saved SB3 model.
+        env_id: a registered id, e.g. ``"IAS-PenRotate-v0"`` or ``"IAS-GloveGrasp-v0"``.
+        policy_spec: ``"expert"`` (pen tasks), ``"teleop"`` (glove envs: zero action, the
+            glove alone drives the hand), ``"random"`` or a path to a saved SB3 model.
         episodes: number of episodes (>= 1).
         db_path: the skill database file (created if missing).
         seed: seed of the first episode.
         progress: show a tqdm progress bar (on stderr).
         env_kwargs: configuration overrides for ``gym.make`` (e.g. ``{"duration": 0.5}``).
-        person_id: stored as the skills' person id.
+        person_id: stored as the skills' person id (glove envs: the env's person).
         wrapper: wraps the env the policy acts in (e.g. action noise); the stored action is
             the policy's, before the wrapper.
         source: provenance to store (default: from ``policy_spec``).
 
     Returns:
         The new skills' ids, in episode order.
+
+    Raises:
+        ValueError: ``expert`` on a glove env, ``teleop`` on a pen env, a person other
+            than the glove env's (see :func:`load_recording_policy`, :func:`record_episode`).
     """
     from tqdm import tqdm
-
-    from ias_gym.evaluation import load_policy
 
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
@@ -243,14 +314,15 @@ def record_skills(
         if wrapper is not None:
             env = wrapper(env)
         try:
-            act = load_policy(policy_spec, env, seed)
+            act = load_recording_policy(policy_spec, env, seed)
             bar = tqdm(
                 range(episodes), desc=f"{env_id} / {source}", unit="episode", disable=not progress
             )
             successes = 0
             for episode in bar:
                 if policy_spec == "expert":
-                    act = load_policy(policy_spec, env, seed)  # a fresh controller per episode
+                    # a fresh controller per episode
+                    act = load_recording_policy(policy_spec, env, seed)
                 skill = record_episode(
                     env,
                     act,

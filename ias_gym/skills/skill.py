@@ -4,6 +4,8 @@
 intensities ``c``, ``c_h``, ``f_ext = W c``, ``f_int = N^T c``; ``T + 1`` samples) with the
 :class:`Demonstration` it was analysed from (Minari's layout) and its provenance. These are
 plain, validated containers; :mod:`ias_gym.skills.db` stores them.
+:class:`SkillModelSamples` collects a :class:`SkillModel` one sample at a time (the base of
+the recorders in :mod:`ias_gym.skills.record` and :mod:`ias_gym.skills.glove_session`).
 """
 
 from __future__ import annotations
@@ -11,10 +13,13 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from ias_gym.sim.pen_hand import FreePenPhysics
 
 #: dtype kinds an array may have: bool, signed and unsigned integers, floats.
 SAFE_KINDS = frozenset("biuf")
@@ -139,6 +144,12 @@ class SkillModel:
         f_ext: ``(T + 1, 6)`` the contacts' net wrench ``W c`` [N, N m] (eq. 3).
         f_int: ``(T + 1, n - 6)`` internal forces ``N^T c`` [N] (eqs. 7, 10); NaN where
             rank W < 6. N is kept continuous along the skill (see ``null_space_basis``).
+
+    A two-finger pinch (glove sessions: k = 2 point contacts with friction, n = 6) is the
+    one exception: its W has rank 5 at best, G (eq. 8) never exists, and null(W) is the
+    one squeeze along the line between the contacts; ``f_int`` is then ``(T + 1, 1)`` and
+    ``c_h``, ``f_int`` are NaN where rank W < 5 (see
+    :func:`ias_gym.sim.glove_contacts.squeeze_null_vector`).
     """
 
     time: NDArray[np.float64]
@@ -157,6 +168,11 @@ class SkillModel:
     def c_p(self) -> NDArray[np.float64]:
         """The particular part ``c_p = c - c_h = W+ W c`` [N] (eqs. 4, 5)."""
         return self.c - self.c_h
+
+    @property
+    def is_pinch(self) -> bool:
+        """Two point contacts with friction (k = 2, n = 6): rank W <= 5, one internal force."""
+        return self.touching.shape[1:] == (2,) and self.c.shape[1:] == (6,)
 
     @property
     def duration(self) -> float:
@@ -179,6 +195,7 @@ class SkillModel:
             raise ValueError(f"model.time must have shape ({S},), got {self.time.shape}")
         k = self.touching.shape[1] if self.touching.ndim == 2 else -1
         n = self.c.shape[1] if self.c.ndim == 2 else -1
+        pinch = self.is_pinch
         expected = {
             "touching": (S, k),
             "sliding": (S, k),
@@ -189,12 +206,13 @@ class SkillModel:
             "c": (S, n),
             "c_h": (S, n),
             "f_ext": (S, 6),
-            "f_int": (S, n - 6),
+            "f_int": (S, 1 if pinch else n - 6),
         }
-        if k < 1 or n < 7:
+        if k < 1 or (n < 7 and not pinch):
             raise ValueError(
                 f"model.touching must be (samples, fingers) and model.c (samples, n >= 7), "
-                f"got {self.touching.shape} and {self.c.shape}"
+                f"or (samples, 2) and (samples, 6) for a pinch, got {self.touching.shape} "
+                f"and {self.c.shape}"
             )
         for name, shape in expected.items():
             value = getattr(self, name)
@@ -216,7 +234,9 @@ class SkillModel:
             ``duration`` [s]; per finger ``fingers[i]`` with the fraction of samples
             touching, the touching and sliding intervals ``[t_start, t_end]`` [s] and the
             normal-force range [N] (column ``3 i`` of c); the range of each internal force
-            ``f_int`` [N] and of ``|c_h|`` [N] over samples where G is defined; the largest
+            ``f_int`` [N] and of ``|c_h|`` [N] over samples where G is defined (for a
+            pinch: where its squeeze is; ``grip_transform_defined_fraction`` then counts
+            those samples); the largest
             pen excursion [m] and the range of roll/pitch/yaw [rad].
         """
         k = self.touching.shape[1]
@@ -247,6 +267,74 @@ class SkillModel:
             "max_pen_excursion": float(excursion.max()),
             "pen_rpy_range": _ranges(self.pen_rpy),
         }
+
+
+class SkillModelSamples:
+    """The rows of a :class:`SkillModel` as they are sampled, one per observation.
+
+    The base of the skill-model recorders: a subclass's ``sample(env)`` reads the contacts
+    and forces of one instant and passes them to :meth:`_append`, which also reads the
+    pen's state; :meth:`model` stacks the rows.
+    """
+
+    def __init__(self) -> None:
+        self._rows: dict[str, list[NDArray[Any]]] = {}
+
+    def _append(
+        self,
+        *,
+        time: float,
+        pen: FreePenPhysics,
+        W: NDArray[np.float64],
+        touching: NDArray[np.bool_],
+        sliding: NDArray[np.bool_] | None = None,
+        c: NDArray[np.float64],
+        c_h: NDArray[np.float64],
+        f_int: NDArray[np.float64],
+    ) -> None:
+        """Append one sample; the pen's pose (eq. 25) and twist (eq. 15) are read from ``pen``.
+
+        Args:
+            time: time since reset [s].
+            pen: the scene's physics, after the forward pass of this sample.
+            W: ``(6, n)`` wrench matrix (eq. 3); ``f_ext = W c`` is stored.
+            touching, sliding: ``(k,)`` per finger, touches the pen / is scheduled to slide
+                (``None``: no finger is).
+            c, c_h: ``(n,)`` measured intensities and their homogeneous part [N].
+            f_int: internal forces [N] (NaN where they are not defined).
+        """
+        position, rpy = pen.pen_pose()
+        velocity, omega = pen.pen_twist()
+        row = {
+            "time": np.float64(time),
+            "touching": np.asarray(touching, dtype=bool),
+            "sliding": np.zeros(len(touching), dtype=bool) if sliding is None else sliding,
+            "pen_position": position,
+            "pen_rpy": rpy,
+            "pen_velocity": velocity,
+            "pen_omega": omega,
+            "c": c,
+            "c_h": c_h,
+            "f_ext": W @ c,
+            "f_int": f_int,
+        }
+        # Copies: a stored row must not change when the caller later writes to an array.
+        for key, value in row.items():
+            self._rows.setdefault(key, []).append(np.array(value, copy=True))
+
+    def __len__(self) -> int:
+        """Number of samples so far."""
+        return len(self._rows.get("time", ()))
+
+    def model(self) -> SkillModel:
+        """The samples so far as a :class:`SkillModel`.
+
+        Raises:
+            ValueError: nothing was sampled yet.
+        """
+        if not self._rows:
+            raise ValueError("no samples recorded; call sample() after reset and each step")
+        return SkillModel(**{key: np.stack(rows) for key, rows in self._rows.items()})
 
 
 @dataclass(frozen=True, eq=False)

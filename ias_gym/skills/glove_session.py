@@ -1,0 +1,123 @@
+"""Glove sessions as skills: the skill model of ``IAS-GloveGrasp-v0`` (paper secs. 2-3).
+
+In the skill-acquisition loop (Figs. 1-2) a person wearing the glove pinches the pen with
+the index and the thumb of the virtual hand; the session is analysed into the skill model
+(contact schedule, object trajectory, wrench intensities). :class:`GloveSkillModelRecorder`
+samples it from the env's MuJoCo state after reset and after every step, as
+:class:`~ias_gym.skills.record.SkillModelRecorder` does for the pen-hand tasks, in the same
+paper frame and units (see :mod:`ias_gym.sim.glove_contacts`):
+
+- ``touching``: (index, thumb) touch the pen; ``sliding``: all False (a glove session has
+  no sliding schedule);
+- ``c`` (eq. 3): per finger the pen's contact force resolved as one point contact with
+  friction [normal, t1, t2] at the finger's centre of pressure (eq. 16's columns), 6 values;
+- ``f_ext = W c`` (eq. 3) with W built by :func:`ias_gym.grasp.contacts.wrench_matrix`;
+- ``f_int = N^T c`` (eq. 10) and ``c_h = N N^T c`` (eq. 7), with N the unit null vector of
+  the rank-5 W of the pinch (:func:`~ias_gym.sim.glove_contacts.squeeze_null_vector`),
+  signed so that squeezing is positive; NaN unless both fingers touch. Two point contacts
+  never make rank W = 6, so the grip transform G of eq. (8) does not exist here, but the
+  internal force of the pinch - the squeeze along the line between the contacts - does.
+
+The pads are soft contacts whose torsion has no column in the hard-finger c (eq. 16): W c
+carries the fingers' net force exactly and their moment to about 2e-3 N m (see
+:mod:`ias_gym.sim.glove_contacts`).
+
+The env has no expert: a glove session is teleoperation (the ``teleop`` policy, zero
+action; see :func:`teleop_policy`). Provenance: the person is the env's
+(``env.unwrapped.person.person_id``) and the source names the glove
+(:func:`glove_session_source`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import gymnasium as gym
+import numpy as np
+from numpy.typing import NDArray
+
+from ias_gym.skills.skill import SkillModelSamples
+
+if TYPE_CHECKING:
+    from ias_gym.envs.glove_grasp import GloveGraspEnv
+    from ias_gym.sim.glove_contacts import GlovePenPhysics
+
+#: The policy spec of a glove session: zero action, the glove alone drives the hand.
+TELEOP = "teleop"
+#: The fingers of the glove env's skill model, in column order, their tip sites, and which
+#: comes down on the pen from above in the pinch (the index; the thumb is under the pen).
+GLOVE_FINGERS = ("index", "thumb")
+GLOVE_TIPS = ("index_tip", "thumb_tip")
+GLOVE_ABOVE = (True, False)
+
+
+def teleop_policy(env: gym.Env[Any, Any]) -> Callable[[NDArray[Any]], NDArray[Any]]:
+    """``obs -> zero action`` of ``env``'s action space: pure teleoperation by the glove.
+
+    Raises:
+        TypeError: the action space is not a ``Box``.
+    """
+    space = env.action_space
+    if not isinstance(space, gym.spaces.Box):
+        raise TypeError(f"teleop needs a Box action space, got {space}")
+    zero = np.zeros(space.shape, dtype=space.dtype)
+    return lambda obs: zero.copy()
+
+
+def glove_session_source(source: str, glove_id: str) -> str:
+    """Provenance of a glove session: ``glove:<glove_id>``, or ``<source>+glove:<glove_id>``.
+
+    ``teleop`` (or ``glove``) becomes ``glove:<glove_id>``; a policy acting on top of the
+    glove keeps its own source in front (``random+glove:sim-glove-0``); a source that names
+    a glove already (contains ``glove:``) is kept as it is.
+    """
+    if "glove:" in source:
+        return source
+    if source in (TELEOP, "glove"):
+        return f"glove:{glove_id}"
+    return f"{source}+glove:{glove_id}"
+
+
+class GloveSkillModelRecorder(SkillModelSamples):
+    """Samples the skill model of a glove env, one :meth:`sample` per observation.
+
+    Its :meth:`model` is a pinch: ``f_int`` has one column (the squeeze).
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._physics: GlovePenPhysics | None = None
+
+    def _physics_of(self, env: GloveGraspEnv) -> GlovePenPhysics:
+        from ias_gym.envs.glove_grasp import INDEX_GEOMS, THUMB_GEOMS
+        from ias_gym.sim.glove_contacts import GlovePenPhysics
+
+        if self._physics is None or self._physics.data is not env.data:
+            fingers = dict(zip(GLOVE_FINGERS, (INDEX_GEOMS, THUMB_GEOMS), strict=True))
+            self._physics = GlovePenPhysics(
+                env.model, env.data, fingers, GLOVE_TIPS, above=GLOVE_ABOVE
+            )
+        return self._physics
+
+    def sample(self, env: GloveGraspEnv) -> None:
+        """Append the contact schedule, pen state and wrench intensities of now.
+
+        Args:
+            env: the unwrapped glove env, just after ``reset`` or ``step``.
+        """
+        from ias_gym.sim.glove_contacts import squeeze_null_vector
+
+        p = self._physics_of(env)
+        contacts = p.finger_contacts()
+        W, active = p.wrench_matrix(contacts)
+        c = p.contact_intensities(contacts)
+        N = squeeze_null_vector(W, contacts)
+        if N is not None:
+            f_int = np.array([N @ c])
+            c_h = N * f_int[0]
+        else:
+            f_int = np.full(1, np.nan)
+            c_h = np.full(c.shape, np.nan)
+        # sliding left out: a glove session has no sliding schedule
+        self._append(time=env.data.time, pen=p, W=W, touching=active, c=c, c_h=c_h, f_int=f_int)

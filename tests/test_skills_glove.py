@@ -1,0 +1,347 @@
+"""Glove sessions of IAS-GloveGrasp-v0 recorded as skills: sampler, physics, database, CLI."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from ias_gym.envs.glove_grasp import INDEX_GEOMS, THUMB_GEOMS, GloveGraspEnv
+from ias_gym.glove.profile import DEFAULT_GLOVE_ID
+from ias_gym.grasp.contacts import wrench_matrix
+from ias_gym.sim.glove_contacts import FingerContacts, GlovePenPhysics, squeeze_null_vector
+from ias_gym.sim.pen_hand import mj_to_paper
+from ias_gym.skills import (
+    SkillDB,
+    SkillModel,
+    add_skills_commands,
+    glove_session_source,
+    record_skills,
+)
+from ias_gym.skills.glove_session import (
+    GLOVE_ABOVE,
+    GLOVE_FINGERS,
+    GLOVE_TIPS,
+    GloveSkillModelRecorder,
+)
+
+ENV_ID = "IAS-GloveGrasp-v0"
+STEPS = 400  # 4 s of 10 ms steps
+SEEDS = (0, 1)
+GRAVITY = np.array([0.0, -9.81, 0.0])  # paper frame: y is up [m/s^2]
+PEN_MASS = 0.10193680  # pen.xml [kg]: the weight is 1 N
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[int]]:
+    path = tmp_path_factory.mktemp("glove") / "skills.db"
+    ids = record_skills(ENV_ID, "teleop", len(SEEDS), path, seed=SEEDS[0], progress=False)
+    return path, ids
+
+
+def _held(model: SkillModel, infos: dict[str, np.ndarray]) -> np.ndarray:
+    """Samples where the pen is lifted off its support (the env's success) by both fingers."""
+    return np.asarray(infos["is_success"] & model.touching.all(axis=1))
+
+
+def test_glove_sessions_are_stored_with_their_provenance(
+    recorded: tuple[Path, list[int]],
+) -> None:
+    path, ids = recorded
+    with SkillDB(path) as db:
+        summaries = db.list_skills(task=ENV_ID)
+        assert [s.id for s in summaries] == ids
+        for seed, summary in zip(SEEDS, summaries, strict=True):
+            # A glove session: the glove's id in the source, the env's person, the seed.
+            assert summary.source == f"glove:{DEFAULT_GLOVE_ID}"
+            assert (summary.person_id, summary.seed) == ("p1", seed)
+            assert summary.name == f"{ENV_ID} glove:{DEFAULT_GLOVE_ID} p1 seed {seed}"
+            assert summary.length == STEPS and summary.is_success
+            skill = db.get(summary.id)
+            demo, model = skill.demonstration, skill.model
+            assert demo.observations.shape == (STEPS + 1, 39)
+            assert not demo.actions.any()  # teleop: the glove alone drives the hand
+            assert model.is_pinch
+            assert model.touching.shape == model.sliding.shape == (STEPS + 1, 2)
+            assert model.c.shape == model.c_h.shape == (STEPS + 1, 6)
+            assert model.f_int.shape == (STEPS + 1, 1) and model.f_ext.shape == (STEPS + 1, 6)
+            assert not model.sliding.any()
+            np.testing.assert_allclose(np.diff(model.time), 0.01, atol=1e-9)
+
+
+def test_pen_trajectory_is_the_lift_in_the_paper_frame(recorded: tuple[Path, list[int]]) -> None:
+    path, ids = recorded
+    with SkillDB(path) as db:
+        for skill_id in ids:
+            skill = db.get(skill_id)
+            model, demo = skill.model, skill.demonstration
+            lift = model.pen_position[:, 1]  # paper y = up
+            assert lift[0] == pytest.approx(0.0, abs=1e-6)
+            assert lift.max() >= 0.03 and lift[-1] >= 0.03  # the env's success: 30 mm up
+            # The observation's pen block (MuJoCo world) is the same motion: paper
+            # (x, y, z) = MuJoCo (x, z, -y). Velocities are read from the same qvel; the
+            # observed position is from the forward pass before the step's last 1 ms.
+            world = demo.observations[:, 27:30]
+            np.testing.assert_array_equal(
+                model.pen_velocity, np.column_stack([world[:, 0], world[:, 2], -world[:, 1]])
+            )
+            world = demo.observations[:, 20:23]
+            np.testing.assert_allclose(
+                model.pen_position,
+                np.column_stack([world[:, 0], world[:, 2], -world[:, 1]]),
+                atol=5e-4,
+            )
+            np.testing.assert_allclose(lift, demo.infos["pen_height"], atol=2e-4)
+
+
+def test_contact_schedule_and_intensities(recorded: tuple[Path, list[int]]) -> None:
+    path, ids = recorded
+    with SkillDB(path) as db:
+        for skill_id in ids:
+            skill = db.get(skill_id)
+            model, infos = skill.model, skill.demonstration.infos
+            # The same touch as the env's force display reports.
+            np.testing.assert_array_equal(model.touching[:, 0], infos["index_contact"])
+            np.testing.assert_array_equal(model.touching[:, 1], infos["thumb_contact"])
+            both = np.asarray(model.touching.all(axis=1))
+            pinch = model.time[both][0]  # the pinch closes 0.7 s into the episode
+            assert 0.3 <= pinch <= 0.8
+            assert both[model.time >= pinch].all()  # from the pinch on, both touch: held
+            assert not model.touching[0].any()
+            # c: finite, zero for a finger that does not touch, pushing when it does.
+            assert np.isfinite(model.c).all()
+            touching = np.repeat(model.touching, 3, axis=1)
+            assert not model.c[~touching].any()
+            normals = model.c[:, 0::3]
+            assert (normals[model.touching] >= 0).all()
+            assert normals[both].sum(axis=1).min() > 0.5  # [N]: a squeeze, not a graze
+
+
+def test_held_pen_is_in_equilibrium(recorded: tuple[Path, list[int]]) -> None:
+    """W c + m g = m a for the pen held off its support (NOTES.md: W c holds the pen up).
+
+    a from central differences of the recorded velocity; the contact forces are those of
+    the step's last 1 ms, so the residual measured is up to 0.073 N (median 0.03 N) of the
+    1 N weight. A wrong sign of c, or a finger left out, misses by about 1 N.
+    """
+    path, ids = recorded
+    weight = PEN_MASS * 9.81
+    with SkillDB(path) as db:
+        for skill_id in ids:
+            skill = db.get(skill_id)
+            model = skill.model
+            held = _held(model, dict(skill.demonstration.infos))
+            held[[0, -1]] = False  # no central difference there
+            assert held.sum() > 150  # the last 2 s
+            a = np.gradient(model.pen_velocity, model.time, axis=0)
+            residual = model.f_ext[:, :3] + PEN_MASS * GRAVITY - PEN_MASS * a
+            assert np.linalg.norm(residual[held], axis=1).max() < 0.1 * weight
+            wrong = -model.f_ext[:, :3] + PEN_MASS * GRAVITY - PEN_MASS * a
+            assert np.linalg.norm(wrong[held], axis=1).min() > 1.0 * weight
+
+
+def test_squeeze_is_the_pinch_force(recorded: tuple[Path, list[int]]) -> None:
+    """f_int = N^T c (eqs. 7, 10) of the rank-5 pinch: positive, of the operator's pinch force.
+
+    Measured while held: f_int 0.60-1.18 N, 0.52-0.65 of the env's pinch force (the sum
+    of the pads' normal forces, 1.4-1.8 N).
+    """
+    path, ids = recorded
+    with SkillDB(path) as db:
+        for skill_id in ids:
+            skill = db.get(skill_id)
+            model, infos = skill.model, skill.demonstration.infos
+            both = model.touching.all(axis=1)
+            f_int = model.f_int[:, 0]
+            # Defined exactly where both fingers touch; c_h = N f_int with a unit N.
+            np.testing.assert_array_equal(np.isfinite(f_int), both)
+            np.testing.assert_array_equal(np.isfinite(model.c_h).all(axis=1), both)
+            np.testing.assert_allclose(
+                np.linalg.norm(model.c_h[both], axis=1), np.abs(f_int[both]), rtol=1e-12
+            )
+            assert (f_int[both] > 0).all()  # squeezing is positive, from the first touch on
+            held = _held(model, dict(infos))
+            assert 0.4 < f_int[held].min() and f_int[held].max() < 2.5  # [N]
+            ratio = f_int[held] / infos["pinch_force"][held]
+            assert 0.3 < ratio.min() and ratio.max() < 1.0
+            summary = model.summary()
+            assert summary["grip_transform_defined_fraction"] == pytest.approx(both.mean())
+            assert summary["f_int_range"][0][0] > 0
+
+
+def test_sampler_matches_mujoco_at_every_step() -> None:
+    """The sampled f_ext is the fingers' net force on the pen to 1e-3 N, the moment of W c
+    is the exact one (MuJoCo's, incl. the pads' torsion) to 2.5e-3 N m, and the exact
+    moment obeys Euler's equation (measured: 3e-4 N, 1.8e-3 N m, 2.4e-5 N m)."""
+    env = gym.make(ENV_ID)
+    unwrapped = env.unwrapped
+    assert isinstance(unwrapped, GloveGraspEnv)
+    recorder = GloveSkillModelRecorder()
+    env.reset(seed=2)
+    recorder.sample(unwrapped)
+    fingers = dict(zip(GLOVE_FINGERS, (INDEX_GEOMS, THUMB_GEOMS), strict=True))
+    physics = GlovePenPhysics(
+        unwrapped.model, unwrapped.data, fingers, GLOVE_TIPS, above=GLOVE_ABOVE
+    )
+    d, body = unwrapped.data, physics.pen_body_id
+    inertia = unwrapped.model.body_inertia[body]
+    held, accel, exact, euler = [], [], [], []
+    for _ in range(STEPS):
+        _, _, terminated, truncated, info = env.step(np.zeros(10, dtype=np.float32))
+        recorder.sample(unwrapped)
+        contacts = physics.finger_contacts()
+        held.append(info["is_success"] and contacts.active.all() and not physics.other_contacts())
+        # Contact frames: orthonormal, the normal pointing from the contact into the pen.
+        np.testing.assert_allclose(
+            contacts.frames @ contacts.frames.transpose(0, 2, 1),
+            np.eye(3)[None].repeat(2, 0),
+            atol=1e-12,
+        )
+        inward = physics.pen_com() - contacts.points
+        assert (np.einsum("ij,ij->i", contacts.frames[:, 0], inward)[contacts.active] > 0).all()
+        accel.append(physics.pen_acceleration())
+        exact.append(contacts.moment.sum(axis=0))
+        # Euler in the world frame: I alpha + omega x I omega, I rotated by ximat; a free
+        # joint's angular velocity and acceleration are in the body frame.
+        rot, irot = d.xmat[body].reshape(3, 3), d.ximat[body].reshape(3, 3)
+        world_inertia = (irot * inertia) @ irot.T
+        dof = physics.pen_dof_adr
+        alpha, omega = rot @ d.qacc[dof + 3 : dof + 6], rot @ d.qvel[dof + 3 : dof + 6]
+        euler.append(mj_to_paper(world_inertia @ alpha + np.cross(omega, world_inertia @ omega)))
+        if terminated or truncated:
+            break
+    env.close()
+    model = recorder.model()
+    mask = np.array(held)
+    assert mask.sum() > 150
+    f_ext = model.f_ext[1:][mask]
+    force = f_ext[:, :3] + PEN_MASS * GRAVITY - PEN_MASS * np.array(accel)[mask]
+    assert np.linalg.norm(force, axis=1).max() < 1e-3  # [N]
+    exact_moment = np.array(exact)[mask]
+    assert np.linalg.norm(exact_moment - np.array(euler)[mask], axis=1).max() < 1e-4  # [N m]
+    assert np.linalg.norm(f_ext[:, 3:] - exact_moment, axis=1).max() < 2.5e-3  # [N m]
+
+
+def _pinch(points: np.ndarray, normals: np.ndarray, active: tuple[bool, bool]) -> FingerContacts:
+    """Two contacts with frames [n, t1 = x-ish, t2] (paper frame)."""
+    frames = []
+    for n in normals:
+        t1 = np.array([1.0, 0.0, 0.0]) - n[0] * n
+        t1 /= np.linalg.norm(t1)
+        frames.append(np.stack([n, t1, np.cross(t1, n)]))
+    return FingerContacts(
+        active=np.array(active),
+        points=points,
+        frames=np.array(frames),
+        force=np.zeros((2, 3)),
+        moment=np.zeros((2, 3)),
+        count=np.array(active, dtype=np.int64),
+    )
+
+
+@pytest.mark.parametrize("angle", [math.pi, 0.75 * math.pi, 0.6 * math.pi])
+def test_squeeze_null_vector_of_a_pinch(angle: float) -> None:
+    """Two contacts on a 1 cm pen, ``angle`` apart around it, squeezing along their chord."""
+    r = 0.01
+    thumb = np.array([0.0, -r, 0.0])  # below the pen, pushing up
+    index = r * np.array([0.0, -math.cos(angle), math.sin(angle)])
+    points = np.stack([index, thumb])
+    contacts = _pinch(points, -points / r, (True, True))
+    W = wrench_matrix(points, contacts.frames)
+    assert np.linalg.matrix_rank(W) == 5  # no moment about the chord: G (eq. 8) does not exist
+    N = squeeze_null_vector(W, contacts)
+    assert N is not None
+    np.testing.assert_allclose(W @ N, 0.0, atol=1e-15)
+    assert np.linalg.norm(N) == pytest.approx(1.0)
+    # A squeeze of s = 2 N by each finger along the chord: f_int = sqrt(2) s.
+    chord = (thumb - index) / np.linalg.norm(thumb - index)
+    s = 2.0
+    c = np.concatenate([contacts.frames[0] @ (s * chord), contacts.frames[1] @ (-s * chord)])
+    assert N @ c == pytest.approx(math.sqrt(2.0) * s)
+    assert N @ -c == pytest.approx(-math.sqrt(2.0) * s)  # pulling apart is negative
+    # One finger off the pen, or both at one point (rank 3): no squeeze.
+    one = _pinch(points, contacts.frames[:, 0], (True, False))
+    W_one = wrench_matrix(points, one.frames)
+    W_one[:, 3:] = 0.0
+    assert squeeze_null_vector(W_one, one) is None
+    same = _pinch(np.stack([thumb, thumb]), contacts.frames[:, 0], (True, True))
+    assert squeeze_null_vector(wrench_matrix(same.points, same.frames), same) is None
+
+
+def test_glove_session_source() -> None:
+    assert glove_session_source("teleop", "g7") == "glove:g7"
+    assert glove_session_source("random", "g7") == "random+glove:g7"
+    assert glove_session_source("glove:g1", "g7") == "glove:g1"
+
+
+def test_skill_model_validates_the_pinch_width() -> None:
+    S = 3
+    base = {
+        "time": np.arange(S, dtype=float),
+        "touching": np.ones((S, 2), dtype=bool),
+        "sliding": np.zeros((S, 2), dtype=bool),
+        **{k: np.zeros((S, 3)) for k in ("pen_position", "pen_rpy", "pen_velocity", "pen_omega")},
+        "c": np.zeros((S, 6)),
+        "c_h": np.zeros((S, 6)),
+        "f_ext": np.zeros((S, 6)),
+        "f_int": np.zeros((S, 1)),
+    }
+    SkillModel(**base).validate()
+    with pytest.raises(ValueError, match=r"model.f_int must have shape \(3, 1\)"):
+        SkillModel(**{**base, "f_int": np.zeros((S, 0))}).validate()
+    three = {**base, "touching": np.ones((S, 3), bool), "sliding": np.zeros((S, 3), bool)}
+    with pytest.raises(ValueError, match="n >= 7"):
+        SkillModel(**three).validate()
+
+
+def _run(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="ias-gym")
+    add_skills_commands(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(argv)
+    code: int = args.run(args)
+    return code
+
+
+def test_cli_records_and_shows_a_glove_session(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    db = str(tmp_path / "cli.db")
+    assert _run(["skills", "record", "--env", ENV_ID, "--policy", "teleop", "--episodes", "1",
+                 "--db", db, "--seed", "4", "--no-progress"]) == 0  # fmt: skip
+    assert f"stored 1 skills (ids 1) in {db}" in capsys.readouterr().out
+
+    assert _run(["skills", "list", "--db", db, "--json"]) == 0
+    listed = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert len(listed) == 1 and listed[0]["task"] == ENV_ID and listed[0]["length"] == STEPS
+    assert listed[0]["source"] == f"glove:{DEFAULT_GLOVE_ID}" and listed[0]["is_success"]
+
+    assert _run(["skills", "show", "--db", db, "--id", "1"]) == 0
+    text = capsys.readouterr().out
+    assert "person p1" in text and "finger 2: touching" in text
+    assert "pinch squeeze f_int defined" in text and "f_int[1] [+" in text
+    assert _run(["skills", "show", "--db", db, "--id", "1", "--json"]) == 0
+    shown = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert shown["person_id"] == "p1" and shown["seed"] == 4
+    assert len(shown["model"]["fingers"]) == 2 and len(shown["model"]["f_int_range"]) == 1
+    assert shown["model"]["max_pen_excursion"] >= 0.03
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "datasets"))
+    assert _run(["skills", "export", "--db", db, "--dataset-id", "ias/glove-v0"]) == 0
+    assert str(tmp_path / "datasets" / "ias" / "glove-v0") in capsys.readouterr().out
+
+    # The glove env has no expert; teleop needs a glove; the person is the env's.
+    assert _run(["skills", "record", "--env", ENV_ID, "--db", db, "--no-progress"]) == 1
+    assert f"{ENV_ID} has no expert" in capsys.readouterr().err
+    assert _run(["skills", "record", "--env", "IAS-PenRotate-v0", "--policy", "teleop",
+                 "--db", db, "--no-progress"]) == 1  # fmt: skip
+    assert "needs a glove env" in capsys.readouterr().err
+    assert _run(["skills", "record", "--env", ENV_ID, "--policy", "teleop", "--person", "p2",
+                 "--db", db, "--no-progress"]) == 1  # fmt: skip
+    assert "belong to 'p1'" in capsys.readouterr().err
+    with SkillDB(db) as database:
+        assert len(database) == 1  # the refused runs stored nothing
