@@ -21,6 +21,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from demos import add_demonstration_options, demonstrations, net_arch
+
 
 def build_parser() -> argparse.ArgumentParser:
     """Command-line options."""
@@ -28,8 +30,7 @@ def build_parser() -> argparse.ArgumentParser:
         description=__doc__.split("\n\n")[0],
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    parser.add_argument("--env", default="IAS-PenSlide-v0", help="environment id")
-    parser.add_argument("--db", required=True, metavar="PATH", help="skill database")
+    add_demonstration_options(parser)
     parser.add_argument("--out", required=True, metavar="FILE.zip", help="fine-tuned model")
     parser.add_argument(
         "--bc-out",
@@ -37,24 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE.zip",
         help="cloned model before fine-tuning (default: OUT with a _bc suffix)",
     )
-    parser.add_argument(
-        "--episodes", type=int, default=50, help="demonstrations to record and/or use (at most)"
-    )
-    parser.add_argument(
-        "--record",
-        action="store_true",
-        help="first record --episodes noise-injected expert demonstrations into --db",
-    )
-    parser.add_argument(
-        "--noise", type=float, default=0.001, help="std of the injected noise [normalised torque]"
-    )
-    parser.add_argument("--record-seed", type=int, default=0, help="seed of the first recording")
-    parser.add_argument("--source", default=None, help="use skills whose source starts with this")
-    parser.add_argument("--epochs", type=int, default=100, help="cloning: passes over the data")
     parser.add_argument("--bc-lr", type=float, default=1e-3, help="cloning: learning rate")
-    parser.add_argument(
-        "--net-arch", default="256,256", help="hidden layer sizes of actor and critic"
-    )
     parser.add_argument("--steps", type=int, default=100_000, help="PPO environment steps")
     parser.add_argument("--n-envs", type=int, default=4, help="parallel envs (sequential)")
     parser.add_argument(
@@ -66,7 +50,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--max-minutes", type=float, default=19.0, help="stop PPO after this wall-clock time"
     )
-    parser.add_argument("--seed", type=int, default=0, help="training seed")
     parser.add_argument(
         "--val-episodes",
         type=int,
@@ -75,9 +58,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--val-seed", type=int, default=2000, help="first validation seed")
     parser.add_argument("--val-freq", type=int, default=20_000, help="validate every N steps")
-    parser.add_argument("--eval-episodes", type=int, default=20, help="evaluation (0: skip)")
-    parser.add_argument("--eval-seed", type=int, default=1000, help="first evaluation seed")
-    parser.add_argument("--threads", type=int, default=1, help="torch threads")
     parser.add_argument("--verbose", type=int, default=0, help="SB3 verbosity (1: statistics)")
     return parser
 
@@ -92,9 +72,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         WallClockLimit,
         behaviour_clone,
         fine_tune,
-        load_demonstrations,
         make_vec_env,
-        record_noisy_expert,
     )
     from ias_gym.evaluation import report
 
@@ -103,16 +81,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     bc_out = Path(args.bc_out) if args.bc_out else out.with_name(f"{out.stem}_bc{out.suffix}")
     out.parent.mkdir(parents=True, exist_ok=True)
     bc_out.parent.mkdir(parents=True, exist_ok=True)
-    source = args.source
-    if args.record:
-        ids = record_noisy_expert(
-            args.env, args.episodes, args.db, args.noise, seed=args.record_seed
-        )
-        print(f"recorded {len(ids)} demonstrations into {args.db}")
-        if source is None:
-            source = "expert" if args.noise == 0 else f"expert+noise:{args.noise:g}"
-    demos = load_demonstrations(args.db, args.env, args.episodes, source=source or "expert")
-    print(f"cloning {len(demos.actions)} steps of demonstrations from {args.db}")
+    demos = demonstrations(args)
 
     env = make_vec_env(args.env, args.n_envs, seed=args.seed)
     start = time.perf_counter()
@@ -123,7 +92,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         demos.returns,
         epochs=args.epochs,
         lr=args.bc_lr,
-        net_arch=[int(n) for n in args.net_arch.split(",")],
+        net_arch=net_arch(args),
         seed=args.seed,
         ppo_kwargs={} if args.lr is None else {"learning_rate": args.lr},
     )
