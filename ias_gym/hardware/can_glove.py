@@ -223,13 +223,15 @@ class CanGlove(GloveDevice):
         self._send(frame)
 
     def enable(self) -> None:
-        """Clear the fault, re-arm the watchdog and enable the glove's actuators."""
+        """Clear the fault, enable the glove's actuators; the watchdog re-arms with the next
+        valid sample."""
         self._check_open()
         with self._state:
             self._fault = None
             self._enabled = True
-            if self._last_valid is not None:
-                self._last_valid = time.perf_counter()
+            # Re-armed by the next valid sample: a glove that stays silent after the enable
+            # is reported by wait_for_sample / read, not by an instant trip.
+            self._last_valid = None
         self._send_host_command(enable=True)
 
     def disable(self) -> None:

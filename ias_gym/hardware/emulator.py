@@ -143,7 +143,9 @@ class GloveEmulator:
             def operator(p: PersonParams) -> Callable[[float], NDArray[np.float64]]:
                 return FromPreShape(pen_operator(p))
 
-        self._make_operator = operator
+        #: Θ(t) [rad] of the wearer; a pure function of t, built once (building the pen
+        #: pinch solves the person's inverse kinematics: ~0.1 s the glove must not go quiet).
+        self._operator = operator(self.person)
         self.seed = seed
         self.rate_hz = float(rate_hz)
         self.fd = bool(fd)
@@ -179,7 +181,6 @@ class GloveEmulator:
 
     def _restart_person(self) -> None:
         """The person starts the script afresh (at every Enable): clock 0, new noise."""
-        self._operator = self._make_operator(self.person)
         self._noise = np.random.default_rng([self.seed, self._restarts])
         self._restarts += 1
         self._theta_ahead = [self._operator(k / self.rate_hz) for k in range(READ_AHEAD)]
