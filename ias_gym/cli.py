@@ -103,8 +103,9 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument(
         "--policy",
         default="expert",
-        metavar="expert|random|PATH",
-        help="the grip-transform expert, uniform random actions, or a saved SB3 model (.zip)",
+        metavar="expert|teleop|random|PATH",
+        help="the grip-transform expert (pen tasks), zero action (glove envs: the glove "
+        "alone drives the hand), uniform random actions, or a saved SB3 model (.zip)",
     )
     evaluate.add_argument("--episodes", type=int, default=10, metavar="N")
     evaluate.add_argument("--seed", type=int, default=0, metavar="S")

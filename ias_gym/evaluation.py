@@ -49,14 +49,42 @@ class EvaluationResult:
         return out
 
 
+#: Policy spec of glove envs: zero action, the glove alone drives the hand.
+TELEOP = "teleop"
+
+
 def load_policy(spec: str, env: gym.Env[Any, Any], seed: int | None = None) -> Policy:
-    """A callable ``obs -> action`` for ``expert``, ``random`` or a saved SB3 model's path.
+    """A callable ``obs -> action`` for ``expert`` (pen tasks), ``teleop`` (glove envs: zero
+    action, pure teleoperation), ``random`` or a saved SB3 model's path.
 
     Raises:
+        ValueError: ``teleop`` on an env without a glove, or ``expert`` on a glove env (it
+            has none: the person wearing the glove is the demonstrator).
         FileNotFoundError: ``spec`` is neither a known name nor an existing file.
         ImportError: a model path was given but stable-baselines3 is not installed.
     """
+    from ias_gym.envs.glove_grasp import GloveGraspEnv
+
+    glove = isinstance(env.unwrapped, GloveGraspEnv)
+    name = env.spec.id if env.spec is not None else type(env.unwrapped).__name__
+    if spec == TELEOP:
+        if not glove:
+            raise ValueError(
+                f"policy {TELEOP!r} (zero action: the glove drives the hand) needs a glove "
+                f"env such as IAS-GloveGrasp-v0, not {name}; use expert, random or a model"
+            )
+        space = env.action_space
+        if not isinstance(space, gym.spaces.Box):
+            raise TypeError(f"{TELEOP!r} needs a Box action space, got {space}")
+        zero = np.zeros(space.shape, dtype=space.dtype)
+        return lambda obs: zero.copy()
     if spec == "expert":
+        if glove:
+            raise ValueError(
+                f"{name} has no expert: a glove session is demonstrated by the person wearing "
+                f"the glove; use --policy {TELEOP} (zero action, pure teleoperation), random, "
+                "or a saved SB3 model acting on top of the glove"
+            )
         from ias_gym.baselines.expert import ExpertPolicy
 
         expert = ExpertPolicy(env)
@@ -67,7 +95,7 @@ def load_policy(spec: str, env: gym.Env[Any, Any], seed: int | None = None) -> P
     path = Path(spec)
     if not path.exists():
         raise FileNotFoundError(
-            f"policy {spec!r} is not 'expert', 'random' or an existing SB3 model file"
+            f"policy {spec!r} is not 'expert', 'teleop', 'random' or an existing SB3 model file"
         )
     try:
         import stable_baselines3
@@ -99,7 +127,8 @@ def evaluate(
 
     Args:
         env_id: a registered id, e.g. ``"IAS-PenSlide-v0"``.
-        policy: ``"expert"``, ``"random"`` or a path to a saved SB3 model.
+        policy: ``"expert"``, ``"teleop"``, ``"random"`` or a path to a saved SB3 model
+            (:func:`load_policy`).
         episodes: number of episodes.
         seed: seed of the first episode.
         video: if given, an MP4 of the first episode is written there (needs ``MUJOCO_GL``

@@ -54,5 +54,5 @@ def test_evaluate_cli_json_and_video(tmp_path: Path, capsys: pytest.CaptureFixtu
 
 
 def test_unknown_policy_is_a_clear_error() -> None:
-    with pytest.raises(FileNotFoundError, match="not 'expert', 'random'"):
+    with pytest.raises(FileNotFoundError, match="not 'expert', 'teleop', 'random'"):
         evaluate("IAS-PenSlide-v0", "no/such/model.zip", episodes=1)

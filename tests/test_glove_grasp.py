@@ -173,3 +173,15 @@ def test_pickling_is_refused_with_a_clear_message() -> None:
     env = gym.make("IAS-GloveGrasp-v0")
     with pytest.raises(TypeError, match="live glove device"):
         pickle.dumps(env.unwrapped)
+
+
+def test_evaluate_runs_the_glove_env_by_teleoperation() -> None:
+    from ias_gym.evaluation import evaluate
+
+    result = evaluate("IAS-GloveGrasp-v0", "teleop", episodes=1)
+    summary = result.summary()
+    assert summary["success_rate"] == 1.0 and summary["pen_height_max"] >= 0.03
+    with pytest.raises(ValueError, match="has no expert"):
+        evaluate("IAS-GloveGrasp-v0", "expert", episodes=1)
+    with pytest.raises(ValueError, match="needs a glove env"):
+        evaluate("IAS-PenSlide-v0", "teleop", episodes=1)

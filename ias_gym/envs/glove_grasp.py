@@ -498,6 +498,11 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             "effort": -cfg.effort_weight * float(np.mean(action * action)),
         }
 
+    def episode_metrics(self, info: dict[str, Any]) -> dict[str, float]:
+        """The task's measures of a finished episode, from its last ``info``: the pen's
+        final height above its start [m] and the pads' normal force on it [N]."""
+        return {"pen_height": float(info["pen_height"]), "pinch_force": float(info["pinch_force"])}
+
     # ------------------------------------------------------------------ gym API
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None

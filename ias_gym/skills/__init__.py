@@ -18,16 +18,13 @@ from ias_gym.skills.db import (
     SkillSummary,
 )
 from ias_gym.skills.glove_session import (
-    TELEOP,
     GloveSkillModelRecorder,
     glove_session_source,
-    teleop_policy,
 )
 from ias_gym.skills.minari_export import export_minari
 from ias_gym.skills.record import (
     SkillModelRecorder,
     SkillSampler,
-    load_recording_policy,
     policy_source,
     record_episode,
     record_skills,
@@ -38,7 +35,6 @@ from ias_gym.skills.skill import Demonstration, Skill, SkillModel
 
 __all__ = [
     "SCHEMA_VERSION",
-    "TELEOP",
     "Demonstration",
     "GloveSkillModelRecorder",
     "Skill",
@@ -52,11 +48,9 @@ __all__ = [
     "add_skills_commands",
     "export_minari",
     "glove_session_source",
-    "load_recording_policy",
     "policy_source",
     "record_episode",
     "record_skills",
     "skill_model_recorder",
     "stack_infos",
-    "teleop_policy",
 ]

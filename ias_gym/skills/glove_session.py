@@ -23,20 +23,18 @@ carries the fingers' net force exactly and their moment to about 2e-3 N m (see
 :mod:`ias_gym.sim.glove_contacts`).
 
 The env has no expert: a glove session is teleoperation (the ``teleop`` policy, zero
-action; see :func:`teleop_policy`). Provenance: the person is the env's
+action; ``teleop`` in :func:`ias_gym.evaluation.load_policy`). Provenance: the person is the env's
 (``env.unwrapped.person.person_id``) and the source names the glove
 (:func:`glove_session_source`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
-import gymnasium as gym
 import numpy as np
-from numpy.typing import NDArray
 
+from ias_gym.evaluation import TELEOP
 from ias_gym.skills.skill import SkillModelSamples
 
 if TYPE_CHECKING:
@@ -44,25 +42,11 @@ if TYPE_CHECKING:
     from ias_gym.sim.glove_contacts import GlovePenPhysics
 
 #: The policy spec of a glove session: zero action, the glove alone drives the hand.
-TELEOP = "teleop"
 #: The fingers of the glove env's skill model, in column order, their tip sites, and which
 #: comes down on the pen from above in the pinch (the index; the thumb is under the pen).
 GLOVE_FINGERS = ("index", "thumb")
 GLOVE_TIPS = ("index_tip", "thumb_tip")
 GLOVE_ABOVE = (True, False)
-
-
-def teleop_policy(env: gym.Env[Any, Any]) -> Callable[[NDArray[Any]], NDArray[Any]]:
-    """``obs -> zero action`` of ``env``'s action space: pure teleoperation by the glove.
-
-    Raises:
-        TypeError: the action space is not a ``Box``.
-    """
-    space = env.action_space
-    if not isinstance(space, gym.spaces.Box):
-        raise TypeError(f"teleop needs a Box action space, got {space}")
-    zero = np.zeros(space.shape, dtype=space.dtype)
-    return lambda obs: zero.copy()
 
 
 def glove_session_source(source: str, glove_id: str) -> str:

@@ -25,9 +25,10 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym.evaluation import TELEOP, load_policy
 from ias_gym.grasp.grip_transform import GraspRankError, GripTransform
 from ias_gym.skills.db import SkillDB
-from ias_gym.skills.glove_session import TELEOP, glove_session_source, teleop_policy
+from ias_gym.skills.glove_session import glove_session_source
 from ias_gym.skills.skill import Demonstration, Skill, SkillModel, SkillModelSamples
 
 if TYPE_CHECKING:
@@ -135,38 +136,6 @@ def policy_source(policy_spec: str) -> str:
     if policy_spec in ("expert", "random", TELEOP):
         return policy_spec
     return f"policy:{Path(policy_spec).resolve()}"
-
-
-def load_recording_policy(
-    policy_spec: str, env: gym.Env[Any, Any], seed: int | None = None
-) -> Policy:
-    """``obs -> action`` for ``policy_spec`` on ``env``: :func:`ias_gym.evaluation.load_policy`
-    plus ``teleop`` (zero action) for glove envs.
-
-    Raises:
-        ValueError: ``teleop`` on an env without a glove, or ``expert`` on a glove env (it
-            has none: the person is the demonstrator).
-        FileNotFoundError, ImportError: as :func:`~ias_gym.evaluation.load_policy`.
-    """
-    from ias_gym.envs.glove_grasp import GloveGraspEnv
-    from ias_gym.evaluation import load_policy
-
-    glove = isinstance(env.unwrapped, GloveGraspEnv)
-    name = env.spec.id if env.spec is not None else type(env.unwrapped).__name__
-    if policy_spec == TELEOP:
-        if not glove:
-            raise ValueError(
-                f"policy {TELEOP!r} (zero action: the glove drives the hand) needs a glove "
-                f"env such as IAS-GloveGrasp-v0, not {name}; use expert, random or a model"
-            )
-        return teleop_policy(env)
-    if policy_spec == "expert" and glove:
-        raise ValueError(
-            f"{name} has no expert: a glove session is demonstrated by the person wearing "
-            f"the glove; use --policy {TELEOP} (zero action, pure teleoperation), random, "
-            "or a saved SB3 model acting on top of the glove"
-        )
-    return load_policy(policy_spec, env, seed)
 
 
 def record_episode(
@@ -299,8 +268,9 @@ def record_skills(
         The new skills' ids, in episode order.
 
     Raises:
-        ValueError: ``expert`` on a glove env, ``teleop`` on a pen env, a person other
-            than the glove env's (see :func:`load_recording_policy`, :func:`record_episode`).
+        ValueError: ``expert`` on a glove env, ``teleop`` on a pen env
+            (:func:`~ias_gym.evaluation.load_policy`), a person other than the glove env's
+            (:func:`record_episode`).
     """
     from tqdm import tqdm
 
@@ -314,7 +284,7 @@ def record_skills(
         if wrapper is not None:
             env = wrapper(env)
         try:
-            act = load_recording_policy(policy_spec, env, seed)
+            act = load_policy(policy_spec, env, seed)
             bar = tqdm(
                 range(episodes), desc=f"{env_id} / {source}", unit="episode", disable=not progress
             )
@@ -322,7 +292,7 @@ def record_skills(
             for episode in bar:
                 if policy_spec == "expert":
                     # a fresh controller per episode
-                    act = load_recording_policy(policy_spec, env, seed)
+                    act = load_policy(policy_spec, env, seed)
                 skill = record_episode(
                     env,
                     act,
