@@ -467,3 +467,20 @@ def test_skills_record_says_when_the_can_glove_is_silent(
          "--db", str(tmp_path / "s.db"), "--env-kwargs", kwargs, "--no-progress"]
     )  # fmt: skip
     assert code != 0 and "glove-emulator" in capsys.readouterr().err
+
+
+def test_glove_emulator_command_runs_and_reports(
+    channel: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code = main(["glove-emulator", "--channel", channel, "--rate", "500", "--seconds", "0.2"])
+    out = capsys.readouterr().out
+    assert code == 0 and "Ctrl-C stops" in out
+    sent = int(out.split("sent ")[1].split(" samples")[0])
+    assert 50 <= sent <= 110  # 500 Hz for 0.2 s
+
+
+def test_glove_bench_refuses_a_process_emulator_on_the_virtual_bus(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert main(["glove-bench", "--emulator", "process", "--seconds", "0.1"]) == 2
+    assert "does not leave the process" in capsys.readouterr().err

@@ -29,12 +29,22 @@ def _bus_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     return {} if args.bitrate is None else {"bitrate": args.bitrate}
 
 
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
 def _emulator(args: argparse.Namespace) -> int:
+    stop = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in STOP_SIGNALS}
+    try:
+        return _run_emulator(args, stop)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _run_emulator(args: argparse.Namespace, stop: threading.Event) -> int:
     from ias_gym.hardware.emulator import GloveEmulator
 
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
     emulator = GloveEmulator(
         args.interface,
         args.channel,
