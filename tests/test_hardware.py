@@ -11,6 +11,7 @@ import logging
 import time
 import warnings
 from collections.abc import Iterator
+from dataclasses import astuple
 from pathlib import Path
 
 import can
@@ -42,10 +43,12 @@ from ias_gym.hardware.protocol import (
     SENSORS_B,
     TORQUE_COMMAND,
     ProtocolError,
+    UnknownIdError,
     decode_frame,
     encode_sensors,
     encode_torque,
     frame_id,
+    in_sensor_range,
     torques_of,
 )
 
@@ -118,6 +121,12 @@ def test_sensor_and_torque_frames_match_byte_fixtures() -> None:
     sample = receiver.feed(b.arbitration_id, b.data)
     assert isinstance(sample, Sample) and sample.counter == 7
     np.testing.assert_allclose(sample.psi, psi, atol=0.001 + 1e-12)  # 2 mrad steps
+    assert in_sensor_range(psi) and in_sensor_range(psi, fd=True)
+    high = psi.copy()
+    high[7] = 2.45  # thumb_web beyond its converter's 2.4 rad: saturated on the wire
+    assert not in_sensor_range(high)
+    wire = decode_frame(*astuple(encode_sensors(high, 8)[1])[:2]).values["thumb_web"]
+    assert wire == pytest.approx(2.4)
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -158,7 +167,7 @@ def test_strict_ranges_both_ways() -> None:
         decode_frame(frame_id(TORQUE_COMMAND), bytes(raw))
     with pytest.raises(ProtocolError, match="data bytes"):
         decode_frame(frame_id(SENSORS_A), b"\x00" * 7)
-    with pytest.raises(ProtocolError, match="unknown"):
+    with pytest.raises(UnknownIdError, match="unknown"):
         decode_frame(0x7FF, b"\x00" * 8)
 
 

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from ias_gym.glove.hand import JOINT_NAMES
+from ias_gym.hardware.can_glove import CanGlove
 from ias_gym.hardware.emulator import GloveEmulator
 from ias_gym.hardware.env import GloveHardwareEnv
 from ias_gym.hardware.loop import LoopStats, loop_stats
@@ -97,7 +98,7 @@ def run_glove_bench(
                 if info["fault"]:
                     env.device.enable()  # counted in watchdog_trips; keep measuring
             device = env.device
-            assert hasattr(device, "stats") and hasattr(device, "watchdog_trips")
+            assert isinstance(device, CanGlove)  # a live env's device (not a replay)
             stats = loop_stats(
                 env.clock.starts,
                 period,

@@ -22,7 +22,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,11 +38,16 @@ from ias_gym.hardware.protocol import (
     TORQUE_COMMAND,
     Frame,
     ProtocolError,
+    UnknownIdError,
     decode_frame,
     encode_sensors,
     encode_status,
+    in_sensor_range,
     torques_of,
 )
+
+if TYPE_CHECKING:
+    import can
 
 STATUS_PERIOD = 0.02  # GloveStatus cycle time [s] (the DBC's GenMsgCycleTime)
 READ_AHEAD = 50  # samples of the sensor model evaluated at once
@@ -87,7 +92,8 @@ class EmulatorStats:
             host that failed the checks (length, range); commands_lost: gaps in the command
             counter; safety_commands: zero-torque repeats (watchdog, close).
         watchdog_trips: device-side watchdog trips; late_cycles: cycles started a full period
-            or more late (the emulator's own overruns).
+            or more late (the emulator's own overruns); tx_errors: frames the bus refused
+            (a receiver's queue full).
     """
 
     samples: int = 0
@@ -99,6 +105,7 @@ class EmulatorStats:
     safety_commands: int = 0
     watchdog_trips: int = 0
     late_cycles: int = 0
+    tx_errors: int = 0
 
 
 class GloveEmulator:
@@ -284,16 +291,18 @@ class GloveEmulator:
             if left > 0:
                 time.sleep(left)
 
-    def _send(self, frame: Frame) -> None:
+    def _send(self, frame: Frame | can.Message) -> None:
+        """Send a protocol frame (or a ready python-can message, e.g. an error frame)."""
         try:
-            self._bus.send(to_message(frame), timeout=SEND_TIMEOUT)
+            msg = to_message(frame) if isinstance(frame, Frame) else frame
+            self._bus.send(msg, timeout=SEND_TIMEOUT)
             self.stats.frames_sent += 1
         except Exception:  # a full queue on the far side: the frame is lost, as on a bus
-            self.stats.injected["tx_error"] = self.stats.injected.get("tx_error", 0) + 1
+            self.stats.tx_errors += 1
 
     def _send_sample(self) -> None:
         psi = self._next_readings()
-        if np.any(psi < -1.6) or np.any(psi > 2.4):
+        if not in_sensor_range(psi, fd=self.fd):
             with self._lock:
                 self._fault_sensor = True  # the converters saturate (encode_sensors clips)
         self.stats.samples += 1
@@ -316,12 +325,7 @@ class GloveEmulator:
             self._send(Frame(ident, rng.bytes(n), n > 8))
             self.stats.injected["garbage"] += 1
         if rng.random() < f.error_frame:
-            can = require_can()
-            try:
-                self._bus.send(can.Message(is_error_frame=True, data=b""), timeout=SEND_TIMEOUT)
-                self.stats.frames_sent += 1
-            except Exception:
-                pass
+            self._send(require_can().Message(is_error_frame=True, data=b""))
             self.stats.injected["error_frame"] += 1
         self._counter = (self._counter + 1) % 256
 
@@ -342,11 +346,12 @@ class GloveEmulator:
             return
         try:
             decoded = decode_frame(msg.arbitration_id, msg.data)
-        except ProtocolError as e:
-            if not str(e).startswith("unknown arbitration id"):
-                with self._lock:
-                    self._fault_command = True
-                self.stats.commands_rejected += 1
+        except UnknownIdError:
+            return  # another node's traffic
+        except ProtocolError:
+            with self._lock:
+                self._fault_command = True
+            self.stats.commands_rejected += 1
             return
         now = time.perf_counter()
         with self._lock:

@@ -59,6 +59,10 @@ class ProtocolError(ValueError):
     """A frame that does not fit the protocol (unknown id, wrong length, value out of range)."""
 
 
+class UnknownIdError(ProtocolError):
+    """A frame whose id is not in the protocol: another node's traffic, not a fault."""
+
+
 def _require_cantools() -> Any:
     try:
         import cantools
@@ -126,12 +130,13 @@ def decode_frame(arbitration_id: int, data: bytes | bytearray) -> Decoded:
     """Decode and range-check one frame.
 
     Raises:
-        ProtocolError: unknown id, length other than the DBC's, or a value outside its range
-            (the message says which).
+        UnknownIdError: an id the protocol does not have.
+        ProtocolError: a length other than the DBC's, or a value outside its range (the
+            message says which).
     """
     msg = _by_id().get(arbitration_id)
     if msg is None:
-        raise ProtocolError(f"unknown arbitration id 0x{arbitration_id:X}")
+        raise UnknownIdError(f"unknown arbitration id 0x{arbitration_id:X}")
     if len(data) != msg.length:
         raise ProtocolError(f"{msg.name}: {len(data)} data bytes, the protocol has {msg.length}")
     values = msg.decode(bytes(data), decode_choices=False, scaling=True)
@@ -175,6 +180,17 @@ def encode_sensors(psi: ArrayLike, counter: int, *, fd: bool = False) -> list[Fr
         # In range by construction (clipped): cantools' check would only cost time.
         frames.append(Frame(frame_id(name), _encode(name, values, strict=False), fd))
     return frames
+
+
+def in_sensor_range(psi: ArrayLike, *, fd: bool = False) -> bool:
+    """Whether every reading Ψ [rad] lies in its DBC range (else :func:`encode_sensors`
+    saturates it, as the glove's converters do)."""
+    p = np.asarray(psi, dtype=np.float64)
+    for name in sensor_messages(fd):
+        index, lo, hi = _sensor_layout(name)
+        if np.any(p[index] < lo) or np.any(p[index] > hi):
+            return False
+    return True
 
 
 @functools.cache

@@ -18,6 +18,7 @@ from ias_gym.hardware.protocol import (
     GLOVE_STATUS,
     Decoded,
     ProtocolError,
+    UnknownIdError,
     decode_frame,
     readings_of,
     sensor_messages,
@@ -90,11 +91,11 @@ class FrameReceiver:
         self.stats.frames_received += 1
         try:
             decoded = decode_frame(arbitration_id, data)
-        except ProtocolError as e:
-            if str(e).startswith("unknown arbitration id"):
-                self.stats.frames_unknown += 1
-            else:
-                self.stats.frames_invalid += 1
+        except UnknownIdError:
+            self.stats.frames_unknown += 1
+            return None
+        except ProtocolError:
+            self.stats.frames_invalid += 1
             return None
         if decoded.name == GLOVE_STATUS:
             self.status = decoded.values
