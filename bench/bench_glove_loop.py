@@ -8,12 +8,18 @@ in-process :class:`~ias_gym.hardware.GloveEmulator`, side by side in this one ru
    CPython give by themselves;
 2. *host loop*: IAS-GloveHardware-v0's step (:func:`~ias_gym.hardware.bench.run_glove_bench`:
    newest sample -> calibration -> world step -> force display) with the CanGlove's receiver
-   thread and watchdog.
+   thread and watchdog;
+3. *world only*: the same env step paced the same way, on a glove that hands back one fixed
+   reading (no bus, no emulator, no threads): what the host's own work costs.
+
+Then the host watchdog: ``--silences`` times the emulator goes quiet for 100 ms at 1 kHz, and
+the time from the last valid sample to the trip is measured.
 
 Prints per loop and rate the medians over ``--repeats`` runs of: period median / p99 / max
 [ms], overrun fraction (periods > 1.5 x nominal), frames dropped, watchdog trips; the ratio
 host / plain of the p99 period; the issue's goal at 1 kHz (p99 <= 1.5 ms, overruns <= 1 %);
-and the protocol's bus load at both rates (classic CAN 1 Mbit/s; CAN FD 1/5 Mbit/s).
+the watchdog's trip delay (median, max); and the protocol's bus load at both rates (classic
+CAN 1 Mbit/s; CAN FD 1/5 Mbit/s).
 """
 
 from __future__ import annotations
@@ -26,7 +32,11 @@ import time
 import can
 import numpy as np
 
-from ias_gym.hardware import GloveEmulator, bus_load
+from ias_gym.envs.glove_grasp import FromPreShape, GloveGraspEnv, pen_operator
+from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, GloveReading
+from ias_gym.glove.hand import PersonParams
+from ias_gym.glove.sensor_model import sensor_readings
+from ias_gym.hardware import CanGlove, GloveEmulator, LoopClock, bus_load
 from ias_gym.hardware.bench import run_glove_bench
 from ias_gym.hardware.can_glove import to_message
 from ias_gym.hardware.loop import LoopStats, loop_stats
@@ -66,10 +76,67 @@ def host_loop(rate_hz: float, seconds: float) -> LoopStats:
     ).stats
 
 
+class FixedGlove(GloveDevice):
+    """A glove that returns one reading for ever and ignores the force display."""
+
+    glove_id = "fixed"
+
+    def __init__(self, psi: np.ndarray) -> None:
+        self.psi = psi
+
+    @property
+    def n_actuators(self) -> int:
+        return len(ACTUATED_JOINTS)
+
+    def read(self) -> GloveReading:
+        return GloveReading(psi=self.psi.copy(), timestamp=0.0)
+
+    def write_feedback(self, torques: object) -> None:
+        encode_torque(torques, 1, 0)  # the encoding the CAN glove would do
+
+    def close(self) -> None:
+        pass
+
+
+def world_loop(rate_hz: float, seconds: float) -> LoopStats:
+    """The env step of the host loop, paced by a LoopClock, without bus or threads."""
+    person = PersonParams.sample("p1")  # the emulator's default wearer, holding the pinch
+    psi = sensor_readings(FromPreShape(pen_operator(person))(1.0), person)
+    period = 1.0 / rate_hz
+    env = GloveGraspEnv(
+        control_dt=period, duration=seconds + 1.0, glove_factory=lambda seed: FixedGlove(psi)
+    )
+    env.reset(seed=0)
+    clock = LoopClock(period)
+    action = np.zeros(env.action_space.shape, dtype=np.float32)  # type: ignore[arg-type]
+    for _ in range(round(seconds * rate_hz)):
+        clock.wait()
+        env.step(action)
+    env.close()
+    return loop_stats(clock.starts, period)
+
+
+def watchdog_delays(silences: int) -> np.ndarray:
+    """Time from the last valid sample to the host watchdog's trip [ms], per silence."""
+    channel = f"bench-watchdog-{next(_channels)}"
+    delays = []
+    with GloveEmulator(channel=channel, rate_hz=1000.0) as emu, CanGlove(channel=channel) as glove:
+        glove.read()
+        for _ in range(silences):
+            glove.enable()
+            glove.wait_for_sample()
+            time.sleep(0.05)
+            emu.pause(0.1)
+            time.sleep(0.15)
+            delays.append(glove.trip_delays[-1] * 1e3)
+    return np.array(delays)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=10.0, help="per run [s]")
     parser.add_argument("--repeats", type=int, default=3, help="runs per loop and rate")
+    parser.add_argument("--silences", type=int, default=20, help="watchdog trips to time")
     args = parser.parse_args()
     print(f"machine: {platform.machine()}, {platform.python_implementation()} "
           f"{platform.python_version()}, python-can {can.__version__}")  # fmt: skip
@@ -78,7 +145,7 @@ def main() -> int:
     print(header + f" {'dropped':>8} {'trips':>6}")
     p99 = {}
     for rate in (500.0, 1000.0):
-        for name, run in (("plain", plain_loop), ("host", host_loop)):
+        for name, run in (("plain", plain_loop), ("host", host_loop), ("world", world_loop)):
             runs = [run(rate, args.seconds) for _ in range(args.repeats)]
             med = {f: float(np.median([getattr(r, f) for r in runs])) for f in fields}
             p99[name, rate] = med["period_p99_ms"]
@@ -96,6 +163,10 @@ def main() -> int:
         print(
             f"p99 ratio host / plain at {rate:.0f} Hz: {p99['host', rate] / p99['plain', rate]:.2f}"
         )
+    delays = watchdog_delays(args.silences)
+    print(f"watchdog trip after the last valid sample ({args.silences} silences at 1 kHz, "
+          f"limit 20 ms): median {np.median(delays):.2f} ms, "
+          f"max {delays.max():.2f} ms")  # fmt: skip
     for rate in (500.0, 1000.0):
         classic, fd = bus_load(rate)["total"], bus_load(rate, fd=True)["total"]
         nominal = bus_load(rate, worst_case=False)["total"]
