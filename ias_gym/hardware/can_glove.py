@@ -15,6 +15,7 @@ up by one, so a log of the session tells them apart (the replay needs this).
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from pathlib import Path
@@ -156,7 +157,7 @@ class CanGlove(GloveDevice):
     def stats(self) -> LinkStats:
         """Link statistics (a copy): frames received, invalid, dropped, duplicated, ..."""
         with self._state:
-            return LinkStats(**self._receiver.stats.as_dict())
+            return dataclasses.replace(self._receiver.stats)
 
     @property
     def device_status(self) -> dict[str, float] | None:

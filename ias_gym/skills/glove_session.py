@@ -22,8 +22,8 @@ The pads are soft contacts whose torsion has no column in the hard-finger c (eq.
 carries the fingers' net force exactly and their moment to about 2e-3 N m (see
 :mod:`ias_gym.sim.glove_contacts`).
 
-The env has no expert: a glove session is teleoperation (the ``teleop`` policy, zero
-action; ``teleop`` in :func:`ias_gym.evaluation.load_policy`). Provenance: the person is the env's
+The env has no expert: a glove session is teleoperation (the ``teleop`` policy of
+:func:`ias_gym.evaluation.load_policy`, zero action). Provenance: the person is the env's
 (``env.unwrapped.person.person_id``) and the source names the glove
 (:func:`glove_session_source`).
 """
@@ -41,7 +41,6 @@ if TYPE_CHECKING:
     from ias_gym.envs.glove_grasp import GloveGraspEnv
     from ias_gym.sim.glove_contacts import GlovePenPhysics
 
-#: The policy spec of a glove session: zero action, the glove alone drives the hand.
 #: The fingers of the glove env's skill model, in column order, their tip sites, and which
 #: comes down on the pen from above in the pinch (the index; the thumb is under the pen).
 GLOVE_FINGERS = ("index", "thumb")
