@@ -6,9 +6,36 @@ Every command imports what it needs when it runs, so ``ias-gym --help`` stays fa
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
+
+
+def parse_env_kwargs(text: str) -> dict[str, Any]:
+    """The value of ``--env-kwargs``: a JSON object.
+
+    Raises:
+        ValueError: not JSON, or not an object (the message says which).
+    """
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"--env-kwargs is not JSON ({exc}): {text!r}") from None
+    if not isinstance(value, dict):
+        raise ValueError(f"--env-kwargs must be a JSON object, got {text!r}")
+    return value
+
+
+def env_kwargs_argument(parser: argparse.ArgumentParser) -> None:
+    """Add ``--env-kwargs JSON`` (configuration overrides passed to ``gym.make``)."""
+    parser.add_argument(
+        "--env-kwargs",
+        default="{}",
+        metavar="JSON",
+        help="env configuration overrides, e.g. '{\"duration\": 0.5}'",
+    )
 
 
 def _figure_wrench_intensities(args: argparse.Namespace) -> int:
@@ -29,10 +56,13 @@ def _figure_control_error(args: argparse.Namespace) -> int:
 
 
 def _evaluate(args: argparse.Namespace) -> int:
-    import json
-
     from ias_gym.evaluation import evaluate
 
+    try:
+        env_kwargs = parse_env_kwargs(args.env_kwargs)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
     result = evaluate(
         args.env,
         policy=args.policy,
@@ -40,6 +70,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         seed=args.seed,
         video=None if args.video is None else Path(args.video),
         progress=not args.json,
+        env_kwargs=env_kwargs,
     )
     summary = result.summary()
     if args.video is not None:
@@ -113,6 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--json", action="store_true", help="print one JSON object as the last line"
     )
     evaluate.add_argument("--video", metavar="FILE", help="write an MP4 of the first episode")
+    env_kwargs_argument(evaluate)
     evaluate.set_defaults(run=_evaluate)
 
     from ias_gym.skills.commands import add_skills_commands

@@ -37,14 +37,14 @@ def _expected_errors() -> tuple[type[BaseException], ...]:
 
 
 def _record(args: argparse.Namespace) -> int:
+    from ias_gym.cli import parse_env_kwargs
     from ias_gym.skills.record import record_skills
 
     try:
-        env_kwargs = json.loads(args.env_kwargs)
-    except json.JSONDecodeError as exc:
-        return _fail(f"--env-kwargs is not JSON ({exc}): {args.env_kwargs!r}")
-    if not isinstance(env_kwargs, dict):
-        return _fail(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
+        env_kwargs = parse_env_kwargs(args.env_kwargs)
+    except ValueError as exc:
+        return _fail(str(exc))
+
     try:
         ids = record_skills(
             args.env,
@@ -172,6 +172,8 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
     Returns:
         The ``skills`` parser.
     """
+    from ias_gym.cli import env_kwargs_argument
+
     skills = subparsers.add_parser(
         "skills",
         help="the skill database: record, list, show and export skills",
@@ -203,12 +205,7 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
     record.add_argument("--episodes", type=int, default=1, metavar="N", help="default 1")
     db_argument(record)
     record.add_argument("--seed", type=int, default=0, metavar="S", help="first seed (0)")
-    record.add_argument(
-        "--env-kwargs",
-        default="{}",
-        metavar="JSON",
-        help="env configuration overrides, e.g. '{\"duration\": 0.5}'",
-    )
+    env_kwargs_argument(record)
     record.add_argument(
         "--person",
         metavar="ID",
