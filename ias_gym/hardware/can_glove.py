@@ -4,10 +4,10 @@
 python-can backend works (socketcan, pcan, kvaser, virtual, ...). A background thread
 receives frames, checks them (:class:`~ias_gym.hardware.samples.FrameReceiver`: lengths,
 ranges, counters) and keeps the newest complete sample; :meth:`CanGlove.read` returns it
-without waiting on the bus. The same thread is the host-side watchdog: when no valid sample
-has arrived for ``watchdog_timeout`` [s] it sends a zero-torque command and disables the
-glove's actuators, sets :attr:`CanGlove.fault`, and every later command carries zero torque
-until :meth:`CanGlove.enable`.
+without waiting on the bus. The same thread is the host-side watchdog, armed while the glove
+is enabled: when no valid sample has arrived for ``watchdog_timeout`` [s] it sends a
+zero-torque command and disables the glove's actuators, sets :attr:`CanGlove.fault`, and
+every later command carries zero torque until :meth:`CanGlove.enable`.
 
 Safety commands (watchdog, close) repeat the last command counter: host cycles always count
 up by one, so a log of the session tells them apart (the replay needs this).
@@ -342,7 +342,8 @@ class CanGlove(GloveDevice):
     def _check_watchdog(self, now: float) -> None:
         with self._state:
             if (
-                self._last_valid is None
+                not self._enabled  # nothing to make safe: no torque is commanded
+                or self._last_valid is None
                 or self._fault is not None
                 or now - self._last_valid <= self.watchdog_timeout
             ):
