@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ias_gym.errors import IasGymError
 from ias_gym.glove.calibration import Calibration, CalibrationMetrics, GroupModel
 from ias_gym.glove.hand import JOINT_NAMES, N_SENSORS, SENSOR_NAMES
 
@@ -54,7 +55,7 @@ DEFAULT_GLOVE_ID = "sim-glove-0"
 _REMEDY = "re-run `ias-gym calibrate --person ID --out DIR` to write a new profile"
 
 
-class ProfileError(ValueError):
+class ProfileError(IasGymError, ValueError):
     """A profile file that cannot be used; the message says why and what to do."""
 
 

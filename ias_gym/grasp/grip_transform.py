@@ -20,13 +20,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ias_gym.errors import IasGymError
+
 FloatArray = NDArray[np.float64]
 
 #: Relative singular-value threshold below which W is treated as rank deficient.
 RANK_RTOL = 1e-9
 
 
-class GraspRankError(ValueError):
+class GraspRankError(IasGymError, ValueError):
     """Raised when W does not have full row rank 6 (the paper assumes rank W = 6)."""
 
 

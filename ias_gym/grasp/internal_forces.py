@@ -49,6 +49,8 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 from scipy.optimize import linprog
 
+from ias_gym.errors import IasGymError
+
 FloatArray = NDArray[np.float64]
 Cone = Literal["box", "exact"]
 SlidingModel = Literal["equality", "paper"]
@@ -60,7 +62,7 @@ _RANK_TOL = 1e-9  # relative singular value below which equalities are dependent
 _DAQP_PRIMAL_TOL = 1e-9  # DAQP's constraint tolerance [N] (its default 1e-6 is coarse)
 
 
-class InfeasibleGraspError(ValueError):
+class InfeasibleGraspError(IasGymError, ValueError):
     """No wrench intensities satisfy equilibrium, the normal-force bound and the cones."""
 
 

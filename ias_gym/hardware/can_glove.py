@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ias_gym.errors import IasGymError
 from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, GloveReading
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.hardware.protocol import (
@@ -69,7 +70,7 @@ def to_message(frame: Frame) -> can.Message:
 SEND_TIMEOUT = 0.001
 
 
-class GloveTimeoutError(RuntimeError):
+class GloveTimeoutError(IasGymError, RuntimeError):
     """No sensor sample arrived in time (glove off, wrong channel or bit rate?)."""
 
 

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ias_gym.errors import IasGymError
 from ias_gym.glove.device import ACTUATED_JOINTS
 from ias_gym.glove.hand import SENSOR_NAMES
 
@@ -55,7 +56,7 @@ BITRATE = 1_000_000
 FD_DATA_BITRATE = 5_000_000
 
 
-class ProtocolError(ValueError):
+class ProtocolError(IasGymError, ValueError):
     """A frame that does not fit the protocol (unknown id, wrong length, value out of range)."""
 
 

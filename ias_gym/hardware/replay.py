@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ias_gym.errors import IasGymError
 from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, GloveReading
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.hardware.can_glove import require_can
@@ -29,7 +30,7 @@ from ias_gym.hardware.protocol import (
 from ias_gym.hardware.samples import FrameReceiver, Sample
 
 
-class ReplayError(ValueError):
+class ReplayError(IasGymError, ValueError):
     """The log is not a recorded glove session (no host cycles, or a cycle without its sample)."""
 
 

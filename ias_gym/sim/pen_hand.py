@@ -31,6 +31,7 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ias_gym.errors import IasGymError
 from ias_gym.grasp.contacts import wrench_matrix as _wrench_matrix
 
 FloatArray = NDArray[np.float64]
@@ -117,7 +118,7 @@ def matrix_to_rpy(rot: ArrayLike) -> FloatArray:
     )
 
 
-class NameNotFoundError(KeyError):
+class NameNotFoundError(IasGymError, KeyError):
     """A name that the model does not contain; the message lists the names it does."""
 
     def __str__(self) -> str:

@@ -65,6 +65,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym.errors import IasGymError
 from ias_gym.skills.skill import (
     DEMO_ARRAYS,
     MODEL_ARRAYS,
@@ -89,7 +90,7 @@ _SUMMARY_COLUMNS = (
 )
 
 
-class SkillDBError(Exception):
+class SkillDBError(IasGymError):
     """The skill database cannot be used: not a skill database, corrupt, newer, or locked."""
 
 
