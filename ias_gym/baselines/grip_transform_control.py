@@ -52,6 +52,9 @@ import numpy as np
 from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv, PenReference
 from ias_gym.grasp.grip_transform import null_space_basis
 from ias_gym.grasp.internal_forces import (
+    POLYGON_DIRECTIONS,
+    POLYGON_SCALE,
+    Cone,
     InfeasibleGraspError,
     InternalForceSettings,
     InternalForceSolver,
@@ -80,9 +83,10 @@ class ControllerGains:
     kp_slide: float = 30.0  # sliding-finger tip stiffness along the pen [N/m]
     kv_slide: float = 0.5  # sliding-finger tip damping [N s/m]
     kp_lateral: float = 20.0  # tip stiffness across the pen, toward its top/bottom line [N/m]
-    kv_lateral: float = 0.5  # tip damping across the pen [N s/m]
-    friction_margin: float = 0.2  # sticking contacts use mu (1 - margin) [-]
+    kv_lateral: float = 1.5  # tip damping across the pen [N s/m]
+    friction_margin: float = 0.4  # sticking contacts use mu (1 - margin) [-]
     mu: float = 0.25  # friction coefficient the controller assumes [-]
+    cone: Cone = "polygon"  # friction cone of the internal-force problem: box or polygon
     jacobian_damping: float = 1e-6  # damping of J+ [m^2]
     finger_inertia: bool = True  # include the M J+ {...} terms of eq. (45)
     lead: float = 0.0  # evaluate the reference this far ahead [s]
@@ -100,6 +104,8 @@ class ControlStep:
     c_command: FloatArray  # commanded intensities c_p + c_h_cmd [N]
     active: NDArrayBool  # fingers in contact
     feasible: bool  # the internal-force problem had a solution this step
+    offset_scale: float = 1.0  # fraction of the requested internal-force offset the cones allowed
+    error_scale: float = 1.0  # fraction of eq. (44)'s step of e_f the cones allowed
 
 
 @dataclass
@@ -123,7 +129,7 @@ class GripTransformController:
 
     def __post_init__(self) -> None:
         settings = InternalForceSettings(
-            mu=self.gains.mu, f0=self.f0, margin=self.gains.friction_margin
+            mu=self.gains.mu, f0=self.f0, margin=self.gains.friction_margin, cone=self.gains.cone
         )
         # A regulariser of 1e-2 /N (not the solver's 1e-6) picks the least-norm solution
         # among equal sums of normals: the smaller one left the top fingers squeezing the pen
@@ -156,8 +162,9 @@ class GripTransformController:
     def object_wrench(self, env: PenHandEnv, a_d: FloatArray) -> FloatArray:
         """Net contact wrench for acceleration ``a_d`` (eq. 33 plus the weight, eq. 18)."""
         p = env.physics
-        mass = p.pen_mass()
-        inertia = p.pen_inertia()
+        # The model's pen as built: a controller does not know a disturbed mass.
+        mass = p.pen_mass_nominal
+        inertia = p.pen_inertia(nominal=True)
         omega = env.state.omega
         force = mass * a_d[:3] + mass * GRAVITY * _UP
         moment = inertia @ a_d[3:] + _cross(omega, inertia @ omega)
@@ -187,6 +194,22 @@ class GripTransformController:
         J = p.fingertip_jacobians(contacts)
         c_measured = p.contact_intensities(contacts)
         qvel = p.hand_qvel()
+        tips = p.tip_positions()
+        tip_x = env.state.tip_x
+        noise = env.sensor_noise
+        if noise is not None:  # the expert measures through the task's sensor noise
+            touching = np.repeat(active, 3)
+            c_measured = np.where(
+                touching, noise.contact_intensities(c_measured, contacts.frames), 0.0
+            )
+            qvel = qvel + noise.qvel
+            tips = tips + noise.tip_displacement(J, contacts.frames)
+            tip_x = tip_x + (tips - p.tip_positions()) @ env.state.axis
+        task_offset = env.internal_force_reference()
+        if task_offset is not None:
+            internal_offset = (
+                task_offset if internal_offset is None else internal_offset + task_offset
+            )
 
         a_d = self.object_acceleration(env, ref)
         if accel_offset is not None:
@@ -207,10 +230,15 @@ class GripTransformController:
         dW = np.zeros_like(W) if self._prev_W is None else (W - self._prev_W) / dt
         c_p = W_pinv @ wrench
         c_h_d = c_ref - W_pinv @ (W @ c_ref)
+        offset_scale = 1.0
         if internal_offset is not None and np.any(internal_offset):
             self._N = null_space_basis(W, self._N) if bool(active.all()) else self._N
             if self._N is not None:
-                c_h_d = c_h_d + self._N @ internal_offset
+                # A requested offset is taken only as far as the cones allow (a squeeze that
+                # opens a contact or pushes one out of its cone would drop the object).
+                offset = self._N @ internal_offset
+                offset_scale = self._inside_cones(c_p + c_h_d, offset, active, sliding)
+                c_h_d = c_h_d + offset_scale * offset
         # The servo forces below (lateral, sliding) are part of what the contacts carry but not
         # of the grasp model's c; left in the measurement, eq. (44) would feed them back and
         # amplify them by 1 / (delta dt) (measured: at delta dt = 0.25 the grasp broke).
@@ -218,13 +246,15 @@ class GripTransformController:
         c_h = c_model - W_pinv @ (W @ c_model)
         e_f = c_h - c_h_d
         # One explicit-Euler step of eq. (44): e_f' = -(delta I + W+ W') e_f.
-        c_h_cmd = c_h_d + e_f - dt * (g.delta * e_f + W_pinv @ (dW @ e_f))
+        step = e_f - dt * (g.delta * e_f + W_pinv @ (dW @ e_f))
+        error_scale = self._inside_cones(c_p + c_h_d, step, active, sliding)
+        c_h_cmd = c_h_d + error_scale * step
         c_cmd = c_p + c_h_cmd
 
         extra = np.zeros_like(c_cmd)
-        extra[2::3] = self._lateral_servo(env, contacts.frames, J, qvel)
+        extra[2::3] = self._lateral_servo(env, contacts.frames, J, qvel, tips)
         if sliding and ref.contact_x is not None and ref.contact_vx is not None:
-            extra[1::3] = self._slide_servo(env, ref, sliding, J, qvel)
+            extra[1::3] = self._slide_servo(env, ref, sliding, J, qvel, tip_x)
         self._extra = extra
         f = c_cmd + extra
 
@@ -251,8 +281,47 @@ class GripTransformController:
             tau += self._damping(env) * qvel_ref
 
         self._prev_W, self._prev_J = W, J
-        self.last = ControlStep(tau, wrench, c_h_d, c_h, c_cmd, active, feasible)
+        self.last = ControlStep(
+            tau, wrench, c_h_d, c_h, c_cmd, active, feasible, offset_scale, error_scale
+        )
         return tau
+
+    def _inside_cones(
+        self,
+        c_ref: FloatArray,
+        step: FloatArray,
+        active: NDArrayBool,
+        sliding: dict[int, FloatArray],
+    ) -> float:
+        """The largest ``lam`` in [0, 1] that keeps ``c_ref + lam step`` in the solver's cones.
+
+        ``c_ref = c_p + c_h^d`` is feasible (the internal-force solution: normal forces >= f0,
+        sticking contacts inside their box cones ``|c_t| <= mu (1 - margin) c_n``), and the
+        feasible set is convex, so the admissible ``lam`` form an interval from 0: the first
+        constraint that ``step`` would cross ends it. Eq. (44) lets the internal forces lag
+        their reference; the particular part ``c_p`` acts at once, so a lagging squeeze let
+        the commanded forces leave the friction cones during transients (measured: the top
+        fingers at ``|c_t| / c_n = 0.36`` before the grasp broke, docs/controller.md).
+        """
+        settings = self._solver.settings
+        c, d = c_ref.reshape(-1, 3), step.reshape(-1, 3)
+        if settings.cone == "polygon":
+            faces, scale = POLYGON_DIRECTIONS, POLYGON_SCALE
+        else:
+            faces, scale = np.eye(2), 1.0
+        k_mu = scale * settings.mu_sticking
+        # Rows a + lam b >= 0: n - f0, then k mu n -+ d . t for each face direction d
+        # (the friction rows only for sticking contacts).
+        a = np.column_stack([c[:, 0] - settings.f0, *_face_rows(c, faces, k_mu)])
+        b = np.column_stack([d[:, 0], *_face_rows(d, faces, k_mu)])
+        use = np.repeat(active[:, None], a.shape[1], axis=1)
+        for k in sliding:
+            use[k, 1:] = False
+        crossing = use & (b < 0)
+        if not crossing.any():
+            return 1.0
+        bounds = np.maximum(a[crossing], 0.0) / -b[crossing]
+        return float(min(1.0, bounds.min()))
 
     def _finger_inertia(
         self,
@@ -286,7 +355,7 @@ class GripTransformController:
         return self._joint_damping
 
     def _lateral_servo(
-        self, env: PenHandEnv, frames: FloatArray, J: FloatArray, qvel: FloatArray
+        self, env: PenHandEnv, frames: FloatArray, J: FloatArray, qvel: FloatArray, tips: FloatArray
     ) -> FloatArray:
         """Forces along t2 [N] that keep each tip on the pen's top or bottom line.
 
@@ -300,7 +369,7 @@ class GripTransformController:
         norm = np.hypot(x, z)
         lateral = np.array([z / norm, 0.0, -x / norm])  # up x axis, normalised
         sign = frames[:, 2] @ lateral  # t2 is +-lateral
-        offset = (env.physics.tip_positions() - s.position) @ lateral
+        offset = (tips - s.position) @ lateral
         rate = sign * (J[2::3] @ qvel) - s.velocity @ lateral
         result: FloatArray = -sign * (g.kp_lateral * offset + g.kv_lateral * rate)
         return result
@@ -312,6 +381,7 @@ class GripTransformController:
         sliding: dict[int, FloatArray],
         J: FloatArray,
         qvel: FloatArray,
+        tip_x: FloatArray,
     ) -> FloatArray:
         """Forces along t1 [N] that move sliding tips along their schedule (eq. 17)."""
         assert ref.contact_x is not None and ref.contact_vx is not None
@@ -321,7 +391,7 @@ class GripTransformController:
         mask[list(sliding)] = 1.0
         # Velocity of each tip along the pen relative to the pen's centre, from J.
         vx = J[1::3] @ qvel - s.velocity @ s.axis
-        error = ref.contact_x - s.tip_x
+        error = ref.contact_x - tip_x
         result: FloatArray = mask * (g.kp_slide * error + g.kv_slide * (ref.contact_vx - vx))
         return result
 
@@ -334,6 +404,12 @@ class GripTransformController:
         """The env action (normalised torques, clipped to [-1, 1]); see :meth:`torques`."""
         tau = self.torques(env, accel_offset, internal_offset)
         return np.clip(tau / env._ctrl_max, -1.0, 1.0)
+
+
+def _face_rows(c: FloatArray, faces: FloatArray, k_mu: float) -> list[FloatArray]:
+    """``k mu c_n -+ d . c_t`` per contact for each face direction d (``>= 0``: inside)."""
+    normal, along = c[:, 0], c[:, 1:] @ faces.T
+    return [k_mu * normal + sign * along[:, f] for f in range(len(faces)) for sign in (-1, 1)]
 
 
 def _ahead(ref: PenReference, lead: float) -> PenReference:

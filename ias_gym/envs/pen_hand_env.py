@@ -21,6 +21,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from ias_gym.envs.disturbances import DisturbanceSettings, DisturbanceState, SensorNoise
 from ias_gym.sim.grasp_pose import place_grasp
 from ias_gym.sim.pen_hand import FINGERS, PenHandPhysics, load_pen_hand_model
 
@@ -129,10 +130,37 @@ class PenHandConfig:
     render_width: int = 480  # [px]
     render_height: int = 360  # [px]
     camera: str = "front"  # camera for rgb_array / depth_array: front, side, perspective
+    # Disturbances (ias_gym.envs.disturbances; the robustness suite). Defaults: none.
+    friction_scale: float = 1.0  # the pen's friction coefficient x this [-]
+    mass_scale: float = 1.0  # the pen's mass and inertia x this [-]
+    push_force: float = 0.0  # a push on the pen at a random time and direction [N]
+    push_duration: float = 0.05  # how long the push lasts [s]
+    force_noise: float = 0.0  # sigma of the measured contact forces' noise [N]
+    joint_angle_noise: float = 0.0  # sigma of the measured joint angles' noise [rad]
+    joint_velocity_noise: float = 0.0  # sigma of the measured joint velocities' noise [rad/s]
+    action_noise: float = 0.0  # sigma of the noise on the normalised action [-]
+    action_delay: int = 0  # control steps between an action and its effect [-]
+    internal_force_step: float = 0.0  # internal-force reference steps of +- this [N]
 
     def __post_init__(self) -> None:
-        if self.control_dt <= 0 or self.duration <= 0:
-            raise ValueError("control_dt and duration must be positive [s]")
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, float) and not math.isfinite(value):
+                raise ValueError(f"{f.name} must be finite, got {value}")
+        for name in ("control_dt", "duration", "max_contact_gap", "max_position_error"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        for name in ("min_grasp_force", "pen_position_noise", "contact_noise", "penetration"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if self.drop_distance <= self.max_position_error:
+            raise ValueError(
+                f"drop_distance ({self.drop_distance} m) must exceed max_position_error "
+                f"({self.max_position_error} m)"
+            )
+        if self.render_width < 1 or self.render_height < 1:
+            raise ValueError("render_width and render_height must be >= 1 [px]")
+        DisturbanceSettings.from_config(self).validate()
 
 
 class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
@@ -158,6 +186,7 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         "_dropped",
         "_unstable",
         "_last_action",
+        "disturbances",
     )
 
     # Episode state (see _start_episode).
@@ -223,6 +252,7 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         self._rot = np.zeros(9)
         self._rows = np.zeros((8, 3))
         self._warnings = self.data.warning.number  # a view: MuJoCo's warning counters
+        self.disturbances = self._build_disturbances()
 
         mujoco.mj_resetDataKeyframe(self.model, self.data, self._key)
         mujoco.mj_forward(self.model, self.data)
@@ -261,6 +291,33 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
 
     def _task_info(self) -> dict[str, Any]:
         return {}
+
+    # ------------------------------------------------------------------ disturbances
+    def _build_disturbances(self) -> DisturbanceState | None:
+        """Scale the simulated pen and prepare the episode disturbances (None: there are none)."""
+        settings = DisturbanceSettings.from_config(self.config)
+        if not settings.any:
+            return None
+        p, m = self.physics, self.model
+        m.geom_friction[p.pen_geom_id, 0] *= settings.friction_scale
+        m.body_mass[p.pen_body_id] *= settings.mass_scale
+        m.body_inertia[p.pen_body_id] *= settings.mass_scale
+        return DisturbanceState(
+            settings, len(FINGERS), p.n_hand_dofs, self.config.control_dt, self.config.duration
+        )
+
+    @property
+    def sensor_noise(self) -> SensorNoise | None:
+        """This step's measurement noise (``None`` without sensor noise); see disturbances."""
+        d = self.disturbances
+        return d.noise if d is not None and d.settings.sensor_noise else None
+
+    def internal_force_reference(self) -> FloatArray | None:
+        """The task's internal-force offset ``f_int`` [N] now (``None``: no such reference)."""
+        d = self.disturbances
+        if d is None or not d.settings.internal_force_step:
+            return None
+        return d.internal_force_reference(self.time)
 
     def episode_metrics(self, info: dict[str, Any]) -> dict[str, float]:
         """The task's error metrics of a finished episode, from its last ``info``."""
@@ -301,6 +358,8 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         else:
             position, rpy, contact_x = self._sample_initial_pose()
             place_grasp(self.physics, position, rpy, contact_x, self.config.penetration)
+        if self.disturbances is not None:
+            self.disturbances.reset(self.np_random)
         self._start_episode()
         obs = self._observation()
         terms = dict.fromkeys(self._reward_terms(), 0.0)
@@ -323,10 +382,18 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         a = np.minimum(np.maximum(a, -1.0), 1.0)
         self._last_action = a
         m, d = self.model, self.data
+        dist = self.disturbances
+        if dist is not None:
+            a = dist.actuate(a)
+            push = dist.push(self.time)
+            d.xfrc_applied[self._pen_body, :3] = push[_TO_PAPER_INDEX] * (1.0, -1.0, 1.0)
         d.ctrl[self._act_ids] = a * self._ctrl_max
         warnings_before = int(self._warnings.sum())
         mujoco.mj_step(m, d, nstep=self.frame_skip)
         self._steps += 1
+        if dist is not None:
+            d.xfrc_applied[self._pen_body] = 0.0
+            dist.draw_noise()
 
         # A diverging simulation makes MuJoCo warn (and reset its data).
         self._unstable = int(self._warnings.sum()) > warnings_before or not math.isfinite(
@@ -391,6 +458,19 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
 
     def _observation(self) -> FloatArray:
         d = self.data
+        noise = self.sensor_noise
+        if noise is not None:
+            vector = self.state.vector.copy()
+            vector[12:24] += noise.force.ravel()
+            return np.concatenate(
+                [
+                    d.qpos[self._hand_q] + noise.qpos,
+                    d.qvel[self._hand_v] + noise.qvel,
+                    vector,
+                    (self._steps / self.max_steps,),
+                    self._task_observation(),
+                ]
+            )
         return np.concatenate(
             [
                 d.qpos[self._hand_q],

@@ -45,6 +45,15 @@ class PenRotateConfig(PenHandConfig):
                 f"amplitude={self.amplitude} rad is outside (0, 0.35]: the fingertips reach "
                 "+-1 cm at the contacts, about 0.3 rad of tilt"
             )
+        if not (self.frequency > 0 and self.max_rms_error > 0):
+            raise ValueError("frequency [rad/s] and max_rms_error [-] must be > 0")
+        lo, hi = self.initial_error
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo <= hi):
+            raise ValueError(f"initial_error must be 0 <= low <= high [rad], got {(lo, hi)}")
+        if not 0 <= self.settle_time < self.duration:
+            raise ValueError(
+                f"settle_time {self.settle_time} s must be in [0, duration {self.duration} s)"
+            )
 
 
 class PenRotateEnv(PenHandEnv):

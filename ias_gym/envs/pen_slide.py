@@ -48,6 +48,22 @@ class PenSlideConfig(PenHandConfig):
     track_weight: float = 1.0  # [-]
     pose_weight: float = 1.0  # [-]
 
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.hold_time < 0:
+            raise ValueError(f"hold_time must be >= 0 [s], got {self.hold_time}")
+        end = self.hold_time + SKILL.phase_times[-1]
+        # Success is judged at the last step against the final targets: an episode that ends
+        # before every finger has slid would be judged on a schedule it never ran.
+        if self.duration < end - 1e-9:
+            raise ValueError(
+                f"duration {self.duration} s ends before the sliding schedule does "
+                f"(hold_time {self.hold_time} s + {SKILL.phase_times[-1]} s = {end} s); "
+                f"use duration >= {end}"
+            )
+        if self.target_tolerance <= 0 or self.max_tilt <= 0:
+            raise ValueError("target_tolerance [m] and max_tilt [rad] must be > 0")
+
 
 class PenSlideEnv(PenHandEnv):
     """The fingers slide outward along the pen in turn while the pen stays still.

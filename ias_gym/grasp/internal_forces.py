@@ -9,8 +9,10 @@ contacts and the external wrench ``w_ext`` on the object, find the wrench intens
   ``w_ext = [0, -m g, 0, 0, 0, 0]`` of eq. 18; NOTES.md "Sign of gravity");
 - keep every contact closed: ``c_n >= f0`` (eq. 19);
 - keep sticking contacts inside their friction cone: the paper's box
-  ``|c_t1| <= mu c_n, |c_t2| <= mu c_n`` (eqs. 21-24) or the exact Coulomb cone
-  ``||(c_t1, c_t2)|| <= mu c_n``;
+  ``|c_t1| <= mu c_n, |c_t2| <= mu c_n`` (eqs. 21-24), the exact Coulomb cone
+  ``||(c_t1, c_t2)|| <= mu c_n``, or an eight-sided pyramid inscribed in it (``"polygon"``:
+  linear like the box, but never outside the true cone; the box's corners are ``sqrt(2)``
+  outside it, docs/controller.md);
 - put a sliding contact's tangential force on the cone in its sliding direction,
   ``(c_t1, c_t2) = mu c_n s`` (kinetic Coulomb friction, NOTES.md "Sliding contact"), where
   ``s`` is the unit direction of the finger's velocity relative to the object in (t1, t2)
@@ -52,7 +54,13 @@ from scipy.optimize import linprog
 from ias_gym.errors import IasGymError
 
 FloatArray = NDArray[np.float64]
-Cone = Literal["box", "exact"]
+Cone = Literal["box", "exact", "polygon"]
+#: The polygon cone's faces: unit directions d in (t1, t2); each face is ``|d . c_t| <= k mu c_n``
+#: with ``k = cos(pi / 8)``, the regular octagon inscribed in the circle of radius ``mu c_n``.
+POLYGON_DIRECTIONS = np.array(
+    [[1.0, 0.0], [0.0, 1.0], [0.5**0.5, 0.5**0.5], [0.5**0.5, -(0.5**0.5)]]
+)
+POLYGON_SCALE = float(np.cos(np.pi / 8))
 SlidingModel = Literal["equality", "paper"]
 #: Sliding contacts as {contact index (0-based): unit direction s in (t1, t2) coordinates}.
 Sliding = Mapping[int, ArrayLike]
@@ -73,7 +81,8 @@ class InternalForceSettings:
     Attributes:
         mu: Coulomb friction coefficient [-].
         f0: minimal normal force of eq. (19) [N].
-        cone: ``"box"`` (eqs. 21-24, an LP) or ``"exact"`` (Coulomb cone, an SOCP).
+        cone: ``"box"`` (eqs. 21-24, an LP), ``"exact"`` (Coulomb cone, an SOCP) or
+            ``"polygon"`` (the inscribed octagonal pyramid, an LP).
         margin: friction safety margin [-], in [0, 1): sticking contacts use
             ``mu (1 - margin)``.
         sliding: ``"equality"`` (``c_t = mu c_n s``, kinetic friction) or ``"paper"``
@@ -94,8 +103,8 @@ class InternalForceSettings:
             raise ValueError(f"mu must be finite and >= 0, got {self.mu}")
         if not (np.isfinite(self.f0) and self.f0 >= 0):
             raise ValueError(f"f0 must be finite and >= 0 [N], got {self.f0}")
-        if self.cone not in ("box", "exact"):
-            raise ValueError(f"cone must be 'box' or 'exact', got {self.cone!r}")
+        if self.cone not in ("box", "exact", "polygon"):
+            raise ValueError(f"cone must be 'box', 'exact' or 'polygon', got {self.cone!r}")
         if not 0 <= self.margin < 1:
             raise ValueError(f"margin must be in [0, 1), got {self.margin}")
         if self.sliding not in ("equality", "paper"):
@@ -143,16 +152,21 @@ def friction_cone_residual(c: ArrayLike, mu: float, cone: Cone = "box") -> Float
         c: ``(3 m,)`` wrench intensities [N], per contact ``[normal, t1, t2]``.
         mu: friction coefficient [-].
         cone: ``"box"`` measures ``max(|c_t1|, |c_t2|)`` (eqs. 21-24), ``"exact"``
-            measures ``||(c_t1, c_t2)||``.
+            measures ``||(c_t1, c_t2)||``, ``"polygon"`` ``max_d |d . c_t| / cos(pi / 8)``.
 
     Returns:
         ``(m,)``: tangential measure minus ``mu c_n``; ``<= 0`` inside the cone, ``0`` on it.
     """
-    if cone not in ("box", "exact"):
-        raise ValueError(f"cone must be 'box' or 'exact', got {cone!r}")
+    if cone not in ("box", "exact", "polygon"):
+        raise ValueError(f"cone must be 'box', 'exact' or 'polygon', got {cone!r}")
     per_contact = np.asarray(c, dtype=float).reshape(-1, 3)
     t = per_contact[:, 1:]
-    size = np.abs(t).max(axis=1) if cone == "box" else np.hypot(t[:, 0], t[:, 1])
+    if cone == "box":
+        size = np.abs(t).max(axis=1)
+    elif cone == "exact":
+        size = np.hypot(t[:, 0], t[:, 1])
+    else:
+        size = np.abs(t @ POLYGON_DIRECTIONS.T).max(axis=1) / POLYGON_SCALE
     return size - mu * per_contact[:, 0]
 
 
@@ -243,6 +257,10 @@ def _friction_rows(
                 row(j, -mu * s2, 0.0, 1.0, 0.0, 0.0)
             else:  # eq. (20) along s: s . c_t - mu c_n >= 0
                 row(j, -mu, s1, s2, 0.0, np.inf)
+        elif sticking and settings.cone == "polygon":  # -k mu c_n <= d . c_t <= k mu c_n
+            for d1, d2 in POLYGON_DIRECTIONS:
+                row(j, -POLYGON_SCALE * mu_s, d1, d2, -np.inf, 0.0)
+                row(j, POLYGON_SCALE * mu_s, d1, d2, 0.0, np.inf)
         elif sticking:  # eqs. (21)-(24): -mu c_n <= c_ti <= mu c_n
             row(j, -mu_s, 1.0, 0.0, -np.inf, 0.0)
             row(j, mu_s, 1.0, 0.0, 0.0, np.inf)
@@ -306,11 +324,11 @@ def _result(c: FloatArray, cost: FloatArray, solver: str, status: str) -> Intern
     return InternalForceResult(c=c, objective=float(cost @ c), solver=solver, status=status)
 
 
-def _require_cone(settings: InternalForceSettings, cone: Cone, name: str) -> None:
-    if settings.cone != cone:
+def _require_cone(settings: InternalForceSettings, cones: tuple[Cone, ...], name: str) -> None:
+    if settings.cone not in cones:
         raise ValueError(
-            f"{name} solves cone={cone!r} problems, settings.cone is {settings.cone!r} "
-            "(solve_internal_forces picks the solver from settings.cone)"
+            f"{name} solves cone={' or '.join(map(repr, cones))} problems, settings.cone is "
+            f"{settings.cone!r} (solve_internal_forces picks the solver from settings.cone)"
         )
 
 
@@ -331,7 +349,7 @@ def solve_lp(
         w_ext: ``(6,)`` external wrench on the object [N, N m]; the contacts supply ``-w_ext``.
         sliding: {contact index (0-based): unit direction ``s`` in (t1, t2)}; ``None``: all
             contacts stick.
-        settings: problem settings (``None``: the defaults); ``settings.cone`` must be "box".
+        settings: problem settings (``None``: the defaults); ``settings.cone`` "box" or "polygon".
 
     Returns:
         The optimal wrench intensities.
@@ -342,7 +360,7 @@ def solve_lp(
         RuntimeError: neither HiGHS nor Clarabel could decide (not seen so far).
     """
     settings = InternalForceSettings() if settings is None else settings
-    _require_cone(settings, "box", "solve_lp")
+    _require_cone(settings, ("box", "polygon"), "solve_lp")
     W, w, slides = _check_problem(W, w_ext, sliding)
     m = W.shape[1] // 3
     cost = _check_weights(settings, m)
@@ -408,7 +426,7 @@ def solve_socp(
         RuntimeError: Clarabel could not decide (only seen at the very edge of feasibility).
     """
     settings = InternalForceSettings(cone="exact") if settings is None else settings
-    _require_cone(settings, "exact", "solve_socp")
+    _require_cone(settings, ("exact",), "solve_socp")
     W, w, slides = _check_problem(W, w_ext, sliding)
     return _solve_clarabel(W, w, slides, settings)
 
@@ -473,7 +491,7 @@ def solve_internal_forces(
     errors as theirs (``settings=None``: the defaults, box cones).
     """
     settings = InternalForceSettings() if settings is None else settings
-    solve = solve_lp if settings.cone == "box" else solve_socp
+    solve = solve_socp if settings.cone == "exact" else solve_lp
     return solve(W, w_ext, sliding, settings)
 
 
@@ -513,7 +531,7 @@ class InternalForceSolver:
 
         Args:
             n_contacts: number of contacts m (three wrench intensities each).
-            settings: problem settings (``None``: the defaults); ``settings.cone`` must be "box".
+            settings: problem settings (``None``: the defaults); cone "box" or "polygon".
             regularisation: ``eps`` of the QP's ``(eps / 2) ||c||^2`` [1/N].
         """
         try:
@@ -521,7 +539,7 @@ class InternalForceSolver:
         except ImportError as exc:  # pragma: no cover - depends on the environment
             raise ImportError("InternalForceSolver needs daqp: pip install daqp") from exc
         settings = InternalForceSettings() if settings is None else settings
-        _require_cone(settings, "box", "InternalForceSolver")
+        _require_cone(settings, ("box", "polygon"), "InternalForceSolver")
         if n_contacts < 1:
             raise ValueError(f"n_contacts must be >= 1, got {n_contacts}")
         if not (np.isfinite(regularisation) and regularisation > 0):

@@ -201,6 +201,10 @@ class FreePenPhysics:
         # The pen's capsule: half-length of its cylindrical part [m] (for closest-point queries).
         self._pen_half_length = float(model.geom_size[self.pen_geom_id, 1])
         self._pen_rot_mj = np.zeros(9)  # reused by _pen_rot: no allocation per call
+        # The model's pen as built: what a controller plans with when a task scales the
+        # simulated pen's mass (ias_gym.envs.disturbances).
+        self.pen_mass_nominal = float(model.body_mass[self.pen_body_id])
+        self._pen_inertia_nominal = model.body_inertia[self.pen_body_id].copy()
 
     def _pen_rot(self) -> FloatArray:
         """The pen's rotation matrix in MuJoCo's world frame, from ``qpos`` (a reused buffer)."""
@@ -435,14 +439,21 @@ class PenHandPhysics(FreePenPhysics):
         """Unit vector along the pen's axis (its own x), paper frame; independent of roll."""
         return mj_to_paper(self._pen_rot()[:, 0])
 
-    def pen_inertia(self) -> FloatArray:
+    def pen_inertia(self, nominal: bool = False) -> FloatArray:
         """Pen inertia tensor about its centre of mass [kg m^2], paper frame (eq. 33's J).
 
         MuJoCo stores principal moments in the inertial frame (``body_inertia``); rotated here
         with ``ximat`` of the last forward pass.
+
+        Args:
+            nominal: the principal moments of the model as built (``pen_mass_nominal``'s
+                counterpart), not the simulated ones.
         """
         rot = self.data.ximat[self.pen_body_id].reshape(3, 3)
-        inertia_mj = (rot * self.model.body_inertia[self.pen_body_id]) @ rot.T
+        moments = (
+            self._pen_inertia_nominal if nominal else self.model.body_inertia[self.pen_body_id]
+        )
+        inertia_mj = (rot * moments) @ rot.T
         return R_PAPER_TO_MJ.T @ inertia_mj @ R_PAPER_TO_MJ
 
     # ------------------------------------------------------------------ contacts
