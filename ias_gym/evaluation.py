@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,17 @@ Policy = Callable[[np.ndarray], np.ndarray]
 VIDEO_FPS = 25
 #: Algorithms tried, in order, when a policy is given as a path to a saved SB3 model.
 SB3_ALGORITHMS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
+#: Unit of each task metric in the summary: ``metric -> (summary name, unit, factor)``; the
+#: envs report SI (m, rad, N), the summary mm, deg and percent, named in every key.
+METRIC_UNITS: Mapping[str, tuple[str, str, float]] = {
+    "final_slide_error": ("final_slide_error", "mm", 1e3),
+    "max_position_error": ("max_position_error", "mm", 1e3),
+    "max_pen_tilt": ("max_pen_tilt", "deg", math.degrees(1.0)),
+    "rms_tilt_error": ("rms_tilt_error", "deg", math.degrees(1.0)),
+    "rms_tilt_error_fraction": ("rms_tilt_error_of_amplitude", "pct", 100.0),
+    "pen_height": ("pen_height", "mm", 1e3),
+    "pinch_force": ("pinch_force", "N", 1.0),
+}
 
 
 @dataclass
@@ -32,7 +44,13 @@ class EvaluationResult:
     metrics: list[dict[str, float]] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
-        """JSON-ready summary: success rate, mean return, and mean/max of each task metric."""
+        """JSON-ready summary: success rate, mean return, and mean/max of each task metric.
+
+        Each metric's keys name its statistic and unit, ``<metric>_<mean|max>_<unit>``
+        (``max_position_error_max_mm``, ``max_pen_tilt_mean_deg``, ``pinch_force_max_N``,
+        :data:`METRIC_UNITS`); a metric without a known unit keeps the env's SI value
+        and ends in ``_si``. ``None``: the metric was not defined in any episode.
+        """
         out: dict[str, Any] = {
             "env": self.env_id,
             "policy": self.policy,
@@ -42,10 +60,11 @@ class EvaluationResult:
             "mean_length": float(np.mean(self.lengths)) if self.lengths else 0.0,
         }
         for key in self.metrics[0] if self.metrics else ():
-            values = np.array([m[key] for m in self.metrics])
+            name, unit, factor = METRIC_UNITS.get(key, (key, "si", 1.0))
+            values = factor * np.array([m[key] for m in self.metrics])
             values = values[np.isfinite(values)]  # NaN: not defined for that episode
-            out[f"{key}_mean"] = float(values.mean()) if len(values) else None
-            out[f"{key}_max"] = float(values.max()) if len(values) else None
+            out[f"{name}_mean_{unit}"] = float(values.mean()) if len(values) else None
+            out[f"{name}_max_{unit}"] = float(values.max()) if len(values) else None
         return out
 
 
