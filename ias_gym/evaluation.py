@@ -13,6 +13,7 @@ import gymnasium as gym
 import numpy as np
 
 import ias_gym  # noqa: F401  (registers the ids)
+from ias_gym.errors import IasGymError, InputError
 
 Policy = Callable[[np.ndarray], np.ndarray]
 #: Frame rate of evaluation videos [1/s]; the env's frames are thinned to it.
@@ -30,6 +31,48 @@ METRIC_UNITS: Mapping[str, tuple[str, str, float]] = {
     "pen_height": ("pen_height", "mm", 1e3),
     "pinch_force": ("pinch_force", "N", 1.0),
 }
+
+
+class UnknownEnvError(InputError, LookupError):
+    """An env id that gymnasium does not know (the message lists the ``IAS-*`` ids)."""
+
+
+class PolicyNotFoundError(InputError, FileNotFoundError):
+    """A policy spec that is neither a known name nor an existing file."""
+
+
+class MissingDependencyError(IasGymError, ImportError):
+    """An optional dependency is not installed (the message says which extra to install)."""
+
+
+def make_env(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
+    """``gym.make(env_id, **kwargs)`` with the user's mistakes reported as :class:`InputError`.
+
+    Args:
+        env_id: a registered id, e.g. ``"IAS-PenSlide-v0"``.
+        **kwargs: configuration overrides (and ``render_mode``) passed to the env.
+
+    Raises:
+        UnknownEnvError: ``env_id`` is not registered (the message lists the IAS ids).
+        InputError: the env refused ``kwargs`` (unknown, ill-typed or out of range; the
+            message names them and, for the IAS envs, lists the known ones).
+    """
+    try:
+        gym.spec(env_id)
+    except gym.error.Error as exc:
+        ids = ", ".join(sorted(i for i in gym.registry if i.startswith("IAS-")))
+        raise UnknownEnvError(
+            f"unknown env id {env_id!r} ({' '.join(str(exc).split())}); the IAS envs are: {ids}"
+        ) from None
+    try:
+        return gym.make(env_id, **kwargs)
+    except IasGymError:
+        raise
+    except (TypeError, ValueError) as exc:
+        # Raised while the env is built from kwargs: the kwargs are what is wrong. gymnasium
+        # appends where it was raised, which the message below says already.
+        reason = " ".join(str(exc).split()).split(" was raised from the environment creator")[0]
+        raise InputError(f"{env_id} does not accept env kwargs {kwargs}: {reason}") from exc
 
 
 @dataclass
@@ -76,11 +119,19 @@ def load_policy(spec: str, env: gym.Env[Any, Any], seed: int | None = None) -> P
     """A callable ``obs -> action`` for ``expert`` (pen tasks), ``teleop`` (glove envs: zero
     action, pure teleoperation), ``random`` or a saved SB3 model's path.
 
+    Args:
+        spec: ``"expert"``, ``"teleop"``, ``"random"`` or the path of an SB3 ``.zip``.
+        env: the env the policy acts in.
+        seed: seeds the ``random`` policy's action sampling.
+
     Raises:
-        ValueError: ``teleop`` on an env without a glove, or ``expert`` on a glove env (it
-            has none: the person wearing the glove is the demonstrator).
-        FileNotFoundError: ``spec`` is neither a known name nor an existing file.
-        ImportError: a model path was given but stable-baselines3 is not installed.
+        InputError: ``teleop`` on an env without a glove (or without a Box action space),
+            or ``expert`` on a glove env (it has none: the person wearing the glove is the
+            demonstrator).
+        PolicyNotFoundError: ``spec`` is neither a known name nor an existing file.
+        InputError: the file is not a model of any of :data:`SB3_ALGORITHMS`.
+        MissingDependencyError: a model path was given but stable-baselines3 is not
+            installed.
     """
     from ias_gym.envs.glove_grasp import GloveGraspEnv
 
@@ -88,18 +139,18 @@ def load_policy(spec: str, env: gym.Env[Any, Any], seed: int | None = None) -> P
     name = env.spec.id if env.spec is not None else type(env.unwrapped).__name__
     if spec == TELEOP:
         if not glove:
-            raise ValueError(
+            raise InputError(
                 f"policy {TELEOP!r} (zero action: the glove drives the hand) needs a glove "
                 f"env such as IAS-GloveGrasp-v0, not {name}; use expert, random or a model"
             )
         space = env.action_space
         if not isinstance(space, gym.spaces.Box):
-            raise TypeError(f"{TELEOP!r} needs a Box action space, got {space}")
+            raise InputError(f"{TELEOP!r} needs a Box action space, got {space}")
         zero = np.zeros(space.shape, dtype=space.dtype)
         return lambda obs: zero.copy()
     if spec == "expert":
         if glove:
-            raise ValueError(
+            raise InputError(
                 f"{name} has no expert: a glove session is demonstrated by the person wearing "
                 f"the glove; use --policy {TELEOP} (zero action, pure teleoperation), random, "
                 "or a saved SB3 model acting on top of the glove"
@@ -112,16 +163,16 @@ def load_policy(spec: str, env: gym.Env[Any, Any], seed: int | None = None) -> P
         env.action_space.seed(seed)
         return lambda obs: env.action_space.sample()
     path = Path(spec)
-    if not path.exists():
-        raise FileNotFoundError(
+    if not path.is_file():
+        raise PolicyNotFoundError(
             f"policy {spec!r} is not 'expert', 'teleop', 'random' or an existing SB3 model file"
         )
     try:
         import stable_baselines3
-    except ImportError as exc:
-        raise ImportError(
+    except ImportError:
+        raise MissingDependencyError(
             "loading a saved model needs stable-baselines3: pip install 'ias-gym[train]'"
-        ) from exc
+        ) from None
     errors = []
     for name in SB3_ALGORITHMS:
         try:
@@ -130,7 +181,7 @@ def load_policy(spec: str, env: gym.Env[Any, Any], seed: int | None = None) -> P
             errors.append(f"{name}: {type(exc).__name__}")
             continue
         return lambda obs: model.predict(obs, deterministic=True)[0]
-    raise ValueError(f"{path} is not a model of any of {SB3_ALGORITHMS}: {'; '.join(errors)}")
+    raise InputError(f"{path} is not a model of any of {SB3_ALGORITHMS}: {'; '.join(errors)}")
 
 
 def evaluate(
@@ -148,20 +199,26 @@ def evaluate(
         env_id: a registered id, e.g. ``"IAS-PenSlide-v0"``.
         policy: ``"expert"``, ``"teleop"``, ``"random"`` or a path to a saved SB3 model
             (:func:`load_policy`).
-        episodes: number of episodes.
-        seed: seed of the first episode.
+        episodes: number of episodes (>= 1).
+        seed: seed of the first episode (>= 0).
         video: if given, an MP4 of the first episode is written there (needs ``MUJOCO_GL``
             set for headless rendering, e.g. ``egl``).
         progress: show a progress bar over episodes.
         env_kwargs: configuration overrides passed to ``gym.make``.
+
+    Raises:
+        InputError: bad ``episodes``/``seed``, unknown env id or env kwargs, or a policy
+            that cannot be loaded for this env (see :func:`make_env`, :func:`load_policy`).
     """
     if episodes < 1:
-        raise ValueError(f"episodes must be >= 1, got {episodes}")
+        raise InputError(f"episodes must be >= 1, got {episodes}")
+    if seed < 0:
+        raise InputError(f"seed must be >= 0 (numpy seeds are non-negative), got {seed}")
     kwargs = dict(env_kwargs or {})
     if video is not None:
         os.environ.setdefault("MUJOCO_GL", "egl")
         kwargs["render_mode"] = "rgb_array"
-    env = gym.make(env_id, **kwargs)
+    env = make_env(env_id, **kwargs)
     act = load_policy(policy, env, seed)
     result = EvaluationResult(env_id=env_id, policy=policy)
     fps = float(env.metadata.get("render_fps", 50))
