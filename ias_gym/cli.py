@@ -131,6 +131,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         video=None if args.video is None else Path(args.video),
         progress=not args.json,
         env_kwargs=parse_env_kwargs(args.env_kwargs),
+        trust_pickle=args.trust_pickle,
     )
     summary = result.summary()
     if args.video is not None:
@@ -212,7 +213,14 @@ def build_parser() -> argparse.ArgumentParser:
         default="expert",
         metavar="expert|teleop|random|PATH",
         help="the grip-transform expert (pen tasks), zero action (glove envs: the glove "
-        "alone drives the hand), uniform random actions, or a saved SB3 model (.zip)",
+        "alone drives the hand), uniform random actions, or a saved SB3 model (.zip, "
+        "loaded without running code from it)",
+    )
+    evaluate.add_argument(
+        "--trust-pickle",
+        action="store_true",
+        help="load a model file with SB3's own load, which unpickles it and so runs code "
+        "stored in it: only for files you trust",
     )
     evaluate.add_argument(
         "--episodes", type=positive_int, default=10, metavar="N", help="number of episodes"

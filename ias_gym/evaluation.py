@@ -18,8 +18,6 @@ from ias_gym.errors import IasGymError, InputError
 Policy = Callable[[np.ndarray], np.ndarray]
 #: Frame rate of evaluation videos [1/s]; the env's frames are thinned to it.
 VIDEO_FPS = 25
-#: Algorithms tried, in order, when a policy is given as a path to a saved SB3 model.
-SB3_ALGORITHMS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
 #: Unit of each task metric in the summary: ``metric -> (summary name, unit, factor)``; the
 #: envs report SI (m, rad, N), the summary mm, deg and percent, named in every key.
 METRIC_UNITS: Mapping[str, tuple[str, str, float]] = {
@@ -115,21 +113,29 @@ class EvaluationResult:
 TELEOP = "teleop"
 
 
-def load_policy(spec: str, env: gym.Env[Any, Any], seed: int | None = None) -> Policy:
+def load_policy(
+    spec: str, env: gym.Env[Any, Any], seed: int | None = None, *, trust_pickle: bool = False
+) -> Policy:
     """A callable ``obs -> action`` for ``expert`` (pen tasks), ``teleop`` (glove envs: zero
     action, pure teleoperation), ``random`` or a saved SB3 model's path.
+
+    A model file is loaded without running code from it (:func:`ias_gym.safe_sb3.
+    load_sb3_policy`), and must have been saved for ``env``'s spaces.
 
     Args:
         spec: ``"expert"``, ``"teleop"``, ``"random"`` or the path of an SB3 ``.zip``.
         env: the env the policy acts in.
         seed: seeds the ``random`` policy's action sampling.
+        trust_pickle: load a model with SB3's own ``load``, which unpickles the file (runs
+            code from it): only for files you trust.
 
     Raises:
         InputError: ``teleop`` on an env without a glove (or without a Box action space),
             or ``expert`` on a glove env (it has none: the person wearing the glove is the
             demonstrator).
         PolicyNotFoundError: ``spec`` is neither a known name nor an existing file.
-        InputError: the file is not a model of any of :data:`SB3_ALGORITHMS`.
+        PolicyFileError: the file is not a usable model for ``env``;
+            :class:`~ias_gym.safe_sb3.UntrustedPickleError` if it needs unpickling.
         MissingDependencyError: a model path was given but stable-baselines3 is not
             installed.
     """
@@ -168,20 +174,14 @@ def load_policy(spec: str, env: gym.Env[Any, Any], seed: int | None = None) -> P
             f"policy {spec!r} is not 'expert', 'teleop', 'random' or an existing SB3 model file"
         )
     try:
-        import stable_baselines3
+        import stable_baselines3  # noqa: F401
     except ImportError:
         raise MissingDependencyError(
             "loading a saved model needs stable-baselines3: pip install 'ias-gym[train]'"
         ) from None
-    errors = []
-    for name in SB3_ALGORITHMS:
-        try:
-            model = getattr(stable_baselines3, name).load(path, device="cpu")
-        except Exception as exc:  # each algorithm refuses another's file differently
-            errors.append(f"{name}: {type(exc).__name__}")
-            continue
-        return lambda obs: model.predict(obs, deterministic=True)[0]
-    raise InputError(f"{path} is not a model of any of {SB3_ALGORITHMS}: {'; '.join(errors)}")
+    from ias_gym.safe_sb3 import load_sb3_policy
+
+    return load_sb3_policy(path, env, trust_pickle=trust_pickle)
 
 
 def evaluate(
@@ -192,6 +192,8 @@ def evaluate(
     video: Path | None = None,
     progress: bool = False,
     env_kwargs: dict[str, Any] | None = None,
+    *,
+    trust_pickle: bool = False,
 ) -> EvaluationResult:
     """Run ``episodes`` episodes (seeds ``seed, seed+1, ...``) and collect the outcomes.
 
@@ -205,6 +207,7 @@ def evaluate(
             set for headless rendering, e.g. ``egl``).
         progress: show a progress bar over episodes.
         env_kwargs: configuration overrides passed to ``gym.make``.
+        trust_pickle: load a model file with SB3's own ``load`` (runs code from the file).
 
     Raises:
         InputError: bad ``episodes``/``seed``, unknown env id or env kwargs, or a policy
@@ -219,7 +222,7 @@ def evaluate(
         os.environ.setdefault("MUJOCO_GL", "egl")
         kwargs["render_mode"] = "rgb_array"
     env = make_env(env_id, **kwargs)
-    act = load_policy(policy, env, seed)
+    act = load_policy(policy, env, seed, trust_pickle=trust_pickle)
     result = EvaluationResult(env_id=env_id, policy=policy)
     fps = float(env.metadata.get("render_fps", 50))
     stride = max(1, round(fps / VIDEO_FPS))  # render only the frames the video keeps
