@@ -106,7 +106,9 @@ def env_kwargs_argument(parser: argparse.ArgumentParser) -> None:
 def _figure_wrench_intensities(args: argparse.Namespace) -> int:
     from ias_gym.figures.wrench_intensities import write_wrench_intensity_figure
 
-    csv_path, png_path = write_wrench_intensity_figure(Path(args.out), cone=args.cone)
+    csv_path, png_path = write_wrench_intensity_figure(
+        Path(args.out), cone=args.cone, overwrite=args.overwrite
+    )
     print(f"wrote {csv_path}")
     print(f"wrote {png_path}")
     return 0
@@ -115,7 +117,10 @@ def _figure_wrench_intensities(args: argparse.Namespace) -> int:
 def _figure_control_error(args: argparse.Namespace) -> int:
     from ias_gym.figures.control_error import write_control_error_figure
 
-    for path in write_control_error_figure(Path(args.out), initial_error=args.initial_error):
+    paths = write_control_error_figure(
+        Path(args.out), initial_error=args.initial_error, overwrite=args.overwrite
+    )
+    for path in paths:
         print(f"wrote {path}")
     return 0
 
@@ -131,6 +136,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         video=None if args.video is None else Path(args.video),
         progress=not args.json,
         env_kwargs=parse_env_kwargs(args.env_kwargs),
+        overwrite=args.overwrite,
         trust_pickle=args.trust_pickle,
     )
     summary = result.summary()
@@ -147,6 +153,12 @@ def _evaluate(args: argparse.Namespace) -> int:
                 else f"{key:<{width}}  {value}"
             )
     return 0
+
+
+def _overwrite_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace existing output files (else refused)"
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -174,7 +186,10 @@ def build_parser() -> argparse.ArgumentParser:
         "schedule of eq. (17) and write DIR/wrench_intensities.csv and .png.",
         formatter_class=HelpFormatter,
     )
-    wrench.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    wrench.add_argument(
+        "--out", required=True, metavar="DIR", help="output directory (created if missing)"
+    )
+    _overwrite_argument(wrench)
     wrench.add_argument(
         "--cone",
         choices=("box", "exact"),
@@ -190,7 +205,10 @@ def build_parser() -> argparse.ArgumentParser:
         "internal_force_err) and .png.",
         formatter_class=HelpFormatter,
     )
-    control.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    control.add_argument(
+        "--out", required=True, metavar="DIR", help="output directory (created if missing)"
+    )
+    _overwrite_argument(control)
     control.add_argument(
         "--initial-error",
         type=_initial_error,
@@ -231,7 +249,12 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument(
         "--json", action="store_true", help="print one JSON object as the last line"
     )
-    evaluate.add_argument("--video", metavar="FILE", help="write an MP4 of the first episode")
+    evaluate.add_argument(
+        "--video",
+        metavar="FILE",
+        help="write an MP4 of the first episode (its directory must exist; checked first)",
+    )
+    _overwrite_argument(evaluate)
     env_kwargs_argument(evaluate)
     evaluate.set_defaults(run=_evaluate)
 

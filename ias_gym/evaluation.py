@@ -14,10 +14,13 @@ import numpy as np
 
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.errors import IasGymError, InputError
+from ias_gym.outputs import atomic_output, check_output_file
 
 Policy = Callable[[np.ndarray], np.ndarray]
 #: Frame rate of evaluation videos [1/s]; the env's frames are thinned to it.
 VIDEO_FPS = 25
+#: File name suffixes of evaluation videos (ffmpeg picks the container by it).
+VIDEO_SUFFIXES = (".mp4",)
 #: Unit of each task metric in the summary: ``metric -> (summary name, unit, factor)``; the
 #: envs report SI (m, rad, N), the summary mm, deg and percent, named in every key.
 METRIC_UNITS: Mapping[str, tuple[str, str, float]] = {
@@ -193,6 +196,7 @@ def evaluate(
     progress: bool = False,
     env_kwargs: dict[str, Any] | None = None,
     *,
+    overwrite: bool = False,
     trust_pickle: bool = False,
 ) -> EvaluationResult:
     """Run ``episodes`` episodes (seeds ``seed, seed+1, ...``) and collect the outcomes.
@@ -204,19 +208,25 @@ def evaluate(
         episodes: number of episodes (>= 1).
         seed: seed of the first episode (>= 0).
         video: if given, an MP4 of the first episode is written there (needs ``MUJOCO_GL``
-            set for headless rendering, e.g. ``egl``).
+            set for headless rendering, e.g. ``egl``). Checked before the env is built:
+            its directory must exist and be writable.
         progress: show a progress bar over episodes.
         env_kwargs: configuration overrides passed to ``gym.make``.
+        overwrite: replace an existing ``video`` file.
         trust_pickle: load a model file with SB3's own ``load`` (runs code from the file).
 
     Raises:
-        InputError: bad ``episodes``/``seed``, unknown env id or env kwargs, or a policy
-            that cannot be loaded for this env (see :func:`make_env`, :func:`load_policy`).
+        InputError: bad ``episodes``/``seed``, unusable ``video`` path, unknown env id or
+            env kwargs, or a policy that cannot be loaded for this env (see
+            :func:`make_env`, :func:`load_policy`).
+        OutputExistsError: ``video`` exists and ``overwrite`` is false.
     """
     if episodes < 1:
         raise InputError(f"episodes must be >= 1, got {episodes}")
     if seed < 0:
         raise InputError(f"seed must be >= 0 (numpy seeds are non-negative), got {seed}")
+    if video is not None:  # before any work: a bad path must not cost an episode
+        video = check_output_file(video, overwrite=overwrite, suffixes=VIDEO_SUFFIXES, what="video")
     kwargs = dict(env_kwargs or {})
     if video is not None:
         os.environ.setdefault("MUJOCO_GL", "egl")
@@ -249,7 +259,7 @@ def evaluate(
         result.lengths.append(length)
         result.metrics.append(env.unwrapped.episode_metrics(info))  # type: ignore[attr-defined]
         if frames is not None and video is not None:
-            write_video(video, frames, fps=fps / stride)
+            write_video(video, frames, fps=fps / stride, overwrite=overwrite)
     env.close()
     return result
 
@@ -268,16 +278,27 @@ def report(env_id: str, policy: str, episodes: int, seed: int, what: str = "poli
     print(f"evaluate with: ias-gym evaluate --env {env_id} --policy {policy} --episodes 100")
 
 
-def write_video(path: Path, frames: list[np.ndarray], fps: float) -> Path:
-    """Write RGB frames to an MP4 with imageio (replaced atomically)."""
+def write_video(
+    path: Path, frames: list[np.ndarray], fps: float, *, overwrite: bool = False
+) -> Path:
+    """Write RGB frames to an MP4 with imageio: into a temporary file in the same directory,
+    renamed to ``path`` when complete (a reader never sees half a video).
+
+    Args:
+        path: the video file; its directory must exist.
+        frames: ``(H, W, 3)`` uint8 images.
+        fps: frame rate [1/s].
+        overwrite: replace an existing ``path``.
+
+    Raises:
+        OutputExistsError: ``path`` exists and ``overwrite`` is false.
+    """
     import imageio.v2 as imageio
 
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    writer: Any = imageio.get_writer(tmp, fps=fps, macro_block_size=8)
-    with writer:
-        for frame in frames:
-            writer.append_data(frame)
-    os.replace(tmp, path)
+    with atomic_output(path, overwrite=overwrite) as tmp:
+        writer: Any = imageio.get_writer(tmp, fps=fps, macro_block_size=8)
+        with writer:
+            for frame in frames:
+                writer.append_data(frame)
     return path
