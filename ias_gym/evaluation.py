@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -12,12 +13,67 @@ import gymnasium as gym
 import numpy as np
 
 import ias_gym  # noqa: F401  (registers the ids)
+from ias_gym.errors import IasGymError, InputError
+from ias_gym.outputs import atomic_output, check_output_file
 
 Policy = Callable[[np.ndarray], np.ndarray]
 #: Frame rate of evaluation videos [1/s]; the env's frames are thinned to it.
 VIDEO_FPS = 25
-#: Algorithms tried, in order, when a policy is given as a path to a saved SB3 model.
-SB3_ALGORITHMS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
+#: File name suffixes of evaluation videos (ffmpeg picks the container by it).
+VIDEO_SUFFIXES = (".mp4",)
+#: Unit of each task metric in the summary: ``metric -> (summary name, unit, factor)``; the
+#: envs report SI (m, rad, N), the summary mm, deg and percent, named in every key.
+METRIC_UNITS: Mapping[str, tuple[str, str, float]] = {
+    "final_slide_error": ("final_slide_error", "mm", 1e3),
+    "max_position_error": ("max_position_error", "mm", 1e3),
+    "max_pen_tilt": ("max_pen_tilt", "deg", math.degrees(1.0)),
+    "rms_tilt_error": ("rms_tilt_error", "deg", math.degrees(1.0)),
+    "rms_tilt_error_fraction": ("rms_tilt_error_of_amplitude", "pct", 100.0),
+    "pen_height": ("pen_height", "mm", 1e3),
+    "pinch_force": ("pinch_force", "N", 1.0),
+}
+
+
+class UnknownEnvError(InputError, LookupError):
+    """An env id that gymnasium does not know (the message lists the ``IAS-*`` ids)."""
+
+
+class PolicyNotFoundError(InputError, FileNotFoundError):
+    """A policy spec that is neither a known name nor an existing file."""
+
+
+class MissingDependencyError(IasGymError, ImportError):
+    """An optional dependency is not installed (the message says which extra to install)."""
+
+
+def make_env(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
+    """``gym.make(env_id, **kwargs)`` with the user's mistakes reported as :class:`InputError`.
+
+    Args:
+        env_id: a registered id, e.g. ``"IAS-PenSlide-v0"``.
+        **kwargs: configuration overrides (and ``render_mode``) passed to the env.
+
+    Raises:
+        UnknownEnvError: ``env_id`` is not registered (the message lists the IAS ids).
+        InputError: the env refused ``kwargs`` (unknown, ill-typed or out of range; the
+            message names them and, for the IAS envs, lists the known ones).
+    """
+    try:
+        gym.spec(env_id)
+    except gym.error.Error as exc:
+        ids = ", ".join(sorted(i for i in gym.registry if i.startswith("IAS-")))
+        raise UnknownEnvError(
+            f"unknown env id {env_id!r} ({' '.join(str(exc).split())}); the IAS envs are: {ids}"
+        ) from None
+    try:
+        return gym.make(env_id, **kwargs)
+    except IasGymError:
+        raise
+    except (TypeError, ValueError) as exc:
+        # Raised while the env is built from kwargs: the kwargs are what is wrong. gymnasium
+        # appends where it was raised, which the message below says already.
+        reason = " ".join(str(exc).split()).split(" was raised from the environment creator")[0]
+        raise InputError(f"{env_id} does not accept env kwargs {kwargs}: {reason}") from exc
 
 
 @dataclass
@@ -32,7 +88,13 @@ class EvaluationResult:
     metrics: list[dict[str, float]] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
-        """JSON-ready summary: success rate, mean return, and mean/max of each task metric."""
+        """JSON-ready summary: success rate, mean return, and mean/max of each task metric.
+
+        Each metric's keys name its statistic and unit, ``<metric>_<mean|max>_<unit>``
+        (``max_position_error_max_mm``, ``max_pen_tilt_mean_deg``, ``pinch_force_max_N``,
+        :data:`METRIC_UNITS`); a metric without a known unit keeps the env's SI value
+        and ends in ``_si``. ``None``: the metric was not defined in any episode.
+        """
         out: dict[str, Any] = {
             "env": self.env_id,
             "policy": self.policy,
@@ -42,10 +104,11 @@ class EvaluationResult:
             "mean_length": float(np.mean(self.lengths)) if self.lengths else 0.0,
         }
         for key in self.metrics[0] if self.metrics else ():
-            values = np.array([m[key] for m in self.metrics])
+            name, unit, factor = METRIC_UNITS.get(key, (key, "si", 1.0))
+            values = factor * np.array([m[key] for m in self.metrics])
             values = values[np.isfinite(values)]  # NaN: not defined for that episode
-            out[f"{key}_mean"] = float(values.mean()) if len(values) else None
-            out[f"{key}_max"] = float(values.max()) if len(values) else None
+            out[f"{name}_mean_{unit}"] = float(values.mean()) if len(values) else None
+            out[f"{name}_max_{unit}"] = float(values.max()) if len(values) else None
         return out
 
 
@@ -53,15 +116,31 @@ class EvaluationResult:
 TELEOP = "teleop"
 
 
-def load_policy(spec: str, env: gym.Env[Any, Any], seed: int | None = None) -> Policy:
+def load_policy(
+    spec: str, env: gym.Env[Any, Any], seed: int | None = None, *, trust_pickle: bool = False
+) -> Policy:
     """A callable ``obs -> action`` for ``expert`` (pen tasks), ``teleop`` (glove envs: zero
     action, pure teleoperation), ``random`` or a saved SB3 model's path.
 
+    A model file is loaded without running code from it (:func:`ias_gym.safe_sb3.
+    load_sb3_policy`), and must have been saved for ``env``'s spaces.
+
+    Args:
+        spec: ``"expert"``, ``"teleop"``, ``"random"`` or the path of an SB3 ``.zip``.
+        env: the env the policy acts in.
+        seed: seeds the ``random`` policy's action sampling.
+        trust_pickle: load a model with SB3's own ``load``, which unpickles the file (runs
+            code from it): only for files you trust.
+
     Raises:
-        ValueError: ``teleop`` on an env without a glove, or ``expert`` on a glove env (it
-            has none: the person wearing the glove is the demonstrator).
-        FileNotFoundError: ``spec`` is neither a known name nor an existing file.
-        ImportError: a model path was given but stable-baselines3 is not installed.
+        InputError: ``teleop`` on an env without a glove (or without a Box action space),
+            or ``expert`` on a glove env (it has none: the person wearing the glove is the
+            demonstrator).
+        PolicyNotFoundError: ``spec`` is neither a known name nor an existing file.
+        PolicyFileError: the file is not a usable model for ``env``;
+            :class:`~ias_gym.safe_sb3.UntrustedPickleError` if it needs unpickling.
+        MissingDependencyError: a model path was given but stable-baselines3 is not
+            installed.
     """
     from ias_gym.envs.glove_grasp import GloveGraspEnv
 
@@ -69,18 +148,18 @@ def load_policy(spec: str, env: gym.Env[Any, Any], seed: int | None = None) -> P
     name = env.spec.id if env.spec is not None else type(env.unwrapped).__name__
     if spec == TELEOP:
         if not glove:
-            raise ValueError(
+            raise InputError(
                 f"policy {TELEOP!r} (zero action: the glove drives the hand) needs a glove "
                 f"env such as IAS-GloveGrasp-v0, not {name}; use expert, random or a model"
             )
         space = env.action_space
         if not isinstance(space, gym.spaces.Box):
-            raise TypeError(f"{TELEOP!r} needs a Box action space, got {space}")
+            raise InputError(f"{TELEOP!r} needs a Box action space, got {space}")
         zero = np.zeros(space.shape, dtype=space.dtype)
         return lambda obs: zero.copy()
     if spec == "expert":
         if glove:
-            raise ValueError(
+            raise InputError(
                 f"{name} has no expert: a glove session is demonstrated by the person wearing "
                 f"the glove; use --policy {TELEOP} (zero action, pure teleoperation), random, "
                 "or a saved SB3 model acting on top of the glove"
@@ -93,25 +172,19 @@ def load_policy(spec: str, env: gym.Env[Any, Any], seed: int | None = None) -> P
         env.action_space.seed(seed)
         return lambda obs: env.action_space.sample()
     path = Path(spec)
-    if not path.exists():
-        raise FileNotFoundError(
+    if not path.is_file():
+        raise PolicyNotFoundError(
             f"policy {spec!r} is not 'expert', 'teleop', 'random' or an existing SB3 model file"
         )
     try:
-        import stable_baselines3
-    except ImportError as exc:
-        raise ImportError(
+        import stable_baselines3  # noqa: F401
+    except ImportError:
+        raise MissingDependencyError(
             "loading a saved model needs stable-baselines3: pip install 'ias-gym[train]'"
-        ) from exc
-    errors = []
-    for name in SB3_ALGORITHMS:
-        try:
-            model = getattr(stable_baselines3, name).load(path, device="cpu")
-        except Exception as exc:  # each algorithm refuses another's file differently
-            errors.append(f"{name}: {type(exc).__name__}")
-            continue
-        return lambda obs: model.predict(obs, deterministic=True)[0]
-    raise ValueError(f"{path} is not a model of any of {SB3_ALGORITHMS}: {'; '.join(errors)}")
+        ) from None
+    from ias_gym.safe_sb3 import load_sb3_policy
+
+    return load_sb3_policy(path, env, trust_pickle=trust_pickle)
 
 
 def evaluate(
@@ -122,6 +195,9 @@ def evaluate(
     video: Path | None = None,
     progress: bool = False,
     env_kwargs: dict[str, Any] | None = None,
+    *,
+    overwrite: bool = False,
+    trust_pickle: bool = False,
 ) -> EvaluationResult:
     """Run ``episodes`` episodes (seeds ``seed, seed+1, ...``) and collect the outcomes.
 
@@ -129,21 +205,34 @@ def evaluate(
         env_id: a registered id, e.g. ``"IAS-PenSlide-v0"``.
         policy: ``"expert"``, ``"teleop"``, ``"random"`` or a path to a saved SB3 model
             (:func:`load_policy`).
-        episodes: number of episodes.
-        seed: seed of the first episode.
+        episodes: number of episodes (>= 1).
+        seed: seed of the first episode (>= 0).
         video: if given, an MP4 of the first episode is written there (needs ``MUJOCO_GL``
-            set for headless rendering, e.g. ``egl``).
+            set for headless rendering, e.g. ``egl``). Checked before the env is built:
+            its directory must exist and be writable.
         progress: show a progress bar over episodes.
         env_kwargs: configuration overrides passed to ``gym.make``.
+        overwrite: replace an existing ``video`` file.
+        trust_pickle: load a model file with SB3's own ``load`` (runs code from the file).
+
+    Raises:
+        InputError: bad ``episodes``/``seed``, unusable ``video`` path, unknown env id or
+            env kwargs, or a policy that cannot be loaded for this env (see
+            :func:`make_env`, :func:`load_policy`).
+        OutputExistsError: ``video`` exists and ``overwrite`` is false.
     """
     if episodes < 1:
-        raise ValueError(f"episodes must be >= 1, got {episodes}")
+        raise InputError(f"episodes must be >= 1, got {episodes}")
+    if seed < 0:
+        raise InputError(f"seed must be >= 0 (numpy seeds are non-negative), got {seed}")
+    if video is not None:  # before any work: a bad path must not cost an episode
+        video = check_output_file(video, overwrite=overwrite, suffixes=VIDEO_SUFFIXES, what="video")
     kwargs = dict(env_kwargs or {})
     if video is not None:
         os.environ.setdefault("MUJOCO_GL", "egl")
         kwargs["render_mode"] = "rgb_array"
-    env = gym.make(env_id, **kwargs)
-    act = load_policy(policy, env, seed)
+    env = make_env(env_id, **kwargs)
+    act = load_policy(policy, env, seed, trust_pickle=trust_pickle)
     result = EvaluationResult(env_id=env_id, policy=policy)
     fps = float(env.metadata.get("render_fps", 50))
     stride = max(1, round(fps / VIDEO_FPS))  # render only the frames the video keeps
@@ -170,7 +259,7 @@ def evaluate(
         result.lengths.append(length)
         result.metrics.append(env.unwrapped.episode_metrics(info))  # type: ignore[attr-defined]
         if frames is not None and video is not None:
-            write_video(video, frames, fps=fps / stride)
+            write_video(video, frames, fps=fps / stride, overwrite=overwrite)
     env.close()
     return result
 
@@ -189,16 +278,27 @@ def report(env_id: str, policy: str, episodes: int, seed: int, what: str = "poli
     print(f"evaluate with: ias-gym evaluate --env {env_id} --policy {policy} --episodes 100")
 
 
-def write_video(path: Path, frames: list[np.ndarray], fps: float) -> Path:
-    """Write RGB frames to an MP4 with imageio (replaced atomically)."""
+def write_video(
+    path: Path, frames: list[np.ndarray], fps: float, *, overwrite: bool = False
+) -> Path:
+    """Write RGB frames to an MP4 with imageio: into a temporary file in the same directory,
+    renamed to ``path`` when complete (a reader never sees half a video).
+
+    Args:
+        path: the video file; its directory must exist.
+        frames: ``(H, W, 3)`` uint8 images.
+        fps: frame rate [1/s].
+        overwrite: replace an existing ``path``.
+
+    Raises:
+        OutputExistsError: ``path`` exists and ``overwrite`` is false.
+    """
     import imageio.v2 as imageio
 
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    writer: Any = imageio.get_writer(tmp, fps=fps, macro_block_size=8)
-    with writer:
-        for frame in frames:
-            writer.append_data(frame)
-    os.replace(tmp, path)
+    with atomic_output(path, overwrite=overwrite) as tmp:
+        writer: Any = imageio.get_writer(tmp, fps=fps, macro_block_size=8)
+        with writer:
+            for frame in frames:
+                writer.append_data(frame)
     return path

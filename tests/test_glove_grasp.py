@@ -180,7 +180,7 @@ def test_evaluate_runs_the_glove_env_by_teleoperation() -> None:
 
     result = evaluate("IAS-GloveGrasp-v0", "teleop", episodes=1)
     summary = result.summary()
-    assert summary["success_rate"] == 1.0 and summary["pen_height_max"] >= 0.03
+    assert summary["success_rate"] == 1.0 and summary["pen_height_max_mm"] >= 30.0
     with pytest.raises(ValueError, match="has no expert"):
         evaluate("IAS-GloveGrasp-v0", "expert", episodes=1)
     with pytest.raises(ValueError, match="needs a glove env"):

@@ -29,6 +29,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from ias_gym.errors import InputError
 from ias_gym.glove.calibration import Calibration
 from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, ReachPinchLift, SimulatedGlove
 from ias_gym.glove.hand import (
@@ -348,7 +349,10 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             raise TypeError(f"unknown config {unknown}; known: {sorted(fields)}")
         self.config = GloveGraspConfig(**config)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode {render_mode!r} not in {self.metadata['render_modes']}")
+            raise InputError(
+                f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}"
+                + ("; there is no window viewer, use rgb_array" if render_mode == "human" else "")
+            )
         self.render_mode = render_mode
         self.person = person if person is not None else PersonParams.sample(self.config.person_id)
         self.calibration = (
@@ -554,6 +558,8 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         return self._observation(), reward, terminated, truncated, self._info(terms, rest, fault)
 
     def render(self) -> NDArray[np.uint8] | None:
+        """The scene from the ``perspective`` camera as ``(360, 480, 3)`` RGB, or ``None``
+        without ``render_mode="rgb_array"``."""
         if self.render_mode != "rgb_array":
             return None
         if self._renderer is None:

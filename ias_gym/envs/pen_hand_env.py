@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import sys
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -22,6 +24,7 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from ias_gym.envs.disturbances import DisturbanceSettings, DisturbanceState, SensorNoise
+from ias_gym.errors import InputError
 from ias_gym.sim.grasp_pose import place_grasp
 from ias_gym.sim.pen_hand import FINGERS, PenHandPhysics, load_pen_hand_model
 
@@ -214,9 +217,11 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             )
         self.config = self.config_class(**config)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
+            raise InputError(
                 f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}"
             )
+        if render_mode == "human":
+            check_window_possible()
         self.render_mode = render_mode
 
         self.model = load_pen_hand_model()
@@ -514,11 +519,18 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
 
     # ------------------------------------------------------------------ rendering, pickling
     def render(self) -> NDArray[Any] | None:
-        """Render with the configured camera (``rgb_array``/``depth_array``) or a window."""
+        """Render with the configured camera (``rgb_array``/``depth_array``) or a window.
+
+        Raises:
+            InputError: ``render_mode="human"`` where no window can be opened
+                (:func:`check_window_possible`).
+        """
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass one to gym.make")
             return None
         if self._renderer is None:
+            if self.render_mode == "human":
+                check_window_possible()  # again: the environment may have changed since
             from gymnasium.envs.mujoco.mujoco_rendering import MujocoRenderer
 
             self._renderer = MujocoRenderer(
@@ -560,3 +572,28 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             setattr(self, key, value)
         self._np_random = state["np_random"]
         self._measure()
+
+
+def check_window_possible() -> None:
+    """Raise if ``render_mode="human"`` cannot open a window here.
+
+    MuJoCo's GLFW viewer does not raise without a display: it fails an assertion and aborts
+    the interpreter (SIGABRT), so the check comes before the viewer is created.
+
+    Raises:
+        InputError: ``MUJOCO_GL`` is ``egl`` or ``osmesa`` (off-screen only), or on Linux
+            neither ``DISPLAY`` nor ``WAYLAND_DISPLAY`` is set.
+    """
+    backend = os.environ.get("MUJOCO_GL", "").strip().lower()
+    if backend in ("egl", "osmesa"):
+        reason = f"MUJOCO_GL={backend} renders off-screen only"
+    elif sys.platform.startswith("linux") and not (
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    ):
+        reason = "there is no display (neither DISPLAY nor WAYLAND_DISPLAY is set)"
+    else:
+        return
+    raise InputError(
+        f'render_mode="human" opens a window, but {reason}; use render_mode="rgb_array" '
+        "(frames as arrays, e.g. for a video) or run with a display"
+    )

@@ -9,6 +9,7 @@ import numpy as np
 from ias_gym.figures._io import save_png_atomic, write_csv_atomic
 from ias_gym.grasp.internal_forces import Cone
 from ias_gym.grasp.pen_skill import N_FINGERS, PenSkillParams, wrench_intensities
+from ias_gym.outputs import prepare_output_dir
 
 CSV_NAME = "wrench_intensities.csv"
 PNG_NAME = "wrench_intensities.png"
@@ -23,13 +24,28 @@ def wrench_intensity_table(
 
 
 def write_wrench_intensity_figure(
-    out_dir: Path, cone: Cone = "box", params: PenSkillParams = PenSkillParams()
+    out_dir: Path,
+    cone: Cone = "box",
+    params: PenSkillParams = PenSkillParams(),
+    *,
+    overwrite: bool = False,
 ) -> tuple[Path, Path]:
     """Write ``wrench_intensities.csv`` and ``wrench_intensities.png`` into ``out_dir``.
 
+    Args:
+        out_dir: output directory (created if missing; checked before the computation).
+        cone: friction cone of the internal-force problem (``"box"`` or ``"exact"``).
+        params: the sliding skill's parameters.
+        overwrite: replace existing output files.
+
     Returns:
         The CSV and PNG paths.
+
+    Raises:
+        InputError: ``out_dir`` cannot be created or written.
+        OutputExistsError: an output file exists and ``overwrite`` is false.
     """
+    out_dir = prepare_output_dir(out_dir, (CSV_NAME, PNG_NAME), overwrite=overwrite)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -37,7 +53,7 @@ def write_wrench_intensity_figure(
 
     table = wrench_intensity_table(params, cone)
     header = ["t"] + [f"c{i}" for i in range(1, 3 * N_FINGERS + 1)]
-    csv_path = write_csv_atomic(Path(out_dir) / CSV_NAME, header, table)
+    csv_path = write_csv_atomic(out_dir / CSV_NAME, header, table, overwrite=overwrite)
 
     t, c = table[:, 0], table[:, 1:]
     fig, axes = plt.subplots(N_FINGERS, 1, sharex=True, figsize=(7, 8), constrained_layout=True)
@@ -58,6 +74,6 @@ def write_wrench_intensity_figure(
         f"mu = {params.mu}, f0 = {params.f0} N, mg = {params.weight} N",
         fontsize=10,
     )
-    png_path = save_png_atomic(fig, Path(out_dir) / PNG_NAME)
+    png_path = save_png_atomic(fig, out_dir / PNG_NAME, overwrite=overwrite)
     plt.close(fig)
     return csv_path, png_path
