@@ -22,12 +22,12 @@ $(STAMP): pyproject.toml
 setup: $(STAMP)
 
 demo: setup
-	$(BIN)/ias-gym figure wrench-intensities --out $(OUT)
-	$(BIN)/ias-gym figure control-error --out $(OUT)
-	$(BIN)/ias-gym evaluate --env IAS-PenSlide-v0 --policy expert --episodes 10 --video $(OUT)/pen_slide_expert.mp4
-	$(BIN)/ias-gym evaluate --env IAS-PenRotate-v0 --policy expert --episodes 10 --video $(OUT)/pen_rotate_expert.mp4
+	$(BIN)/ias-gym figure wrench-intensities --out $(OUT) --overwrite
+	$(BIN)/ias-gym figure control-error --out $(OUT) --overwrite
+	$(BIN)/ias-gym evaluate --env IAS-PenSlide-v0 --policy expert --episodes 10 --video $(OUT)/pen_slide_expert.mp4 --overwrite
+	$(BIN)/ias-gym evaluate --env IAS-PenRotate-v0 --policy expert --episodes 10 --video $(OUT)/pen_rotate_expert.mp4 --overwrite
 	$(BIN)/ias-gym evaluate --env IAS-PenSlide-v0 --policy random --episodes 10
-	$(BIN)/ias-gym evaluate --env IAS-GloveGrasp-v0 --policy teleop --episodes 3 --video $(OUT)/glove_grasp_teleop.mp4
+	$(BIN)/ias-gym evaluate --env IAS-GloveGrasp-v0 --policy teleop --episodes 3 --video $(OUT)/glove_grasp_teleop.mp4 --overwrite
 	$(BIN)/ias-gym glove-bench --interface virtual --rate 1000 --seconds 3
 	@echo "make demo: figures, videos and the expert's scores are in $(OUT)/"
 
