@@ -1,0 +1,133 @@
+"""The disturbance suite: one policy's success rate under each class of disturbance.
+
+Each class is a set of env kwargs of the pen tasks (:mod:`ias_gym.envs.disturbances`), so a
+class is also just ``gym.make(env_id, **DISTURBANCES[name])``. :func:`run_robustness` evaluates
+a policy (any that :func:`ias_gym.evaluation.load_policy` takes: ``expert``, ``random``, a
+saved model) on the same seeds in every class; ``ias-gym robustness`` prints the table. Why the
+classes and their sizes: docs/robustness.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from ias_gym.errors import InputError
+from ias_gym.evaluation import evaluate
+
+#: The classes: name -> env kwargs. A person does not know mu or the pen's mass either.
+DISTURBANCES: dict[str, dict[str, Any]] = {
+    "nominal": {},
+    "friction_x0.7": {"friction_scale": 0.7},
+    "friction_x1.3": {"friction_scale": 1.3},
+    "mass_x0.7": {"mass_scale": 0.7},
+    "mass_x1.3": {"mass_scale": 1.3},
+    "push_0.3N_50ms": {"push_force": 0.3, "push_duration": 0.05},
+    "observation_noise": {
+        "force_noise": 0.02,  # [N]
+        "joint_angle_noise": 0.001,  # [rad]
+        "joint_velocity_noise": 0.02,  # [rad/s]
+    },
+    "action_delay_1_step": {"action_delay": 1},
+    "action_noise_0.002": {"action_noise": 0.002},
+    "internal_force_steps_0.1N": {"internal_force_step": 0.1},
+}
+
+
+@dataclass(frozen=True)
+class RobustnessRow:
+    """One class's outcome.
+
+    Attributes:
+        disturbance: the class's name (a key of :data:`DISTURBANCES`).
+        success_rate: fraction of successful episodes [-].
+        episodes: how many episodes.
+        env_kwargs: the env kwargs of the class.
+    """
+
+    disturbance: str
+    success_rate: float
+    episodes: int
+    env_kwargs: dict[str, Any]
+
+    def as_json(self) -> dict[str, Any]:
+        """The JSON object of ``ias-gym robustness --json``."""
+        return {
+            "disturbance": self.disturbance,
+            "success_rate": self.success_rate,
+            "episodes": self.episodes,
+            "env_kwargs": self.env_kwargs,
+        }
+
+
+def check_classes(names: Sequence[str] | None) -> list[str]:
+    """The class names to run (``None``: all), each checked.
+
+    Raises:
+        InputError: an unknown name (the message lists the known ones).
+    """
+    if names is None:
+        return list(DISTURBANCES)
+    unknown = [n for n in names if n not in DISTURBANCES]
+    if unknown or not names:
+        raise InputError(
+            f"unknown disturbance class {unknown or names!r}; known: {', '.join(DISTURBANCES)}"
+        )
+    return list(names)
+
+
+def run_robustness(
+    env_id: str,
+    policy: str = "expert",
+    episodes: int = 100,
+    seed: int = 0,
+    classes: Sequence[str] | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+    progress: bool = False,
+    trust_pickle: bool = False,
+) -> list[RobustnessRow]:
+    """Evaluate ``policy`` in each disturbance class on seeds ``seed .. seed + episodes - 1``.
+
+    Args:
+        env_id: a pen task, e.g. ``"IAS-PenRotate-v0"``.
+        policy: ``"expert"``, ``"random"`` or a saved model's path (see ``load_policy``).
+        episodes: episodes per class (>= 1).
+        seed: seed of the first episode (>= 0); every class runs the same seeds.
+        classes: names of :data:`DISTURBANCES` (``None``: all of them).
+        env_kwargs: further env kwargs for every class (a class's own win).
+        progress: a progress bar per class.
+        trust_pickle: load a model file with SB3's own load (runs code from it).
+
+    Returns:
+        One row per class, in the order asked.
+
+    Raises:
+        InputError: an unknown class, env id, env kwarg or policy (from ``evaluate``).
+    """
+    rows = []
+    for name in check_classes(classes):
+        kwargs = {**(env_kwargs or {}), **DISTURBANCES[name]}
+        result = evaluate(
+            env_id,
+            policy,
+            episodes=episodes,
+            seed=seed,
+            progress=progress,
+            env_kwargs=kwargs,
+            trust_pickle=trust_pickle,
+        )
+        rate = float(sum(result.successes)) / len(result.successes)
+        rows.append(RobustnessRow(name, rate, len(result.successes), DISTURBANCES[name]))
+    return rows
+
+
+def summary_row(rows: Sequence[RobustnessRow]) -> dict[str, Any]:
+    """The last JSON line: the minimum success rate over the classes (``"disturbance": "all"``)."""
+    worst = min(rows, key=lambda r: r.success_rate)
+    return {
+        "disturbance": "all",
+        "success_rate": worst.success_rate,
+        "episodes": sum(r.episodes for r in rows),
+        "worst": worst.disturbance,
+    }
