@@ -174,8 +174,15 @@ def _read_log(path: Path) -> Iterator[can.Message]:
         raise ReplayError(f"{what}: no such file")
     if path.stat().st_size == 0:
         raise ReplayError(f"{what} is empty: not a recorded session")
+    # The reader gets a file opened here, closed here: python-can's LogReader opens its own
+    # and leaks it when the reader's constructor fails on a foreign file (ResourceWarning).
+    reader_class, mode = {
+        ".asc": (can.ASCReader, "r"),
+        ".blf": (can.BLFReader, "rb"),
+        ".log": (can.CanutilsLogReader, "r"),
+    }[path.suffix.lower()]
     try:
-        with can.LogReader(str(path)) as reader:
+        with open(path, mode) as file, reader_class(file) as reader:
             yield from reader
     except Exception as e:  # the readers' many ways of saying "not my format"
         raise ReplayError(
