@@ -16,12 +16,13 @@ Messages (ids, DLC; layouts and scaling in the DBC):
 
 The DBC is read with cantools; the frames of the 1 kHz loop are packed and unpacked by
 :class:`Layout`, a codec compiled once from the DBC (the messages are little-endian signals
-in one integer: ~2 us a frame where cantools takes 10-40 us, on the host loop's and the
-emulator's time). It rounds as cantools does, so the bytes are the same (tested against
-cantools), and it range-checks both ways: :func:`encode_frame` refuses a value outside its
-DBC range, and :func:`decode_frame` (cantools does not check ranges when it decodes) raises
-:class:`ProtocolError` for a frame with a wrong length, an unknown id or any value outside its
-range (the caller counts and drops it).
+in one integer: decoding a sensor frame takes 3 us where cantools took 8, encoding a
+sample's two frames 20 us where it took 35, on the host loop's and the emulator's time). It
+rounds as cantools does, so the bytes are the same (tested against cantools), and it
+range-checks both ways: :func:`encode_frame` refuses a value outside its DBC range, and
+:func:`decode_frame` (cantools does not check ranges when it decodes) raises
+:class:`ProtocolError` for a frame with a wrong length, an unknown id or any value outside
+its range (the caller counts and drops it).
 """
 
 from __future__ import annotations
