@@ -1,6 +1,8 @@
-"""The glove on a CAN bus: protocol, device, watchdog, emulator, replay (python-can's virtual
-bus, no hardware). Every warning is an error here, and so is any python-can log record at
-WARNING or above (its "was not properly shut down" is a log record, not a warning)."""
+"""The glove on a CAN bus: device, watchdog, emulator, the hardware env and its recording
+(python-can's virtual bus, no hardware; the protocol is tests/test_protocol.py, the replay
+tests/test_replay.py, the commands tests/test_glove_bench.py). Every warning is an error
+here, and so is any python-can log record at WARNING or above (its "was not properly shut
+down" is a log record, not a warning)."""
 
 from __future__ import annotations
 
@@ -11,44 +13,30 @@ import logging
 import time
 import warnings
 from collections.abc import Iterator
-from dataclasses import astuple
 from pathlib import Path
 
 import can
-import cantools
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.cli import main
+from ias_gym.errors import InputError
 from ias_gym.glove.device import ACTUATED_JOINTS, MAX_FEEDBACK_TORQUE
-from ias_gym.glove.hand import SENSOR_NAMES
 from ias_gym.hardware import (
-    DBC_PATH,
     CanGlove,
     FaultInjection,
-    FrameReceiver,
     GloveEmulator,
     GloveHardwareEnv,
     GloveTimeoutError,
-    ReplayError,
     ReplayGlove,
-    Sample,
-    bus_load,
     database,
 )
 from ias_gym.hardware.protocol import (
-    SENSORS_A,
-    SENSORS_B,
     TORQUE_COMMAND,
-    ProtocolError,
-    UnknownIdError,
     decode_frame,
-    encode_sensors,
-    encode_torque,
     frame_id,
-    in_sensor_range,
     torques_of,
 )
 
@@ -83,126 +71,6 @@ def drain(bus: can.BusABC) -> list[can.Message]:
     return out
 
 
-# --------------------------------------------------------------------------- the DBC
-def test_dbc_describes_the_glove() -> None:
-    db = database()
-    assert DBC_PATH.is_file()
-    assert db.buses[0].baudrate == 1_000_000
-    torque = db.get_message_by_name(TORQUE_COMMAND)
-    assert "Torque" in torque.name
-    for joint in ACTUATED_JOINTS:  # ranges = the actuators' limits
-        s = torque.get_signal_by_name(joint)
-        assert (s.minimum, s.maximum) == (-MAX_FEEDBACK_TORQUE, MAX_FEEDBACK_TORQUE)
-    classic = {s.name for m in (SENSORS_A, SENSORS_B) for s in db.get_message_by_name(m).signals}
-    fd = {s.name for s in db.get_message_by_name("GloveSensorsFD").signals}
-    assert classic == fd == {*SENSOR_NAMES, "Counter"}
-    for name in (SENSORS_A, SENSORS_B, "GloveSensorsFD"):
-        counter = db.get_message_by_name(name).get_signal_by_name("Counter")
-        assert (counter.length, counter.minimum, counter.maximum) == (8, 0, 255)
-    assert db.get_message_by_name("GloveSensorsFD").is_fd
-    assert all(m.length <= 8 for m in db.messages if not m.is_fd)
-    status = db.get_message_by_name("GloveStatus")
-    assert {"TorqueEnabled", "FaultWatchdog"} <= {s.name for s in status.signals}
-    assert "Enable" in {s.name for s in db.get_message_by_name("HostCommand").signals}
-
-
-def test_sensor_and_torque_frames_match_byte_fixtures() -> None:
-    psi = np.array([-0.1, 0.2, -0.3, 0.4, 0.5, 0.6, 0.7, 1.8, 0.9, 1.0])
-    a, b = encode_sensors(psi, 7)
-    assert (a.arbitration_id, a.data.hex()) == (0x110, "07ee229ca2d0a741")
-    assert (b.arbitration_id, b.data.hex()) == (0x111, "074cf423a9c54951")
-    (f,) = encode_sensors(psi, 7, fd=True)
-    assert f.is_fd and f.data.hex() == "07983a5046c832204e0852f055d859d084a8619065000000"
-    cmd, sent = encode_torque([0.1, -0.2, 0.5, -0.5, 0.0], 3, 200)
-    assert (cmd.arbitration_id, cmd.data.hex()) == (0x100, "64e04c1f83000c32")
-    np.testing.assert_array_equal(sent, [0.1, -0.2, 0.5, -0.5, 0.0])
-    receiver = FrameReceiver()
-    assert receiver.feed(a.arbitration_id, a.data) is None  # half a sample
-    sample = receiver.feed(b.arbitration_id, b.data)
-    assert isinstance(sample, Sample) and sample.counter == 7
-    np.testing.assert_allclose(sample.psi, psi, atol=0.001 + 1e-12)  # 2 mrad steps
-    assert in_sensor_range(psi) and in_sensor_range(psi, fd=True)
-    high = psi.copy()
-    high[7] = 2.45  # thumb_web beyond its converter's 2.4 rad: saturated on the wire
-    assert not in_sensor_range(high)
-    wire = decode_frame(*astuple(encode_sensors(high, 8)[1])[:2]).values["thumb_web"]
-    assert wire == pytest.approx(2.4)
-
-
-@pytest.mark.parametrize("seed", range(5))
-def test_every_message_round_trips(seed: int) -> None:
-    rng = np.random.default_rng(seed)
-    for msg in database().messages:
-        values = {
-            s.name: float(rng.uniform(s.minimum, s.maximum))
-            if s.scale != 1
-            else int(rng.integers(s.minimum, s.maximum + 1))
-            for s in msg.signals
-        }
-        data = msg.encode(values, strict=True)
-        decoded = decode_frame(msg.frame_id, data)
-        assert decoded.name == msg.name
-        for s in msg.signals:
-            assert decoded.values[s.name] == pytest.approx(values[s.name], abs=s.scale / 2 + 1e-9)
-
-
-def test_strict_ranges_both_ways() -> None:
-    sent = encode_torque([0.9, -3.0, np.nan, np.inf, -np.inf], 1, 0)[1]
-    np.testing.assert_array_equal(sent, [0.5, -0.5, 0.0, 0.0, 0.0])
-    with pytest.raises(ValueError, match="shape"):
-        encode_torque([0.1, 0.2], 1, 0)
-    with pytest.raises(cantools.database.EncodeError, match=r"smaller than or equal to 0\.5"):
-        database().get_message_by_name(TORQUE_COMMAND).encode(
-            {**dict.fromkeys(ACTUATED_JOINTS, 0.0), "index_mcp": 0.6, "Counter": 0,
-             "SampleCounter": 0},
-            strict=True,
-        )  # fmt: skip
-    # cantools decodes raw values beyond the DBC's range without complaint; we do not.
-    top = bytes([0x00] + [0xFF] * 7)  # every reading at raw 2047 = 2.494 rad > 2.4
-    with pytest.raises(ProtocolError, match="outside"):
-        decode_frame(frame_id(SENSORS_A), top)
-    raw = bytearray(encode_torque(np.zeros(5), 1, 0)[0].data)
-    raw[0], raw[1] = 0xF6, 0x01  # index_mcp raw 502 = 0.502 N m
-    with pytest.raises(ProtocolError, match="index_mcp"):
-        decode_frame(frame_id(TORQUE_COMMAND), bytes(raw))
-    with pytest.raises(ProtocolError, match="data bytes"):
-        decode_frame(frame_id(SENSORS_A), b"\x00" * 7)
-    with pytest.raises(UnknownIdError, match="unknown"):
-        decode_frame(0x7FF, b"\x00" * 8)
-
-
-def test_receiver_counts_drops_duplicates_and_bad_frames() -> None:
-    psi = np.linspace(0.0, 1.0, 10)
-    r = FrameReceiver()
-    frames = {c: encode_sensors(psi, c) for c in range(6)}
-    samples = []
-    for c, parts in ((0, "AB"), (1, "AB"), (1, "B"), (2, "B"), (4, "AB"), (5, "A")):
-        for p in parts:
-            f = frames[c]["AB".index(p)]
-            out = r.feed(f.arbitration_id, f.data)
-            if isinstance(out, Sample):
-                samples.append(out.counter)
-    r.feed(0x110, b"\x01\x02")  # wrong length
-    r.feed(0x123, b"\x00")  # another node
-    r.feed(0, b"", is_error_frame=True)
-    s = r.stats
-    assert samples == [0, 1, 4]  # 2 lost its A half, 3 is gone, 5 lacks its B half
-    # A: 0 1 4 5 -> 2 missing (2, 3); B: 0 1 [1 dup] 2 4 -> 1 missing (3)
-    assert (s.frames_dropped, s.frames_duplicated) == (3, 1)
-    assert (s.frames_invalid, s.frames_unknown, s.error_frames) == (1, 1, 1)
-
-
-def test_bus_load_of_the_protocol() -> None:
-    # Per sample at 1 kHz: A, B and TorqueCommand (8 bytes: 111 bits + up to 24 stuff
-    # bits), GloveStatus (1 byte: 55 + 10) at 50 Hz, 1 Mbit/s.
-    load = bus_load(1000.0)
-    assert load["total"] == pytest.approx((3 * 135 * 1000 + 65 * 50) / 1e6)
-    assert bus_load(1000.0, worst_case=False)["total"] == pytest.approx(
-        (3 * 111 * 1000 + 55 * 50) / 1e6
-    )
-    assert bus_load(1000.0, fd=True)["total"] < load["total"]  # one FD frame, 5 Mbit/s data
-
-
 # --------------------------------------------------------------------------- live, virtual bus
 @pytest.mark.parametrize("fd", [False, True], ids=["classic", "fd"])
 def test_glove_reads_samples_and_the_emulator_applies_torques(channel: str, fd: bool) -> None:
@@ -219,8 +87,11 @@ def test_glove_reads_samples_and_the_emulator_applies_torques(channel: str, fd: 
             glove.write_feedback(command)
             time.sleep(0.002)
         time.sleep(0.01)
-        np.testing.assert_allclose(emu.torque, command, atol=5e-4)
-        assert emu.torque_enabled and emu.stats.commands == 20
+        # Read the glove's state at once: its 20 ms watchdog runs on while the test asserts
+        # (the first use of np.testing imports it: ~80 ms).
+        torque, enabled = emu.torque, emu.torque_enabled
+        np.testing.assert_allclose(torque, command, atol=5e-4)
+        assert enabled and emu.stats.commands == 20
         assert max(emu.command_age) <= 3  # the echoed sample was at most 3 samples old
         status = glove.device_status
         assert status is not None and status["TorqueEnabled"] == 1
@@ -347,47 +218,6 @@ def test_close_sends_zero_torque_and_shuts_down(channel: str) -> None:
 
 
 # --------------------------------------------------------------------------- env, record, replay
-@pytest.mark.parametrize("suffix", [".asc", ".blf"])
-def test_recorded_session_replays_to_identical_observations(
-    channel: str, tmp_path: Path, suffix: str
-) -> None:
-    log = tmp_path / f"session{suffix}"
-    live: list[np.ndarray] = []
-    with GloveEmulator(channel=channel, rate_hz=500):
-        env = gym.make("IAS-GloveHardware-v0", channel=channel, record=log, control_dt=0.004)
-        for seed in (0, 1):  # two episodes in one log
-            obs, _ = env.reset(seed=seed)
-            live.append(obs)
-            for _ in range(150):
-                live.append(env.step(np.zeros(10, dtype=np.float32))[0])
-        env.close()
-    replay = gym.make("IAS-GloveHardware-v0", replay=log, control_dt=0.004)
-    replayed = []
-    for seed in (0, 1):
-        obs, _ = replay.reset(seed=seed)
-        replayed.append(obs)
-        for _ in range(150):
-            replayed.append(replay.step(np.zeros(10, dtype=np.float32))[0])
-    device = replay.unwrapped.device  # type: ignore[attr-defined]
-    replay.close()
-    assert len(device) == len(live) == 302
-    for a, b in zip(live, replayed, strict=True):
-        np.testing.assert_array_equal(a, b)
-    # the replayed force display is what the live host sent (to the 1 mN m of the wire)
-    sent = np.array([encode_torque(t, 1, 0)[1] for t in device.feedback])
-    np.testing.assert_allclose(sent, device.recorded_torques, atol=5e-4 + 1e-12)
-    assert np.abs(device.recorded_torques).max() > 0.01  # the pen was felt
-
-
-def test_replay_refuses_logs_without_host_cycles(tmp_path: Path) -> None:
-    log = tmp_path / "only_rx.asc"
-    with can.Logger(str(log)) as logger:
-        for f in encode_sensors(np.zeros(10), 0):
-            logger(can.Message(arbitration_id=f.arbitration_id, data=f.data, is_extended_id=False))
-    with pytest.raises(ReplayError, match="no host cycles"):
-        ReplayGlove(log)
-
-
 def test_profile_kwarg_sets_person_and_calibration(channel: str, tmp_path: Path) -> None:
     from ias_gym.envs.glove_grasp import default_calibration
     from ias_gym.glove.calibration import evaluate
@@ -427,21 +257,6 @@ def test_hardware_env_passes_the_gymnasium_checker(channel: str) -> None:
             env.close()
 
 
-def test_glove_bench_prints_its_statistics_as_json(
-    channel: str, capsys: pytest.CaptureFixture[str]
-) -> None:
-    code = main(
-        ["glove-bench", "--rate", "500", "--seconds", "0.4", "--channel", channel, "--json"]
-    )
-    assert code == 0
-    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    keys = {"rate_hz", "period_median_ms", "period_p99_ms", "period_max_ms"}
-    keys |= {"overrun_fraction", "frames_dropped", "watchdog_trips"}
-    assert keys <= set(result)
-    assert result["cycles"] == 199 and result["watchdog_trips"] == 0
-    assert 0 < result["period_median_ms"] <= result["period_p99_ms"] <= result["period_max_ms"]
-
-
 def test_a_can_glove_session_is_recorded_as_a_skill(channel: str, tmp_path: Path) -> None:
     from ias_gym.skills import SkillDB
     from ias_gym.skills.record import record_skills
@@ -478,18 +293,77 @@ def test_skills_record_says_when_the_can_glove_is_silent(
     assert code != 0 and "glove-emulator" in capsys.readouterr().err
 
 
-def test_glove_emulator_command_runs_and_reports(
-    channel: str, capsys: pytest.CaptureFixture[str]
+# ------------------------------------------------------------------- record: never overwrite
+def test_a_recording_never_overwrites_an_existing_file(
+    channel: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    code = main(["glove-emulator", "--channel", channel, "--rate", "500", "--seconds", "0.2"])
-    out = capsys.readouterr().out
-    assert code == 0 and "Ctrl-C stops" in out
-    sent = int(out.split("sent ")[1].split(" samples")[0])
-    assert 50 <= sent <= 110  # 500 Hz for 0.2 s
+    """``record=`` on an existing file (maybe a person's only session) is refused when the env
+    is made, before a bus is opened; ``overwrite=True`` replaces it."""
+    keep = tmp_path / "keep.blf"
+    keep.write_bytes(b"a real person's session")
+
+    def no_bus(*args: object, **kwargs: object) -> None:
+        raise AssertionError("a bus was opened before the record file was checked")
+
+    with monkeypatch.context() as m:
+        m.setattr(can, "Bus", no_bus)
+        with pytest.raises(InputError, match=r"keep\.blf.*overwrite=True"):
+            gym.make("IAS-GloveHardware-v0", channel=channel, record=keep)
+        with pytest.raises(InputError, match=r"keep\.blf.*overwrite=True"):
+            CanGlove(channel=channel, log_path=keep)
+        for bad, match in (
+            (tmp_path / "s.csv", r"\.asc, \.blf, \.log"),
+            (tmp_path / "nowhere" / "s.blf", "does not exist"),
+            (tmp_path, "choose one of these suffixes"),
+        ):
+            with pytest.raises(InputError, match=match):
+                gym.make("IAS-GloveHardware-v0", channel=channel, record=bad)
+    assert keep.read_bytes() == b"a real person's session"
+    with GloveEmulator(channel=channel, rate_hz=500):
+        env = gym.make(
+            "IAS-GloveHardware-v0", channel=channel, record=keep, overwrite=True, control_dt=0.004
+        )
+        env.reset(seed=0)
+        for _ in range(20):
+            env.step(np.zeros(10, dtype=np.float32))
+        env.close()
+    assert len(ReplayGlove(keep)) == 21
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.blf"]  # no partial file left
 
 
-def test_glove_bench_refuses_a_process_emulator_on_the_virtual_bus(
-    capsys: pytest.CaptureFixture[str],
+def test_a_recording_appears_under_its_name_only_when_complete(
+    channel: str, tmp_path: Path
 ) -> None:
-    assert main(["glove-bench", "--emulator", "process", "--seconds", "0.1"]) == 2
-    assert "does not leave the process" in capsys.readouterr().err
+    """Written beside the destination and moved there when the glove closes: a session that
+    dies half way never leaves half a log under the name asked for."""
+    log = tmp_path / "session.asc"
+    with GloveEmulator(channel=channel, rate_hz=500):
+        env = GloveHardwareEnv(channel=channel, record=log, control_dt=0.004)
+        try:
+            env.reset(seed=0)
+            env.step(np.zeros(10, dtype=np.float32))
+            assert not log.exists()
+            (partial,) = tmp_path.iterdir()
+            assert partial.name.startswith(".session.partial-") and partial.suffix == ".asc"
+        finally:
+            env.close()
+    assert log.is_file() and not partial.exists()
+    assert len(ReplayGlove(log)) == 2
+
+
+# ------------------------------------------------------------------- errors a user can make
+def test_bus_and_timing_errors_are_input_errors(channel: str) -> None:
+    with pytest.raises(InputError, match=r"unknown CAN interface 'bogus'.*socketcan"):
+        CanGlove(interface="bogus", channel=channel)
+    with pytest.raises(InputError, match="cannot open CAN interface 'socketcan'"):
+        GloveHardwareEnv(interface="socketcan", channel="ias-no-such-can")
+    with pytest.raises(InputError, match="watchdog_timeout must be positive"):
+        CanGlove(channel=channel, watchdog_timeout=0.0)
+    with pytest.raises(InputError, match="rate_hz must be a positive number"):
+        GloveEmulator(channel=channel, rate_hz=0.0)
+    with pytest.raises(InputError, match="rate_hz must be a positive number"):
+        GloveEmulator(channel=channel, rate_hz=float("inf"))
+    with pytest.raises(InputError, match="unknown CAN interface"):
+        GloveEmulator(interface="bogus", channel=channel).start()
+    with pytest.raises(InputError, match="exclude each other"):
+        GloveHardwareEnv(channel=channel, record="a.blf", replay="b.blf")

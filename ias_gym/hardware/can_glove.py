@@ -10,21 +10,26 @@ zero-torque command and disables the glove's actuators, sets :attr:`CanGlove.fau
 every later command carries zero torque until :meth:`CanGlove.enable`.
 
 Safety commands (watchdog, close) repeat the last command counter: host cycles always count
-up by one, so a log of the session tells them apart (the replay needs this).
+up by one, so a log of the session tells them apart (the replay needs this). A session log is
+written beside its destination and moved there when the glove closes (a crashed session
+leaves ``.NAME.partial-PID.SUFFIX``, never half a file under the name asked for); an existing
+file is only replaced with ``overwrite=True``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import os
 import threading
 import time
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ias_gym.errors import IasGymError
+from ias_gym.errors import IasGymError, InputError
 from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, GloveReading
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.hardware.protocol import (
@@ -48,6 +53,80 @@ def require_can() -> Any:
             "the CAN glove needs python-can and cantools: pip install 'ias-gym[hardware]'"
         ) from e
     return can
+
+
+#: Log formats a session is recorded in: python-can writes and reads them back with the
+#: direction of every frame and CAN FD (``.csv``, ``.db`` lose the direction, ``.trc`` FD).
+RECORD_SUFFIXES = (".asc", ".blf", ".log")
+
+
+def check_record_path(path: str | Path, *, overwrite: bool = False) -> Path:
+    """Check where a session is to be recorded, before anything is opened.
+
+    Args:
+        path: the log file; its suffix picks the format (:data:`RECORD_SUFFIXES`).
+        overwrite: replace an existing file (when the session ends).
+
+    Raises:
+        InputError: an unsupported suffix, a missing directory, a directory at ``path``, or an
+            existing file without ``overwrite=True``.
+    """
+    p = Path(path)
+    if p.suffix.lower() not in RECORD_SUFFIXES:
+        raise InputError(
+            f"record={str(p)!r}: a session is recorded as {', '.join(RECORD_SUFFIXES)} "
+            "(python-can keeps each frame's direction in those); choose one of these suffixes"
+        )
+    if not p.parent.is_dir():
+        raise InputError(f"record={str(p)!r}: the directory {str(p.parent)!r} does not exist")
+    if p.is_dir():
+        raise InputError(f"record={str(p)!r} is a directory; give a file name")
+    if p.exists() and not overwrite:
+        raise InputError(
+            f"record={str(p)!r} exists (a recorded session is never overwritten silently); "
+            "choose another file, or pass overwrite=True to replace it"
+        )
+    return p
+
+
+def check_interface(interface: str) -> str:
+    """Check a python-can interface name (imports python-can).
+
+    Raises:
+        InputError: python-can has no such interface (the message lists those it has).
+        ImportError: python-can is not installed (the message says which extra).
+    """
+    can = require_can()
+    if interface not in can.VALID_INTERFACES:
+        raise InputError(
+            f"unknown CAN interface {interface!r}; python-can has: "
+            f"{', '.join(sorted(can.VALID_INTERFACES))}"
+        )
+    return interface
+
+
+def open_bus(interface: str, channel: str | int, **bus_kwargs: Any) -> can.BusABC:
+    """``can.Bus(interface=..., channel=..., **bus_kwargs)``, with an error that says what to fix.
+
+    Raises:
+        InputError: an unknown interface, or one this machine cannot open (no driver, no
+            SocketCAN in the kernel, no such channel, bad settings): the message names the
+            interface, the channel and python-can's reason.
+    """
+    can = require_can()
+    check_interface(interface)
+    try:
+        return can.Bus(interface=interface, channel=channel, **bus_kwargs)
+    except (can.CanError, OSError, ImportError, ValueError, TypeError) as e:
+        hint = (
+            " (is SocketCAN in this machine's kernel, and the interface up? "
+            "`ip link show`; without CAN hardware use --interface virtual)"
+            if interface == "socketcan"
+            else ""
+        )
+        raise InputError(
+            f"cannot open CAN interface {interface!r} channel {channel!r}: {e}{hint}"
+        ) from e
 
 
 def to_message(frame: Frame) -> can.Message:
@@ -85,10 +164,16 @@ class CanGlove(GloveDevice):
         startup_timeout: how long :meth:`read` waits for the first sample [s].
         glove_id: the glove's id (profiles are checked against it).
         log_path: record every frame received and sent to this python-can log file
-            (``.asc``, ``.blf``, ``.log``, ``.csv``: the suffix picks the format); a session
-            replays from it (:class:`~ias_gym.hardware.replay.ReplayGlove`).
+            (:data:`RECORD_SUFFIXES`: the suffix picks the format); a session replays from
+            it (:class:`~ias_gym.hardware.replay.ReplayGlove`). Written beside it and moved
+            there by :meth:`close`.
+        overwrite: replace an existing ``log_path`` (otherwise refused before the bus opens).
         **bus_kwargs: passed to ``can.Bus`` (``bitrate``: default 1 Mbit/s as the DBC;
             CAN FD timing such as ``data_bitrate`` as the backend wants it).
+
+    Raises:
+        InputError: a non-positive timeout, a ``log_path`` refused by
+            :func:`check_record_path`, or a bus that cannot be opened (:func:`open_bus`).
     """
 
     def __init__(
@@ -101,11 +186,20 @@ class CanGlove(GloveDevice):
         startup_timeout: float = 1.0,
         glove_id: str = DEFAULT_GLOVE_ID,
         log_path: str | Path | None = None,
+        overwrite: bool = False,
         **bus_kwargs: Any,
     ) -> None:
-        if not watchdog_timeout > 0:
-            raise ValueError(f"watchdog_timeout must be positive [s], got {watchdog_timeout}")
+        for name, value in (
+            ("watchdog_timeout", watchdog_timeout),
+            ("startup_timeout", startup_timeout),
+        ):
+            if not value > 0:
+                raise InputError(f"{name} must be positive [s], got {value}")
         can = require_can()
+        self.log_path = (
+            None if log_path is None else check_record_path(log_path, overwrite=overwrite)
+        )
+        self.overwrite = bool(overwrite)
         self.interface, self.channel, self.fd = interface, channel, bool(fd)
         self.glove_id = glove_id
         self.watchdog_timeout = float(watchdog_timeout)
@@ -113,8 +207,18 @@ class CanGlove(GloveDevice):
         bus_kwargs.setdefault("bitrate", BITRATE)  # the protocol's 1 Mbit/s (backends differ)
         if fd:
             bus_kwargs.setdefault("fd", True)
-        self._bus = can.Bus(interface=interface, channel=channel, **bus_kwargs)
-        self._logger = can.Logger(str(log_path)) if log_path is not None else None
+        self._bus = open_bus(interface, channel, **bus_kwargs)
+        self._partial: Path | None = None
+        self._logger: Any = None
+        if self.log_path is not None:
+            self._partial = self.log_path.with_name(
+                f".{self.log_path.stem}.partial-{os.getpid()}{self.log_path.suffix}"
+            )
+            try:
+                self._logger = can.Logger(str(self._partial))
+            except BaseException:
+                self._bus.shutdown()
+                raise
         self._log_lock = threading.Lock()
         self._send_lock = threading.Lock()
         self._state = threading.Condition()
@@ -256,12 +360,35 @@ class CanGlove(GloveDevice):
         if self._logger is not None:
             with self._log_lock:
                 self._logger.stop()
+            self._finish_log()
         self._bus.shutdown()
 
     def __enter__(self) -> CanGlove:
         return self
 
     # ------------------------------------------------------------------ internals
+    def _finish_log(self) -> None:
+        """Move the finished log to ``log_path``; one that appeared there meanwhile is kept
+        (without ``overwrite``) and the session stays at the partial name, with a warning."""
+        assert self._partial is not None and self.log_path is not None
+        if self.overwrite:
+            os.replace(self._partial, self.log_path)
+            return
+        try:
+            os.link(self._partial, self.log_path)  # fails if the name was taken meanwhile
+        except FileExistsError:
+            warnings.warn(
+                f"{self.log_path} appeared while the session was recorded; the session is "
+                f"kept as {self._partial}",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+            return
+        except OSError:  # a file system without hard links: the check was made at the start
+            os.replace(self._partial, self.log_path)
+            return
+        os.unlink(self._partial)
+
     def _check_open(self) -> None:
         if self._closed:
             raise RuntimeError(f"CAN glove on {self.interface}:{self.channel} is closed")

@@ -1,16 +1,55 @@
-"""``ias-gym glove-emulator`` and ``ias-gym glove-bench`` (thin: parse, call, print)."""
+"""``ias-gym glove-emulator`` and ``ias-gym glove-bench`` (thin: parse, call, print).
+
+Numbers are checked when the arguments are parsed (argparse prints the usage and one line,
+exit 2); what only running can tell (an interface this machine cannot open, a silent glove)
+is raised as the package's own errors, which ``ias-gym`` prints as one line.
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import signal
 import subprocess
 import sys
 import threading
+from collections.abc import Callable
 from typing import Any
 
+from ias_gym.errors import InputError
 from ias_gym.glove.hand import PersonParams
+
+
+def positive(kind: Callable[[str], float]) -> Callable[[str], Any]:
+    """An argparse ``type``: ``kind(text)`` (``int`` or ``float``), finite and > 0."""
+
+    def parse(text: str) -> float:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{text!r} is not a number ({kind.__name__})"
+            ) from None
+        if not 0 < value < math.inf:
+            raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
+        return value
+
+    parse.__name__ = f"positive {kind.__name__}"
+    return parse
+
+
+def loop_rate(text: str) -> float:
+    """An argparse ``type``: a loop rate [Hz] whose period is a whole number of the world's
+    1 ms steps (1000, 500, 250, ... Hz)."""
+    from ias_gym.hardware.loop import check_bench_numbers
+
+    rate = positive(float)(text)
+    try:
+        check_bench_numbers(rate, 1.0)
+    except InputError as e:
+        raise argparse.ArgumentTypeError(str(e).removeprefix("--rate ")) from None
+    return rate
 
 
 def _bus_arguments(p: argparse.ArgumentParser, channel: str) -> None:
@@ -18,11 +57,22 @@ def _bus_arguments(p: argparse.ArgumentParser, channel: str) -> None:
         "--interface",
         default="virtual",
         metavar="NAME",
-        help="python-can interface: virtual, socketcan, pcan, kvaser, udp_multicast, ...",
+        help="python-can interface: virtual, socketcan, pcan, kvaser, udp_multicast, ... "
+        "(default: %(default)s)",
     )
-    p.add_argument("--channel", default=channel, metavar="CH", help="the interface's channel")
-    p.add_argument("--fd", action="store_true", help="CAN FD sensor frames (default classic)")
-    p.add_argument("--bitrate", type=int, metavar="BPS", help="passed to can.Bus (real buses)")
+    p.add_argument(
+        "--channel",
+        default=channel,
+        metavar="CH",
+        help="the interface's channel (default: %(default)s)",
+    )
+    p.add_argument("--fd", action="store_true", help="CAN FD sensor frames (default: classic)")
+    p.add_argument(
+        "--bitrate",
+        type=positive(int),
+        metavar="BPS",
+        help="passed to can.Bus (default: the protocol's 1000000)",
+    )
 
 
 def _bus_kwargs(args: argparse.Namespace) -> dict[str, Any]:
@@ -43,8 +93,10 @@ def _emulator(args: argparse.Namespace) -> int:
 
 
 def _run_emulator(args: argparse.Namespace, stop: threading.Event) -> int:
+    from ias_gym.hardware.can_glove import check_interface
     from ias_gym.hardware.emulator import GloveEmulator
 
+    check_interface(args.interface)
     emulator = GloveEmulator(
         args.interface,
         args.channel,
@@ -87,28 +139,34 @@ def _emulator_process(args: argparse.Namespace) -> subprocess.Popen[str]:
     ]
     if args.fd:
         cmd.append("--fd")
+    if args.bitrate is not None:
+        cmd += ["--bitrate", str(args.bitrate)]
     process = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True)
     assert process.stdout is not None
-    process.stdout.readline()  # its banner: the bus is open and samples are going out
+    if not process.stdout.readline():  # its banner: the bus is open and samples are going out
+        process.wait()
+        raise InputError(
+            f"the glove emulator process on {args.interface}:{args.channel} exited "
+            f"(code {process.returncode}) before it sent a sample; its error is above"
+        )
     return process
 
 
 def _bench(args: argparse.Namespace) -> int:
     from ias_gym.hardware.bench import run_glove_bench
-    from ias_gym.hardware.can_glove import GloveTimeoutError
+    from ias_gym.hardware.can_glove import check_interface
     from ias_gym.hardware.protocol import bus_load
 
+    check_interface(args.interface)
     if args.emulator is None:
         args.emulator = "thread" if args.interface == "virtual" else "none"
     if args.emulator == "thread" and args.interface != "virtual":
         print("note: an in-process emulator on a real bus shares it with the glove", flush=True)
     if args.emulator == "process" and args.interface == "virtual":
-        print(
-            "error: python-can's virtual bus does not leave the process; use --emulator "
-            "thread, or an interface such as udp_multicast",
-            file=sys.stderr,
+        raise InputError(
+            "--emulator process: python-can's virtual bus does not leave the process; use "
+            "--emulator thread, or an interface such as udp_multicast"
         )
-        return 2
     process = _emulator_process(args) if args.emulator == "process" else None
     try:
         result = run_glove_bench(
@@ -119,10 +177,10 @@ def _bench(args: argparse.Namespace) -> int:
             fd=args.fd,
             emulate=args.emulator == "thread",
             bus_kwargs=_bus_kwargs(args),
+            plain=not args.no_plain,
+            repeats=args.repeats,
+            priority=args.priority,
         )
-    except GloveTimeoutError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 1
     finally:
         if process is not None:
             process.send_signal(signal.SIGINT)
@@ -133,7 +191,10 @@ def _bench(args: argparse.Namespace) -> int:
     out = result.as_dict()
     out["bus_load_worst_case"] = bus_load(args.rate, fd=args.fd)["total"]
     width = max(len(k) for k in out)
-    print(f"glove bench: {args.rate:g} Hz for {args.seconds:g} s on {args.interface}")
+    print(
+        f"glove bench: {args.rate:g} Hz for {args.seconds:g} s x {args.repeats} on "
+        f"{args.interface} (emulator: {args.emulator})"
+    )
     for key, value in out.items():
         text = f"{value:.4g}" if isinstance(value, float) else str(value)
         print(f"  {key:<{width}}  {text}")
@@ -154,10 +215,25 @@ def add_hardware_commands(
         "device watchdog (no command for 20 ms -> torque off). Runs until Ctrl-C or --seconds.",
     )
     _bus_arguments(emu, "ias-glove")
-    emu.add_argument("--rate", type=float, default=1000.0, metavar="HZ", help="sample rate")
-    emu.add_argument("--person", default="p1", metavar="ID", help="simulated wearer")
-    emu.add_argument("--seed", type=int, default=0, metavar="S", help="sensor noise seed")
-    emu.add_argument("--seconds", type=float, metavar="S", help="stop after S seconds")
+    emu.add_argument(
+        "--rate",
+        type=positive(float),
+        default=1000.0,
+        metavar="HZ",
+        help="sample rate [Hz] (default: %(default)g)",
+    )
+    emu.add_argument(
+        "--person", default="p1", metavar="ID", help="simulated wearer (default: %(default)s)"
+    )
+    emu.add_argument(
+        "--seed", type=int, default=0, metavar="S", help="sensor noise seed (default: %(default)s)"
+    )
+    emu.add_argument(
+        "--seconds",
+        type=positive(float),
+        metavar="S",
+        help="stop after S seconds (default: run until Ctrl-C)",
+    )
     emu.set_defaults(run=_emulator)
 
     bench = subparsers.add_parser(
@@ -165,11 +241,43 @@ def add_hardware_commands(
         help="measure the host loop against the glove (or its emulator)",
         description="Run the host loop (read sensors -> calibrate -> step the virtual world -> "
         "send force display) of IAS-GloveHardware-v0 at --rate for --seconds and print its "
-        "period statistics, dropped frames and watchdog trips.",
+        "period statistics, dropped frames and watchdog trips, beside a plain python-can loop "
+        "(drain, send one command) run the same way in the same invocation: plain_p99_ms, "
+        "plain_overrun_fraction and p99_ratio (host p99 / plain p99).",
     )
     _bus_arguments(bench, "ias-glove-bench")
-    bench.add_argument("--rate", type=float, default=1000.0, metavar="HZ", help="loop rate")
-    bench.add_argument("--seconds", type=float, default=5.0, metavar="S", help="how long")
+    bench.add_argument(
+        "--rate",
+        type=loop_rate,
+        default=1000.0,
+        metavar="HZ",
+        help="loop rate [Hz]; the period must be a whole number of 1 ms (default: %(default)g)",
+    )
+    bench.add_argument(
+        "--seconds",
+        type=positive(float),
+        default=5.0,
+        metavar="S",
+        help="how long each run lasts [s] (default: %(default)g)",
+    )
+    bench.add_argument(
+        "--repeats",
+        type=positive(int),
+        default=1,
+        metavar="N",
+        help="runs per loop, alternating plain and host; the figures are medians "
+        "(default: %(default)s)",
+    )
+    bench.add_argument(
+        "--no-plain", action="store_true", help="skip the plain python-can loop (default: run it)"
+    )
+    bench.add_argument(
+        "--priority",
+        type=positive(int),
+        metavar="P",
+        help="run both loops and their threads under SCHED_FIFO at priority P (1-99; Linux, "
+        "needs root or CAP_SYS_NICE) (default: the ordinary scheduler)",
+    )
     bench.add_argument(
         "--emulator",
         choices=("thread", "process", "none"),

@@ -27,11 +27,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym.errors import InputError
 from ias_gym.glove.device import ACTUATED_JOINTS
 from ias_gym.glove.hand import PersonParams
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.glove.sensor_model import sensor_readings
-from ias_gym.hardware.can_glove import SEND_TIMEOUT, require_can, to_message
+from ias_gym.hardware.can_glove import SEND_TIMEOUT, open_bus, require_can, to_message
 from ias_gym.hardware.protocol import (
     BITRATE,
     HOST_COMMAND,
@@ -123,6 +124,10 @@ class GloveEmulator:
         faults: fault injection (default: a good glove).
         glove_id: the emulated glove's id.
         **bus_kwargs: passed to ``can.Bus``.
+
+    Raises:
+        InputError: a non-positive ``rate_hz`` or ``watchdog_timeout``; (:meth:`start`) a
+            bus that cannot be opened.
     """
 
     def __init__(
@@ -140,8 +145,9 @@ class GloveEmulator:
         glove_id: str = DEFAULT_GLOVE_ID,
         **bus_kwargs: Any,
     ) -> None:
-        if not rate_hz > 0:
-            raise ValueError(f"rate_hz must be positive, got {rate_hz}")
+        for name, value in (("rate_hz", rate_hz), ("watchdog_timeout", watchdog_timeout)):
+            if not 0 < value < float("inf"):
+                raise InputError(f"{name} must be a positive number, got {value}")
         self.interface, self.channel = interface, channel
         self.person = person if person is not None else PersonParams.sample("p1")
         if operator is None:
@@ -163,6 +169,7 @@ class GloveEmulator:
         if fd:
             self._bus_kwargs.setdefault("fd", True)
         self._rng = np.random.default_rng(self.faults.seed)
+        self._faulty = any(getattr(self.faults, k) > 0 for k in _FAULT_KINDS)
         self._protocol_frames = _protocol_frames()
         self.stats = EmulatorStats(injected=dict.fromkeys(_FAULT_KINDS, 0))
         self._lock = threading.Lock()
@@ -234,11 +241,14 @@ class GloveEmulator:
 
     # ------------------------------------------------------------------ lifetime
     def start(self) -> GloveEmulator:
-        """Open the bus and start sending (idempotent)."""
+        """Open the bus and start sending (idempotent).
+
+        Raises:
+            InputError: the bus cannot be opened (:func:`~ias_gym.hardware.can_glove.open_bus`).
+        """
         if self._thread is not None:
             return self
-        can = require_can()
-        self._bus = can.Bus(interface=self.interface, channel=self.channel, **self._bus_kwargs)
+        self._bus = open_bus(self.interface, self.channel, **self._bus_kwargs)
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="GloveEmulator", daemon=True)
         self._thread.start()
@@ -306,8 +316,14 @@ class GloveEmulator:
             with self._lock:
                 self._fault_sensor = True  # the converters saturate (encode_sensors clips)
         self.stats.samples += 1
+        frames = encode_sensors(psi, self._counter, fd=self.fd)
+        self._counter = (self._counter + 1) % 256
+        if not self._faulty:  # a good glove: no draws (this runs on the host loop's GIL)
+            for frame in frames:
+                self._send(frame)
+            return
         f, rng = self.faults, self._rng
-        for frame in encode_sensors(psi, self._counter, fd=self.fd):
+        for frame in frames:
             if rng.random() < f.drop:
                 self.stats.injected["drop"] += 1
                 continue
@@ -327,7 +343,6 @@ class GloveEmulator:
         if rng.random() < f.error_frame:
             self._send(require_can().Message(is_error_frame=True, data=b""))
             self.stats.injected["error_frame"] += 1
-        self._counter = (self._counter + 1) % 256
 
     def _send_status(self) -> None:
         with self._lock:

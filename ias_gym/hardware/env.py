@@ -9,8 +9,9 @@ the person's profile, steps the world and sends the force display. A glove fault
 watchdog: no valid sample for ``watchdog_timeout``) truncates the episode with the reason in
 ``info["fault"]``; ``reset`` re-enables the glove.
 
-``record=PATH`` writes the session to a python-can log; ``replay=PATH`` plays such a log
-back (no bus, not paced) and reproduces the recorded observations exactly.
+``record=PATH`` writes the session to a python-can log (an existing file is refused unless
+``overwrite=True``: it may be the only recording of a person's session); ``replay=PATH``
+plays such a log back (no bus, not paced) and reproduces the recorded observations exactly.
 """
 
 from __future__ import annotations
@@ -20,10 +21,11 @@ from pathlib import Path
 from typing import Any
 
 from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.errors import InputError
 from ias_gym.glove.device import GloveDevice
 from ias_gym.glove.hand import PersonParams
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID, load_profile
-from ias_gym.hardware.can_glove import CanGlove
+from ias_gym.hardware.can_glove import CanGlove, check_record_path
 from ias_gym.hardware.loop import LoopClock
 from ias_gym.hardware.replay import ReplayGlove
 
@@ -52,6 +54,7 @@ class GloveHardwareEnv(GloveGraspEnv):
         glove_id: str = DEFAULT_GLOVE_ID,
         record: str | Path | None = None,
         replay: str | Path | None = None,
+        overwrite: bool = False,
         realtime: bool | None = None,
         **config: Any,
     ) -> None:
@@ -67,18 +70,27 @@ class GloveHardwareEnv(GloveGraspEnv):
             fd: CAN FD sensor frames.
             watchdog_timeout: host-side watchdog [s].
             glove_id: the glove's id (the profile must be for it).
-            record: write the session (every frame in and out) to this python-can log.
+            record: write the session (every frame in and out) to this python-can log
+                (``.asc``, ``.blf`` or ``.log``; written in full when the env closes).
             replay: play this recorded log back instead of opening a bus.
+            overwrite: let ``record`` replace an existing file.
             realtime: pace steps at ``control_dt`` in wall-clock time (default: live yes,
                 replay no).
             **config: fields of :class:`~ias_gym.envs.glove_grasp.GloveGraspConfig`.
 
         Raises:
-            ValueError: both ``record`` and ``replay``.
+            InputError: both ``record`` and ``replay``; a ``record`` file that exists (without
+                ``overwrite=True``) or cannot be written; a ``replay`` file that is not a
+                recorded session (:class:`~ias_gym.hardware.replay.ReplayError`); a bus that
+                cannot be opened; a non-positive ``watchdog_timeout``. All are checked before
+                a bus is opened, except the bus itself.
             ~ias_gym.glove.profile.ProfileError: a bad profile, or one for another glove.
         """
         if record is not None and replay is not None:
-            raise ValueError("record and replay exclude each other")
+            raise InputError("record and replay exclude each other: give one of them")
+        if record is not None:
+            # first: a refused file must not cost a bus, a profile or a world
+            check_record_path(record, overwrite=overwrite)
         calibration = None
         if profile is not None:
             loaded = load_profile(profile, glove_id=glove_id)
@@ -96,6 +108,7 @@ class GloveHardwareEnv(GloveGraspEnv):
                 watchdog_timeout=watchdog_timeout,
                 glove_id=glove_id,
                 log_path=record,
+                overwrite=overwrite,
                 **(bus_kwargs or {}),
             )
         self.device = device

@@ -9,13 +9,21 @@ distribution, never assert single cycles.
 
 from __future__ import annotations
 
+import contextlib
+import math
+import os
 import time
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from ias_gym.errors import InputError
+
 #: A period longer than this many nominal periods counts as an overrun.
 OVERRUN_FACTOR = 1.5
+#: The virtual world's time step [s]: a host loop's period is a whole number of them.
+WORLD_STEP = 0.001
 
 
 class LoopClock:
@@ -95,3 +103,68 @@ def loop_stats(
         watchdog_trips=int(watchdog_trips),
         cycles=len(periods),
     )
+
+
+@contextlib.contextmanager
+def realtime_priority(priority: int | None) -> Iterator[None]:
+    """Run the calling thread under Linux's ``SCHED_FIFO`` at ``priority`` (None: unchanged).
+
+    Threads started inside inherit it (the glove's receiver, an in-process emulator), so a
+    loop and its helpers all run ahead of the machine's ordinary processes; the thread's
+    previous policy comes back on exit. On a loaded machine this is what keeps a 1 kHz
+    CPython loop on time (measured in the README's CAN section); it needs root,
+    ``CAP_SYS_NICE`` or an ``ulimit -r`` of at least ``priority``.
+
+    Args:
+        priority: 1 (lowest) to 99 (highest) real-time priority, or None.
+
+    Raises:
+        InputError: a priority out of range, no ``SCHED_FIFO`` on this system, or not
+            permitted (the message says what grants it).
+    """
+    if priority is None:
+        yield
+        return
+    if not hasattr(os, "sched_setscheduler"):
+        raise InputError("--priority needs Linux's SCHED_FIFO; leave it out on this system")
+    lo, hi = os.sched_get_priority_min(os.SCHED_FIFO), os.sched_get_priority_max(os.SCHED_FIFO)
+    if not lo <= priority <= hi:
+        raise InputError(f"--priority must be {lo} to {hi} (SCHED_FIFO), got {priority}")
+    policy, param = os.sched_getscheduler(0), os.sched_getparam(0)
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except PermissionError as e:
+        raise InputError(
+            f"--priority {priority}: SCHED_FIFO is not permitted ({e}); run as root, give "
+            "python CAP_SYS_NICE, or raise the rtprio limit (ulimit -r), or leave it out"
+        ) from e
+    try:
+        yield
+    finally:
+        os.sched_setscheduler(0, policy, param)
+
+
+def check_bench_numbers(rate_hz: float, seconds: float, repeats: int = 1) -> None:
+    """Check a bench's numbers before anything is opened.
+
+    Raises:
+        InputError: a rate [Hz] that is not positive or whose period is not a whole number
+            of the world's 1 ms steps (1000, 500, 250, ... Hz), a non-positive or infinite
+            ``seconds`` [s], or fewer than one run; or too short a run for two cycles.
+    """
+    if not 0 < rate_hz < math.inf:
+        raise InputError(f"--rate must be a positive number of Hz, got {rate_hz:g}")
+    steps = 1.0 / (rate_hz * WORLD_STEP)
+    if steps < 1 - 1e-9 or abs(steps - round(steps)) > 1e-6:
+        raise InputError(
+            f"--rate {rate_hz:g} Hz: the period must be a whole number of the world's "
+            f"{WORLD_STEP * 1e3:g} ms steps (1000, 500, 250, 200, ... Hz)"
+        )
+    if not 0 < seconds < math.inf:
+        raise InputError(f"--seconds must be a positive number of seconds, got {seconds:g}")
+    if round(seconds * rate_hz) < 2:
+        raise InputError(
+            f"--seconds {seconds:g} at {rate_hz:g} Hz is fewer than two cycles; run longer"
+        )
+    if repeats < 1:
+        raise InputError(f"--repeats must be at least 1, got {repeats}")

@@ -11,16 +11,19 @@ so with the same actions it reproduces the observations bit for bit.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ias_gym.errors import IasGymError
+from ias_gym.errors import InputError
 from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, GloveReading
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
-from ias_gym.hardware.can_glove import require_can
+from ias_gym.hardware.can_glove import RECORD_SUFFIXES, require_can
 from ias_gym.hardware.protocol import (
+    HOST_COMMAND,
     TORQUE_COMMAND,
     ProtocolError,
     decode_frame,
@@ -29,9 +32,13 @@ from ias_gym.hardware.protocol import (
 )
 from ias_gym.hardware.samples import FrameReceiver, Sample
 
+if TYPE_CHECKING:
+    import can
 
-class ReplayError(IasGymError, ValueError):
-    """The log is not a recorded glove session (no host cycles, or a cycle without its sample)."""
+
+class ReplayError(InputError):
+    """The file is not a recorded glove session: missing, not a python-can log of a supported
+    format, empty or truncated, no host cycles, or a cycle without its sample."""
 
 
 class ReplayGlove(GloveDevice):
@@ -47,13 +54,14 @@ class ReplayGlove(GloveDevice):
         feedback: torques [N m] written during the replay, one per :meth:`write_feedback`.
 
     Raises:
-        ReplayError: no host cycle in the log, or one whose sample is not in it.
+        ReplayError: no such file, a suffix other than ``.asc``, ``.blf``, ``.log``, a file
+            python-can cannot read (not a log, empty, truncated), no host cycle in the log, or
+            one whose sample is not in it.
     """
 
     def __init__(
         self, path: str | Path, *, fd: bool = False, glove_id: str = DEFAULT_GLOVE_ID
     ) -> None:
-        can = require_can()
         self.path = Path(path)
         self.glove_id = glove_id
         receiver = FrameReceiver(fd=fd)
@@ -62,33 +70,45 @@ class ReplayGlove(GloveDevice):
         torques: list[NDArray[np.float64]] = []
         torque_id = frame_id(TORQUE_COMMAND)
         last_counter = 0
-        with can.LogReader(str(self.path)) as reader:
-            for msg in reader:
-                if msg.is_rx:
-                    out = receiver.feed(msg.arbitration_id, msg.data, msg.is_error_frame)
-                    if isinstance(out, Sample):
-                        by_counter[out.counter] = (out, float(msg.timestamp))
-                    continue
-                if msg.arbitration_id != torque_id:
-                    continue
-                try:
-                    decoded = decode_frame(msg.arbitration_id, msg.data)
-                except ProtocolError as e:
-                    raise ReplayError(f"{self.path}: a sent command is malformed: {e}") from None
-                counter = int(decoded.values["Counter"])
-                if counter == last_counter:
-                    continue  # a safety command, not a host cycle
-                last_counter = counter
-                echoed = int(decoded.values["SampleCounter"])
-                if echoed not in by_counter:
-                    raise ReplayError(
-                        f"{self.path}: host cycle {len(self._cycles)} used sample {echoed}, "
-                        "which is not in the log (was it recorded with CanGlove(log_path=...)?)"
-                    )
-                self._cycles.append(by_counter[echoed])
-                torques.append(torques_of(decoded))
+        last_sent = None  # the last frame the host sent: a complete session ends with Disable
+        for msg in _read_log(self.path):
+            if msg.is_rx:
+                out = receiver.feed(msg.arbitration_id, msg.data, msg.is_error_frame)
+                if isinstance(out, Sample):
+                    by_counter[out.counter] = (out, float(msg.timestamp))
+                continue
+            last_sent = msg
+            if msg.arbitration_id != torque_id:
+                continue
+            try:
+                decoded = decode_frame(msg.arbitration_id, msg.data)
+            except ProtocolError as e:
+                raise ReplayError(
+                    f"replay={str(self.path)!r}: a sent command is malformed: {e}"
+                ) from None
+            counter = int(decoded.values["Counter"])
+            if counter == last_counter:
+                continue  # a safety command, not a host cycle
+            last_counter = counter
+            echoed = int(decoded.values["SampleCounter"])
+            if echoed not in by_counter:
+                raise ReplayError(
+                    f"replay={str(self.path)!r}: host cycle {len(self._cycles)} used sample "
+                    f"{echoed}, which is not in the log (was it recorded with record=...?)"
+                )
+            self._cycles.append(by_counter[echoed])
+            torques.append(torques_of(decoded))
         if not self._cycles:
-            raise ReplayError(f"{self.path}: no host cycles (TorqueCommand frames) in the log")
+            raise ReplayError(
+                f"replay={str(self.path)!r}: no host cycles (TorqueCommand frames) in the log; "
+                "is it a session recorded with record=... ?"
+            )
+        if not _is_disable(last_sent):
+            raise ReplayError(
+                f"replay={str(self.path)!r} is truncated: it stops after {len(self._cycles)} "
+                "host cycles without the Disable command a recorded session ends with (sent "
+                "when the glove closes); was the recording cut short, or copied in part?"
+            )
         self.recorded_torques = np.array(torques)
         self.feedback: list[NDArray[np.float64]] = []
         self._k = 0
@@ -124,3 +144,48 @@ class ReplayGlove(GloveDevice):
 
     def close(self) -> None:
         self._closed = True
+
+
+def _is_disable(msg: can.Message | None) -> bool:
+    """Whether ``msg`` is a ``HostCommand`` with Enable = 0 (the end of every session)."""
+    if msg is None or msg.arbitration_id != frame_id(HOST_COMMAND):
+        return False
+    try:
+        return decode_frame(msg.arbitration_id, msg.data).values["Enable"] == 0
+    except ProtocolError:
+        return False
+
+
+def _read_log(path: Path) -> Iterator[can.Message]:
+    """The messages of a python-can log, one by one, or a :class:`ReplayError` naming the file.
+
+    python-can's readers fail in their own ways on a file that is not theirs (``struct.error``
+    on an empty ``.blf``, ``ValueError`` on a line it cannot split, ...), or stop early on a
+    truncated one; all of them become one error that says what the file should be.
+    """
+    can = require_can()
+    what = f"replay={str(path)!r}"
+    if path.suffix.lower() not in RECORD_SUFFIXES:
+        raise ReplayError(
+            f"{what}: a recorded session is a {', '.join(RECORD_SUFFIXES)} file "
+            "(written by record=...); this suffix is none of them"
+        )
+    if not path.is_file():
+        raise ReplayError(f"{what}: no such file")
+    if path.stat().st_size == 0:
+        raise ReplayError(f"{what} is empty: not a recorded session")
+    # The reader gets a file opened here, closed here: python-can's LogReader opens its own
+    # and leaks it when the reader's constructor fails on a foreign file (ResourceWarning).
+    reader_class, mode = {
+        ".asc": (can.ASCReader, "r"),
+        ".blf": (can.BLFReader, "rb"),
+        ".log": (can.CanutilsLogReader, "r"),
+    }[path.suffix.lower()]
+    try:
+        with open(path, mode) as file, reader_class(file) as reader:
+            yield from reader
+    except Exception as e:  # the readers' many ways of saying "not my format"
+        raise ReplayError(
+            f"{what} is not a readable python-can {path.suffix} log ({type(e).__name__}: {e}); "
+            "give a session recorded with record=..."
+        ) from e
