@@ -1,6 +1,6 @@
 """Time the internal-force solvers of ``ias_gym.grasp.internal_forces`` side by side.
 
-The problem: the paper's pen (NOTES.md reference: mu = 0.25, r = 1 cm, m g = 1 N, f0 = 0.1 N)
+The problem: the paper's pen (docs/NOTES.md reference: mu = 0.25, r = 1 cm, m g = 1 N, f0 = 0.1 N)
 in phase 1 of eq. (17), finger 1 sliding to -x while phi_1 grows from 3 to 4 cm. Each
 repetition solves the next W along that slide, as a control loop would, so warm starts are
 honest. Also timed, as the alternatives we did not ship (built here from the module's own
@@ -37,7 +37,7 @@ W_EXT = np.array([0.0, -WEIGHT, 0.0, 0.0, 0.0, 0.0])
 
 
 def pen_w(phi: np.ndarray) -> np.ndarray:
-    """W of eq. (16) for finger distances phi [m] (NOTES.md geometry)."""
+    """W of eq. (16) for finger distances phi [m] (docs/NOTES.md geometry)."""
     points = [
         (-phi[0], RADIUS, 0),
         (-phi[1], -RADIUS, 0),

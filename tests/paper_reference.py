@@ -1,4 +1,4 @@
-"""Reference values written out from the paper and NOTES.md, independently of the package."""
+"""Reference values written out from the paper and docs/NOTES.md, independently of the package."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ PEN_PHI = (0.03, 0.02, 0.02, 0.03)  # l_i [m], paper section 4.2
 
 
 def eq16(phi: tuple[float, ...] = PEN_PHI, r: float = PEN_RADIUS) -> np.ndarray:
-    """W of eq. (16) as corrected in NOTES.md (6 x 12), entry by entry."""
+    """W of eq. (16) as corrected in docs/NOTES.md (6 x 12), entry by entry."""
     p1, p2, p3, p4 = phi
     return np.array(
         [

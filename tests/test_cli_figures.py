@@ -44,7 +44,7 @@ def test_figure_wrench_intensities_writes_a_consistent_csv(
             assert c[3 * k + 1] * (-1 if k < 2 else 1) == pytest.approx(
                 params.mu * c[3 * k], abs=1e-6
             )
-    # NOTES.md reference: the sum of the normal forces is 1.4 N throughout.
+    # docs/NOTES.md reference: the sum of the normal forces is 1.4 N throughout.
     np.testing.assert_allclose(table[:, 1::3].sum(axis=1), 1.4, atol=1e-6)
 
 

@@ -22,7 +22,7 @@ R = 0.01
 
 
 def test_pen_wrench_matrix_is_eq16() -> None:
-    """NOTES.md's corrected eq. (16), written out entry by entry."""
+    """docs/NOTES.md's corrected eq. (16), written out entry by entry."""
     np.testing.assert_allclose(PEN_W, eq16(), atol=1e-15)
     s = np.linalg.svd(PEN_W, compute_uv=False)
     np.testing.assert_allclose(s, [2, 2, 2, 0.05477, 0.05099, 0.02], rtol=1e-3)

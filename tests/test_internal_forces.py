@@ -25,7 +25,7 @@ from ias_gym.grasp.internal_forces import (
     solve_socp,
 )
 
-# NOTES.md "Reference LP result": the paper's pen in SI units.
+# docs/NOTES.md "Reference LP result": the paper's pen in SI units.
 MU = 0.25  # [-]
 RADIUS = 0.01  # [m]
 F0 = 0.1  # [N]
@@ -39,7 +39,7 @@ Solve = Callable[..., InternalForceResult]
 
 
 def pen_w(phi: np.ndarray = PHI) -> np.ndarray:
-    """W of eq. (16): NOTES.md contact points, normals into the pen, t1 = +x, t2 = +z."""
+    """W of eq. (16): docs/NOTES.md contact points, normals into the pen, t1 = +x, t2 = +z."""
     x = phi * np.array(OUTWARD)
     y = RADIUS * np.array([1.0, -1.0, -1.0, 1.0])
     points = np.stack([x, y, np.zeros(4)], axis=1)
@@ -70,7 +70,7 @@ SOLVERS: dict[str, tuple[Solve, InternalForceSettings, Cone]] = {
 
 
 def equilibrium_error(W: np.ndarray, c: np.ndarray, w_ext: np.ndarray, length: float) -> float:
-    """max |W c + w_ext| [N], moments divided by a characteristic length [m] (NOTES.md)."""
+    """max |W c + w_ext| [N], moments divided by a characteristic length [m] (docs/NOTES.md)."""
     residual = W @ c + w_ext
     return float(np.abs(np.concatenate([residual[:3], residual[3:] / length])).max())
 
@@ -100,7 +100,7 @@ def assert_satisfies_constraints(
     assert res.objective == pytest.approx(float(weights @ res.normal))
 
 
-# --- the NOTES.md reference result ---------------------------------------------------------
+# --- the docs/NOTES.md reference result ---------------------------------------------------------
 
 
 def test_pen_geometry_reproduces_eq_16() -> None:
@@ -184,7 +184,7 @@ def test_exact_cone_is_tighter_than_the_box() -> None:
 
 
 def test_paper_literal_sliding_admits_forces_beyond_the_cone() -> None:
-    """Eq. (20) read literally (NOTES.md saw 13 mu c_n); the equality stays on the cone."""
+    """Eq. (20) read literally (docs/NOTES.md saw 13 mu c_n); the equality stays on the cone."""
     W = pen_w()
     paper = InternalForceSettings(mu=MU, f0=F0, sliding="paper")
     ratios = []

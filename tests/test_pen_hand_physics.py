@@ -28,7 +28,7 @@ PHI = (0.03, 0.02, 0.02, 0.03)  # [m]
 
 
 def notes_w(phi: tuple[float, ...] = PHI, r: float = R_PEN) -> np.ndarray:
-    """Eq. (16) as corrected in NOTES.md (written out independently of the package)."""
+    """Eq. (16) as corrected in docs/NOTES.md (written out independently of the package)."""
     return eq16(phi, r)
 
 

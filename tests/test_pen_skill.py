@@ -51,7 +51,7 @@ def test_sliding_finger(t: float, finger: int | None) -> None:
 
 
 def test_contacts_slide_outward() -> None:
-    """Fingers 1, 2 move to -x and 3, 4 to +x (eq. 17; NOTES.md)."""
+    """Fingers 1, 2 move to -x and 3, 4 to +x (eq. 17; docs/NOTES.md)."""
     start = contact_points(finger_distances(0.0, P), P.radius)
     end = contact_points(finger_distances(4.0, P), P.radius)
     np.testing.assert_allclose(end[:, 0] - start[:, 0], [-0.01, -0.01, 0.01, 0.01])

@@ -123,7 +123,7 @@ def test_contact_schedule_and_intensities(recorded: tuple[Path, list[int]]) -> N
 
 
 def test_held_pen_is_in_equilibrium(recorded: tuple[Path, list[int]]) -> None:
-    """W c + m g = m a for the pen held off its support (NOTES.md: W c holds the pen up).
+    """W c + m g = m a for the pen held off its support (docs/NOTES.md: W c holds the pen up).
 
     a from central differences of the recorded velocity; the contact forces are those of
     the step's last 1 ms, so the residual measured is up to 0.073 N (median 0.03 N) of the

@@ -87,7 +87,7 @@ def test_skill_model_is_the_grip_transform_along_the_episode(
     )
     assert np.isfinite(model.f_int[all_touch]).all()
     assert np.abs(model.f_int).max() > 0.01  # the grasp squeezes: internal forces exist
-    # Once the grasp has settled (50 ms), f_ext = W c holds the pen up (NOTES.md:
+    # Once the grasp has settled (50 ms), f_ext = W c holds the pen up (docs/NOTES.md:
     # W c = [0, +mg, 0, 0, 0, 0]) and every finger pushes.
     settled = model.time >= 0.05
     np.testing.assert_allclose(model.f_ext[settled, 1], weight, rtol=0.05)

@@ -8,7 +8,7 @@ Every control step (``control_dt``), from the measured contacts:
   eq. (41) with ``Psi = I`` for the rotation (the paper's roll-pitch-yaw ``Psi(phi)`` adds
   ``Psi'`` terms and a singularity at pitch +-90 deg), and it leaves the roll about the pen's
   own axis free (its roll inertia is ~20x smaller than its pitch inertia: any roll-dependent
-  term spins the pen up, DESIGN.md).
+  term spins the pen up, docs/DESIGN.md).
 - **Object dynamics** (eq. 33): the net contact wrench ``w = [m a_d; I alpha_d + omega x I omega]
   - w_g``. The paper's eq. (33) has no gravity (its ``f_ext`` is the contact wrench); the pen's
   weight ``w_g`` (eq. 18) is added here, so ``c_p = W+ w`` (eqs. 5, 36).
@@ -33,7 +33,7 @@ Every control step (``control_dt``), from the measured contacts:
 Beyond the paper, where its assumptions do not hold in the simulation:
 
 - a sliding finger (the skill of 3.2) is driven along its schedule by a PD force along the pen
-  on top of its kinetic friction ``mu c_n`` (the LP's equality, NOTES.md); the paper's model
+  on top of its kinetic friction ``mu c_n`` (the LP's equality, docs/NOTES.md); the paper's model
   has the contact points move through W(t) but no law for the finger's own motion;
 - each tip is held on the pen's top or bottom line by a PD force across the pen: nothing in the
   grasp model resists the tips circling the pen (the pen rolls with them at no cost);

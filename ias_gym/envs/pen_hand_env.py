@@ -50,7 +50,7 @@ class PenReference:
         position, velocity, acceleration: pen centre r_d [m], its derivatives.
         axis: unit direction of the pen's axis.
         omega, alpha: angular velocity [rad/s] and acceleration [rad/s^2].
-        sliding: {finger index: unit sliding direction in (t_x, t_z)} (NOTES.md, eq. 20).
+        sliding: {finger index: unit sliding direction in (t_x, t_z)} (docs/NOTES.md, eq. 20).
         contact_x: scheduled contact positions along the pen [m], ``None``: hold them.
         contact_vx: their rates [m/s].
     """

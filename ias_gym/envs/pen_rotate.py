@@ -1,7 +1,7 @@
 """IAS-PenRotate-v0: rotate the held pen about the paper's z-axis (a see-saw), centre at rest.
 
 Paper section 4.3: ``r_d(t) = 0`` and the tilt follows ``phi_d(t) = A sin(w t)`` about z
-(NOTES.md: z is horizontal, across the pen, so the pen see-saws in the vertical x-y plane).
+(docs/NOTES.md: z is horizontal, across the pen, so the pen see-saws in the vertical x-y plane).
 The paper's amplitude of 1 rad is out of reach for a hand of this size; the default
 A = 0.2 rad at w = 2 rad/s lies inside the fingertips' workspace (+-1 cm vertically at the
 contacts). As in Fig. 9, each episode starts with an angular error sampled at reset.

@@ -3,7 +3,7 @@
 The skill example of paper sections 3.2 and 4.2. After a short hold, finger i slides 1 cm
 outward during phase i (eq. 17 with the paper's parameters: l = [3, 2, 2, 3] cm,
 alpha_i = 1 cm/s, phases of 1 s): fingers 1 and 2 to -x, fingers 3 and 4 to +x (the
-equation's direction; the paper's prose says "to the left" for all, see NOTES.md), while
+equation's direction; the paper's prose says "to the left" for all, see docs/NOTES.md), while
 the pen stays still.
 """
 

@@ -35,7 +35,7 @@ class ContactModel(str, Enum):
 
 
 def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
-    # Written out: np.cross on 3-vectors costs microseconds each (DESIGN.md, "Speed").
+    # Written out: np.cross on 3-vectors costs microseconds each (docs/DESIGN.md, "Speed").
     return np.array(
         [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
     )

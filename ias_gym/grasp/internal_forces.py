@@ -6,7 +6,7 @@ contacts and the external wrench ``w_ext`` on the object, find the wrench intens
 :func:`ias_gym.grasp.contacts.wrench_matrix`; a compressive contact has ``c_n > 0``) that
 
 - hold the object: ``W c = -w_ext`` (the fingers cancel the external wrench, e.g. the weight
-  ``w_ext = [0, -m g, 0, 0, 0, 0]`` of eq. 18; NOTES.md "Sign of gravity");
+  ``w_ext = [0, -m g, 0, 0, 0, 0]`` of eq. 18; docs/NOTES.md "Sign of gravity");
 - keep every contact closed: ``c_n >= f0`` (eq. 19);
 - keep sticking contacts inside their friction cone: the paper's box
   ``|c_t1| <= mu c_n, |c_t2| <= mu c_n`` (eqs. 21-24), the exact Coulomb cone
@@ -14,7 +14,7 @@ contacts and the external wrench ``w_ext`` on the object, find the wrench intens
   linear like the box, but never outside the true cone; the box's corners are ``sqrt(2)``
   outside it, docs/controller.md);
 - put a sliding contact's tangential force on the cone in its sliding direction,
-  ``(c_t1, c_t2) = mu c_n s`` (kinetic Coulomb friction, NOTES.md "Sliding contact"), where
+  ``(c_t1, c_t2) = mu c_n s`` (kinetic Coulomb friction, docs/NOTES.md "Sliding contact"), where
   ``s`` is the unit direction of the finger's velocity relative to the object in (t1, t2)
   coordinates; the paper's eq. (20), ``c_t1 + mu c_n < 0``, is the case ``s = (-1, 0)``;
 
@@ -76,7 +76,7 @@ class InfeasibleGraspError(IasGymError, ValueError):
 
 @dataclass(frozen=True)
 class InternalForceSettings:
-    """Settings of the internal-force problem (defaults: the NOTES.md pen reference).
+    """Settings of the internal-force problem (defaults: the docs/NOTES.md pen reference).
 
     Attributes:
         mu: Coulomb friction coefficient [-].
@@ -180,7 +180,7 @@ def sliding_direction(velocity: ArrayLike, tol: float = 1e-9) -> FloatArray:
 
     Returns:
         ``(2,)`` unit vector along ``velocity`` (the direction of the finger's friction force
-        on the object, NOTES.md "Sliding contact").
+        on the object, docs/NOTES.md "Sliding contact").
     """
     v = np.asarray(velocity, dtype=float).reshape(2)
     speed = float(np.hypot(v[0], v[1]))

@@ -1,6 +1,6 @@
 """The pen skill of paper sections 3.2 and 4.2: four fingers slide along a pen in turn.
 
-Paper frame (NOTES.md): x along the pen axis, y vertical (gravity along -y), z lateral;
+Paper frame (docs/NOTES.md): x along the pen axis, y vertical (gravity along -y), z lateral;
 moments about the pen's centre of mass. Finger k touches the pen at
 
     finger 1: (-phi1, +r, 0) pushing -y    finger 2: (-phi2, -r, 0) pushing +y
@@ -9,7 +9,7 @@ moments about the pen's centre of mass. Finger k touches the pen at
 with wrench columns (normal, t_x, t_z) each, which gives W of eq. (16). During phase i
 (``t_{i-1} <= t < t_i``) finger i slides outward by ``alpha_i (t_i - t_{i-1})`` (eq. 17):
 fingers 1 and 2 to -x, fingers 3 and 4 to +x. The paper's prose says "to the left" for all
-four; this module follows the equation (NOTES.md, "Eq. (17)").
+four; this module follows the equation (docs/NOTES.md, "Eq. (17)").
 
 Units are SI here (the paper's cm are converted in :class:`PenSkillParams`' defaults).
 """
@@ -115,14 +115,14 @@ def contact_frames() -> FloatArray:
 
 
 def pen_wrench_matrix(phi: ArrayLike, radius: float = 1.0 * CM) -> FloatArray:
-    """W(t) of eq. (16) (NOTES.md's corrected 6 x 12 form) for finger distances phi [m]."""
+    """W(t) of eq. (16) (docs/NOTES.md's corrected 6 x 12 form) for finger distances phi [m]."""
     return wrench_matrix(contact_points(phi, radius), contact_frames())
 
 
 def gravity_wrench(weight: float) -> FloatArray:
     """External wrench of eq. (18) on the pen, ``w_g = [0, -m g, 0, 0, 0, 0]`` [N, N m].
 
-    The fingers must supply ``W c = -w_g`` (NOTES.md, "Sign of gravity").
+    The fingers must supply ``W c = -w_g`` (docs/NOTES.md, "Sign of gravity").
     """
     return np.array([0.0, -weight, 0.0, 0.0, 0.0, 0.0])
 
@@ -133,7 +133,7 @@ def sliding_directions(
     """Sliding contacts at time t as {finger index: unit direction in (t_x, t_z)}.
 
     The force a sliding finger exerts on the pen points along the finger's own motion
-    relative to the pen (NOTES.md, "Sliding contact"): outward.
+    relative to the pen (docs/NOTES.md, "Sliding contact"): outward.
     """
     k = sliding_finger(t, params)
     return {} if k is None else {k: np.array([OUTWARD[k], 0.0])}
@@ -148,7 +148,7 @@ def wrench_intensities(
     """The reference wrench intensities c(t) of the sliding skill (paper Fig. 8).
 
     At each time the internal-force problem of eqs. (19)-(24) is solved for W(t) of eq. (16),
-    the weight of eq. (18) and the finger sliding at t (NOTES.md's equality model).
+    the weight of eq. (18) and the finger sliding at t (docs/NOTES.md's equality model).
 
     Args:
         times: ``(T,)`` sample times [s].

@@ -1,6 +1,6 @@
 """Pacing a host loop in real time, and its statistics.
 
-CPython is not hard real time (DESIGN.md: about 1 kHz on average, p99 about 2 ms for a
+CPython is not hard real time (docs/DESIGN.md: about 1 kHz on average, p99 about 2 ms for a
 plain loop): :class:`LoopClock` paces against absolute deadlines (a late cycle does not
 shift the ones after it; a cycle more than one period late re-synchronises instead of
 bursting) and records when each cycle started, so that :func:`loop_stats` can report the

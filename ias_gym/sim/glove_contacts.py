@@ -187,7 +187,7 @@ class GlovePenPhysics(FreePenPhysics):
                 continue
             mujoco.mj_contactForce(m, d, j, self._force6)
             frame = contact.frame.reshape(3, 3)  # rows normal (geom1 -> geom2), t1, t2
-            # The force of geom1 on geom2 (DESIGN.md); the pen feels it if the pen is geom2.
+            # The force of geom1 on geom2 (docs/DESIGN.md); the pen feels it if the pen is geom2.
             sign = 1.0 if g2 == self.pen_geom_id else -1.0
             f = sign * (frame.T @ self._force6[:3])
             normal_into_pen = sign * frame[0]

@@ -2,7 +2,7 @@
 
 Minari's ``DataCollector`` needs jax (``minari[create]``); the dataset is written instead with
 ``minari.create_dataset_from_buffers`` from one ``EpisodeBuffer`` per skill, which needs only
-``minari[hdf5]`` and pillow (the ``[datasets]`` extra; see DESIGN.md, "Demonstrations").
+``minari[hdf5]`` and pillow (the ``[datasets]`` extra; see docs/DESIGN.md, "Demonstrations").
 The layout is Minari's: ``T + 1`` observations (reset and final included), ``T`` actions,
 rewards, terminations and truncations, and ``T + 1`` rows per info entry. The env spec
 (id plus the keyword arguments the skills were recorded with) goes into the dataset, so
