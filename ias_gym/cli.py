@@ -34,34 +34,30 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         return super()._get_help_string(action)
 
 
-def positive_int(text: str) -> int:
-    """argparse type: an integer >= 1.
+def int_at_least(minimum: int) -> Callable[[str], int]:
+    """argparse type: an integer >= ``minimum`` (``int_at_least(1)`` for counts, 0 for seeds).
 
-    Raises:
-        argparse.ArgumentTypeError: otherwise (argparse reports it, exit code 2).
+    The returned function raises ``argparse.ArgumentTypeError`` otherwise (argparse reports
+    it, exit code 2).
     """
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected an integer >= {minimum}, got {text!r}"
+            ) from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be >= {minimum}, got {value}")
+        return value
+
+    return parse
 
 
-def non_negative_int(text: str) -> int:
-    """argparse type: an integer >= 0 (e.g. a seed).
-
-    Raises:
-        argparse.ArgumentTypeError: otherwise (argparse reports it, exit code 2).
-    """
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
-    return value
+#: argparse types of counts (>= 1) and seeds (>= 0).
+positive_int = int_at_least(1)
+non_negative_int = int_at_least(0)
 
 
 def _initial_error(text: str) -> float:
