@@ -198,6 +198,7 @@ def evaluate(
     *,
     overwrite: bool = False,
     trust_pickle: bool = False,
+    reset_options: Mapping[str, Any] | None = None,
 ) -> EvaluationResult:
     """Run ``episodes`` episodes (seeds ``seed, seed+1, ...``) and collect the outcomes.
 
@@ -214,6 +215,11 @@ def evaluate(
         env_kwargs: configuration overrides passed to ``gym.make``.
         overwrite: replace an existing ``video`` file.
         trust_pickle: load a model file with SB3's own ``load`` (runs code from the file).
+        reset_options: ``options`` of every episode's ``env.reset`` (``None``: the seed's
+            own start). For the pen tasks ``{"qpos": ..., "qvel": ...}`` starts from that
+            exact MuJoCo state ([m, rad], [m/s, rad/s]), the same one in every episode, so
+            pass it with ``episodes=1``: e.g. a start perturbed by 1e-9 to check that a
+            closed-loop result is not a knife edge of this machine's arithmetic.
 
     Raises:
         InputError: bad ``episodes``/``seed``, unusable ``video`` path, unknown env id or
@@ -245,7 +251,8 @@ def evaluate(
         frames: list[np.ndarray] | None = [] if (video is not None and episode == 0) else None
         if policy == "expert":
             act = load_policy(policy, env, seed)  # a fresh controller per episode
-        obs, info = env.reset(seed=seed + episode)
+        options = dict(reset_options) if reset_options is not None else None
+        obs, info = env.reset(seed=seed + episode, options=options)
         total, length, done = 0.0, 0, False
         while not done:
             if frames is not None and length % stride == 0:

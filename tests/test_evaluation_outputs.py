@@ -23,7 +23,7 @@ from ias_gym.outputs import OutputExistsError
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-SHORT = json.dumps({"duration": 0.05})  # [s]: 5 steps
+SHORT = json.dumps({"duration": 0.05, "settle_time": 0.0})  # [s]: 5 steps, judged from 0 s
 EVALUATE = ["evaluate", "--env", "IAS-PenRotate-v0", "--policy", "random", "--episodes", "1"]
 linux_only = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc")
 

@@ -1,33 +1,76 @@
-"""The grip-transform expert solves both tasks; random actions do not; evaluation and video."""
+"""The grip-transform expert solves both tasks; random actions do not; evaluation and video.
+
+The expert's results are checked from a seed's start and from starts 1e-9 away from it
+(tests/closed_loop.py): another machine's last bits must not change them.
+"""
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from pathlib import Path
 
+import gymnasium as gym
+import numpy as np
 import pytest
 
 from ias_gym.cli import main
-from ias_gym.evaluation import evaluate
+from ias_gym.evaluation import EvaluationResult, evaluate
+from tests.closed_loop import perturbed_starts
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 
+@functools.cache  # the success and the metrics tests judge the same episodes
+def _expert_from_nearby_starts(env_id: str, seed: int = 100) -> tuple[EvaluationResult, ...]:
+    """One expert episode from ``seed``'s start and one from each start 1e-9 away.
+
+    One seed from six starts: the three seeds these tests ran before, each from six starts,
+    would take three times as long.
+    """
+    env = gym.make(env_id)
+    return tuple(
+        evaluate(env_id, "expert", episodes=1, seed=seed, reset_options=options)
+        for options in perturbed_starts(env, seed)
+    )
+
+
 @pytest.mark.parametrize("env_id", ["IAS-PenSlide-v0", "IAS-PenRotate-v0"])
 def test_expert_succeeds_and_random_fails(env_id: str) -> None:
-    expert = evaluate(env_id, "expert", episodes=3, seed=100)
-    assert expert.successes == [True, True, True], expert.summary()
     random = evaluate(env_id, "random", episodes=3, seed=100)
     assert not any(random.successes)
-    assert expert.summary()["mean_return"] > 10 * random.summary()["mean_return"]
+    for start, expert in enumerate(_expert_from_nearby_starts(env_id)):
+        assert expert.successes == [True], (start, expert.summary())
+        assert expert.summary()["mean_return"] > 10 * random.summary()["mean_return"]
 
 
 def test_expert_slide_metrics_meet_the_task() -> None:
-    summary = evaluate("IAS-PenSlide-v0", "expert", episodes=2, seed=7).summary()
-    assert summary["final_slide_error_max_mm"] < 2.0  # every finger within 2 mm of target
-    assert summary["max_position_error_max_mm"] < 5.0
-    assert summary["max_pen_tilt_max_deg"] < 5.0
+    for start, expert in enumerate(_expert_from_nearby_starts("IAS-PenSlide-v0")):
+        summary = expert.summary()
+        assert summary["final_slide_error_max_mm"] < 2.0, start  # all fingers within 2 mm
+        assert summary["max_position_error_max_mm"] < 5.0, start
+        assert summary["max_pen_tilt_max_deg"] < 5.0, start
+
+
+def test_evaluate_starts_its_episodes_from_reset_options() -> None:
+    """``reset_options`` reaches ``env.reset``: an episode started from seed 6's state with
+    seed 5 is seed 6's episode (the expert acts on the state alone), bit for bit."""
+    kwargs = {"duration": 0.3, "settle_time": 0.2}  # [s]
+    env = gym.make("IAS-PenRotate-v0", **kwargs)
+    env.reset(seed=6)
+    data = env.unwrapped.data  # type: ignore[attr-defined]
+    start_6 = {"qpos": data.qpos.copy(), "qvel": data.qvel.copy()}
+
+    def run(seed: int, options: dict[str, np.ndarray] | None = None) -> EvaluationResult:
+        env_id = "IAS-PenRotate-v0"
+        return evaluate(env_id, seed=seed, episodes=1, env_kwargs=kwargs, reset_options=options)
+
+    own, moved = run(5), run(5, start_6)
+    assert moved.returns == run(6).returns and moved.metrics == run(6).metrics
+    assert moved.returns != own.returns
+    with pytest.raises(ValueError, match="qpos"):
+        run(5, {"qpos": start_6["qpos"][:-1]})
 
 
 def test_evaluate_cli_json_and_video(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -37,9 +39,23 @@ def check_initial_error(initial_error: float) -> float:
 
 
 def control_error_table(
-    initial_error: float = 0.1, amplitude: float = 0.2, frequency: float = 2.0, seed: int = 0
+    initial_error: float = 0.1,
+    amplitude: float = 0.2,
+    frequency: float = 2.0,
+    seed: int = 0,
+    options: Mapping[str, Any] | None = None,
 ) -> np.ndarray:
     """Roll out the expert on IAS-PenRotate-v0 from a tilt error of ``initial_error``.
+
+    Args:
+        initial_error: magnitude of the tilt error at reset [rad].
+        amplitude: amplitude ``A`` of the target tilt ``A sin(w t)`` [rad].
+        frequency: its angular frequency ``w`` [rad/s].
+        seed: reset seed.
+        options: ``options`` of ``env.reset`` (``None``: the seed's own start); e.g.
+            ``{"qpos": ..., "qvel": ...}`` [m, rad; m/s, rad/s] starts from that exact MuJoCo
+            state, such as the seed's start perturbed by 1e-9 to check that the figure's
+            claims are not a knife edge of this machine's arithmetic.
 
     Returns:
         ``(T, 6)``: t [s]; roll, pitch, yaw errors [rad] (paper frame, the yaw being the
@@ -56,7 +72,7 @@ def control_error_table(
     )
     pen = env.pen_env
     assert isinstance(pen, PenRotateEnv)
-    env.reset(seed=seed)
+    env.reset(seed=seed, options=dict(options) if options is not None else None)
     rows = []
     done = False
     zero = np.zeros(12)
