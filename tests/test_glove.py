@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from ias_gym.errors import InputError
 from ias_gym.glove import (
     ACTUATED_JOINTS,
     JOINT_NAMES,
@@ -434,4 +435,5 @@ def test_calibrate_json_last_line(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert figure.stat().st_size > 10_000
     assert load_profile(profile).held_out.rms_deg == summary["ann_rms_deg"]
     bad = parser.parse_args(["calibrate", "--person", "../x", "--out", str(tmp_path)])
-    assert bad.run(bad) == 1
+    with pytest.raises(InputError, match=r"--person '\.\./x' is not a valid id"):
+        bad.run(bad)

@@ -16,7 +16,7 @@ from ias_gym.envs.glove_grasp import (
     load_glove_scene,
 )
 from ias_gym.glove import JOINT_NAMES, PersonParams, fit_linear, record_session
-from ias_gym.glove.calibration import Calibration
+from ias_gym.glove.calibration import Calibration, GroupModel
 from ias_gym.glove.device import ACTUATED_JOINTS
 
 PERSONS = ("p1", "p2", "p3")
@@ -185,3 +185,61 @@ def test_evaluate_runs_the_glove_env_by_teleoperation() -> None:
         evaluate("IAS-GloveGrasp-v0", "expert", episodes=1)
     with pytest.raises(ValueError, match="needs a glove env"):
         evaluate("IAS-PenSlide-v0", "teleop", episodes=1)
+
+
+def _absurd_calibration(calibration: Calibration) -> Calibration:
+    """``calibration`` with the other fingers' group replaced by a network of 1e308 weights
+    (finite, so a Calibration accepts it): its folded weights overflow and every predicted
+    joint angle is NaN, as with the 1e308 profile seen in the field."""
+    g = calibration.group("fingers")
+    huge = (np.full((2, 2), 1e308), np.zeros(2)), (np.eye(2), np.zeros(2))
+    bad = GroupModel(g.name, "ann", g.inputs, g.outputs, g.x_mean, g.x_scale, g.y_mean,
+                     g.y_scale, huge)  # fmt: skip
+    return Calibration(tuple(bad if x.name == "fingers" else x for x in calibration.groups))
+
+
+@pytest.mark.filterwarnings("ignore:overflow:RuntimeWarning", "ignore:invalid:RuntimeWarning")
+def test_nonfinite_calibration_never_reaches_mujoco(
+    person: PersonParams, linear_calibration: Calibration
+) -> None:
+    """A calibration that turns readings into NaN mid-episode: the targets MuJoCo gets stay
+    finite (no 'Nan, Inf or huge value in CTRL'), the step reports a fault and truncates.
+    Before, NaN reached ctrl, MuJoCo warned and zeroed it (a limp hand) and nothing said so."""
+    absurd = _absurd_calibration(linear_calibration)
+    assert np.isnan(absurd.predict(np.zeros(10))).all()
+    env = GloveGraspEnv(person=person, calibration=linear_calibration)
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(np.zeros(10, dtype=np.float32))
+    held = env.data.ctrl.copy()
+    env.calibration = absurd  # the calibration breaks mid-episode
+    obs, _, terminated, truncated, info = env.step(np.zeros(10, dtype=np.float32))
+    assert np.isfinite(env.data.ctrl).all() and np.isfinite(obs).all()
+    assert [int(w.number) for w in env.data.warning] == [0] * len(env.data.warning)
+    assert "non-finite joint angles" in info["fault"] and truncated and not terminated
+    # the last finite targets are held (low-passed Θ: within the filter's step of them)
+    np.testing.assert_allclose(env.data.ctrl, held, atol=0.05)
+
+    # Broken from the first reading: reset holds a finite pose and the first step ends it.
+    env.calibration = absurd
+    obs, info = env.reset(seed=1)
+    assert np.isfinite(obs).all() and "non-finite" in info["fault"]
+    *_, truncated, info = env.step(np.zeros(10, dtype=np.float32))
+    assert truncated and "non-finite" in info["fault"] and np.isfinite(env.data.ctrl).all()
+    env.close()
+
+
+def test_diverging_simulation_is_reported_and_truncated(env: GloveGraspEnv) -> None:
+    """MuJoCo's warning counters are watched as in the pen tasks: a blow-up (here a pen
+    velocity above MuJoCo's 1e10 limit, which makes it warn and reset its data) gives
+    ``info["sim_unstable"]`` and truncation, with a finite observation; a normal step
+    reports it False."""
+    _, info = env.reset(seed=0)
+    assert info["sim_unstable"] is False
+    *_, info = env.step(np.zeros(10, dtype=np.float32))
+    assert info["sim_unstable"] is False
+    env.data.qvel[env._pen_v : env._pen_v + 3] = 1e12
+    obs, _, terminated, truncated, info = env.step(np.zeros(10, dtype=np.float32))
+    assert info["sim_unstable"] is True and truncated and not terminated
+    assert np.isfinite(obs).all()
+    assert sum(int(w.number) for w in env.data.warning) > 0

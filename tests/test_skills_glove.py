@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from ias_gym.envs.glove_grasp import INDEX_GEOMS, THUMB_GEOMS, GloveGraspEnv
+from ias_gym.errors import InputError
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.grasp.contacts import wrench_matrix
 from ias_gym.sim.glove_contacts import FingerContacts, GlovePenPhysics, squeeze_null_vector
@@ -335,13 +336,13 @@ def test_cli_records_and_shows_a_glove_session(
     assert str(tmp_path / "datasets" / "ias" / "glove-v0") in capsys.readouterr().out
 
     # The glove env has no expert; teleop needs a glove; the person is the env's.
-    assert _run(["skills", "record", "--env", ENV_ID, "--db", db, "--no-progress"]) == 1
-    assert f"{ENV_ID} has no expert" in capsys.readouterr().err
-    assert _run(["skills", "record", "--env", "IAS-PenRotate-v0", "--policy", "teleop",
-                 "--db", db, "--no-progress"]) == 1  # fmt: skip
-    assert "needs a glove env" in capsys.readouterr().err
-    assert _run(["skills", "record", "--env", ENV_ID, "--policy", "teleop", "--person", "p2",
-                 "--db", db, "--no-progress"]) == 1  # fmt: skip
-    assert "belong to 'p1'" in capsys.readouterr().err
+    with pytest.raises(InputError, match=f"{ENV_ID} has no expert"):
+        _run(["skills", "record", "--env", ENV_ID, "--db", db, "--no-progress"])
+    with pytest.raises(InputError, match="needs a glove env"):
+        _run(["skills", "record", "--env", "IAS-PenRotate-v0", "--policy", "teleop",
+              "--db", db, "--no-progress"])  # fmt: skip
+    with pytest.raises(InputError, match="belong to 'p1'"):
+        _run(["skills", "record", "--env", ENV_ID, "--policy", "teleop", "--person", "p2",
+              "--db", db, "--no-progress"])  # fmt: skip
     with SkillDB(db) as database:
         assert len(database) == 1  # the refused runs stored nothing

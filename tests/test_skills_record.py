@@ -11,6 +11,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from ias_gym.errors import IasGymError, InputError
 from ias_gym.skills import (
     SkillDB,
     add_skills_commands,
@@ -192,17 +193,22 @@ def test_cli_record_list_show_export(
                  "--dataset-id", "ias/cli-v0", "--task", ENV_ID]) == 0  # fmt: skip
     assert str(tmp_path / "datasets" / "ias" / "cli-v0") in capsys.readouterr().out
 
-    # Errors: a message on stderr and exit code 1, no traceback.
-    assert _run(["skills", "show", "--db", db, "--id", "99"]) == 1
-    assert "no skill with id 99" in capsys.readouterr().err
+    # Errors: the package's own error type with the message (the ias-gym command prints
+    # it as one line).
+    with pytest.raises(IasGymError, match="no skill with id 99"):
+        _run(["skills", "show", "--db", db, "--id", "99"])
     bad = tmp_path / "bad.db"
     bad.write_bytes(b"\x00garbage" * 100)
-    assert _run(["skills", "list", "--db", str(bad)]) == 1
-    assert f"{bad} is not a skill database or is corrupt" in capsys.readouterr().err
-    assert _run(["skills", "record", "--env", ENV_ID, "--db", db, "--env-kwargs", "[1]"]) == 1
+    with pytest.raises(IasGymError, match=f"{bad} is not a skill database or is corrupt"):
+        _run(["skills", "list", "--db", str(bad)])
+    with pytest.raises(InputError, match="--env-kwargs must be a JSON object"):
+        _run(["skills", "record", "--env", ENV_ID, "--db", db, "--env-kwargs", "[1]"])
 
 
-@pytest.mark.parametrize("command", [[], ["record"], ["list"], ["show"], ["export"]])
+@pytest.mark.parametrize(
+    "command",
+    [[], ["record"], ["list"], ["show"], ["export"], ["check"], ["delete"], ["migrate"]],
+)
 def test_cli_help(command: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as done:
         _parser().parse_args(["skills", *command, "--help"])

@@ -40,6 +40,7 @@ from ias_gym.glove.hand import (
     hand_points,
     thumb_directions,
 )
+from ias_gym.glove.ids import check_id
 from ias_gym.glove.profile import ProfileError, load_profile, save_profile
 
 FloatArray = NDArray[np.float64]
@@ -237,10 +238,16 @@ def _cache_dir() -> Path:
 def default_calibration(person: PersonParams) -> Calibration:
     """The ANN calibration of a simulated ``person``, trained once and cached as a profile.
 
-    The profile lives in ``$XDG_CACHE_HOME/ias_gym/glove_profiles`` (``~/.cache/...``);
-    training (the first time) needs torch (the ``[glove]`` extra) and takes seconds.
+    The profile lives in ``$XDG_CACHE_HOME/ias_gym/glove_profiles`` (``~/.cache/...``) as
+    ``<person_id>-seed<seed>.json``; training (the first time) needs torch (the ``[glove]``
+    extra) and takes seconds.
+
+    Raises:
+        InputError: the person's id is not a valid id (it names the cache file; see
+            :func:`~ias_gym.glove.ids.check_id`), checked before any file is touched.
     """
-    path = _cache_dir() / f"{person.person_id}-seed{person.seed}.json"
+    name = f"{check_id(person.person_id, 'person_id')}-seed{int(person.seed)}.json"
+    path = _cache_dir() / name
     if path.exists():
         try:
             return load_profile(path, person_id=person.person_id).calibration
@@ -270,9 +277,15 @@ class GloveGraspConfig:
     effort_weight: float = 0.1  # weight of the action-effort penalty [-]
 
     def __post_init__(self) -> None:
+        # person_id names the cached profile file: checked before anything is built.
+        check_id(self.person_id, "person_id")
         if self.control_dt <= 0 or self.duration <= 0:
             raise ValueError("control_dt and duration must be positive [s]")
 
+
+#: ``info["fault"]`` when the calibration turns the glove's readings into NaN or inf (a
+#: broken calibration): the step keeps the last finite targets and ends the episode.
+NONFINITE_THETA_FAULT = "calibration gave non-finite joint angles (check the glove profile)"
 
 #: Reward term names (info keys ``reward_<name>``).
 REWARD_TERMS = ("lift", "pinch", "effort")
@@ -308,9 +321,14 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     Termination:
         terminated when the pen falls ``drop_height`` below its start or leaves
         ``max_distance`` of it; truncated at ``duration`` (also by the registered
-        ``max_episode_steps``) or when the glove reports a fault (``info["fault"]`` says
-        which, e.g. a CAN watchdog trip; ``""`` otherwise). ``info["is_success"]``: pen >=
-        ``lift_height`` above its start and touching neither the support nor the floor.
+        ``max_episode_steps``), when the glove reports a fault (``info["fault"]`` says
+        which, e.g. a CAN watchdog trip, or :data:`NONFINITE_THETA_FAULT` when the
+        calibration turns readings into NaN or inf, whose targets never reach MuJoCo: the
+        last finite ones are kept; ``""`` otherwise), or when the simulation diverges
+        (``info["sim_unstable"]``: MuJoCo raised a warning, e.g. a huge acceleration, or
+        the state is not finite; the state is then put back to the start, not
+        terminated). ``info["is_success"]``: pen >= ``lift_height`` above its start and
+        touching neither the support nor the floor.
 
     Force display: the contact forces of the pen on the index and thumb geoms, f [N], give
     ``tau = J^T f`` [N m] on the actuated joints (MuJoCo Jacobians at the contact points; the
@@ -399,6 +417,9 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self._thumb_geoms = {m.geom(n).id for n in THUMB_GEOMS}
         self._rest_geoms = {m.geom(n).id for n in SUPPORT_GEOMS}
         self._pen_start = np.zeros(3)
+        self._warnings = self.data.warning.number  # a view: MuJoCo's warning counters
+        self._unstable = False
+        self._fault = ""  # latched for the episode: a broken calibration stays broken
         self._jac = np.zeros((3, m.nv))
         self._force6 = np.zeros(6)
 
@@ -423,10 +444,30 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         glove.enable()
         return glove
 
-    def _read_theta(self) -> FloatArray:
+    def _read_theta(self, fallback: FloatArray) -> tuple[FloatArray, bool]:
+        """Calibrated joint angles Θ [rad] of a new reading, clipped to the joint ranges, and
+        whether the calibration gave finite numbers.
+
+        NaN passes ``np.clip`` and would reach MuJoCo's ``ctrl`` (which then warns and
+        zeroes it, so the hand goes limp without a word): non-finite entries are replaced
+        by ``fallback`` (the last finite targets) and reported.
+        """
         assert self.glove is not None
-        theta = self.calibration.predict(self.glove.read().psi)
-        return np.clip(np.asarray(theta, dtype=np.float64), JOINT_LOW, JOINT_HIGH)
+        theta = np.asarray(self.calibration.predict(self.glove.read().psi), dtype=np.float64)
+        finite = np.isfinite(theta)
+        ok = bool(finite.all())
+        if not ok:
+            theta = np.where(finite, theta, fallback)
+        return np.clip(theta, JOINT_LOW, JOINT_HIGH), ok
+
+    def _place_hand(self, theta: FloatArray) -> None:
+        """Reset MuJoCo's state: hand at ``theta`` [rad] and at rest, pen at its start."""
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        d.qpos[self._qadr] = theta
+        d.qpos[self._coupled_q] = THUMB_IP_RATIO_SHARE * theta[self._flex]
+        d.ctrl[self._act] = theta
+        mujoco.mj_forward(m, d)
 
     # ------------------------------------------------------------------ physics
     def _force_display(self) -> tuple[FloatArray, tuple[bool, bool], float, bool]:
@@ -484,6 +525,7 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         dz = float(self.data.xpos[self._pen_body][2] - self._pen_start[2])
         return {
             "fault": fault,
+            "sim_unstable": self._unstable,
             **{f"reward_{k}": v for k, v in terms.items()},
             "is_success": bool(dz >= self.config.lift_height and not rest),
             "pen_height": dz,
@@ -513,19 +555,18 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     ) -> tuple[FloatArray, dict[str, Any]]:
         super().reset(seed=seed)
         self.glove = self._open_glove(int(self.np_random.integers(2**31)))
-        m, d = self.model, self.data
-        mujoco.mj_resetData(m, d)
-        theta = self._theta = self._read_theta()
-        d.qpos[self._qadr] = theta
-        d.qpos[self._coupled_q] = THUMB_IP_RATIO_SHARE * theta[self._flex]
-        d.ctrl[self._act] = theta
-        mujoco.mj_forward(m, d)
-        self._pen_start = d.xpos[self._pen_body].copy()
+        rest_pose = np.clip(np.zeros(len(JOINT_NAMES)), JOINT_LOW, JOINT_HIGH)
+        theta, ok = self._read_theta(rest_pose)
+        self._theta = theta
+        self._fault = "" if ok else NONFINITE_THETA_FAULT  # the first step ends the episode
+        self._unstable = False
+        self._place_hand(theta)
+        self._pen_start = self.data.xpos[self._pen_body].copy()
         self._steps = 0
         self._feedback, self._touch, self._pinch_force, rest = self._force_display()
         self.glove.write_feedback(self._feedback)  # the force display starts with the episode
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
-        return self._observation(), self._info(terms, rest, "")
+        return self._observation(), self._info(terms, rest, self._fault)
 
     def step(self, action: NDArray[Any]) -> tuple[FloatArray, float, bool, bool, dict[str, Any]]:
         if self.glove is None:
@@ -538,12 +579,23 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         a = np.clip(a, -1.0, 1.0)
         # Low-pass the calibrated angles: the sensor noise, amplified by the calibration,
         # would shake the fingers at the glove's rate and shake the pen loose.
-        self._theta += self._alpha * (self._read_theta() - self._theta)
-        fault = self.glove.fault or ""
-        target = self._theta + self.config.action_scale * a
-        self.data.ctrl[self._act] = np.clip(target, self._ctrl_lo, self._ctrl_hi)
-        mujoco.mj_step(self.model, self.data, self.frame_skip)
+        theta, ok = self._read_theta(self._theta)
+        self._theta += self._alpha * (theta - self._theta)
+        if not ok and not self._fault:
+            self._fault = NONFINITE_THETA_FAULT
+        fault = self.glove.fault or self._fault
+        target = self._theta + self.config.action_scale * a  # finite: theta and a are
+        m, d = self.model, self.data
+        d.ctrl[self._act] = np.clip(target, self._ctrl_lo, self._ctrl_hi)
+        warnings_before = int(self._warnings.sum())
+        mujoco.mj_step(m, d, self.frame_skip)
         self._steps += 1
+        # A diverging simulation makes MuJoCo warn (and reset its data), as in the pen
+        # tasks (PenHandEnv.step); a state that is not finite is put back to the start.
+        finite = bool(np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all())
+        self._unstable = int(self._warnings.sum()) > warnings_before or not finite
+        if not finite:
+            self._place_hand(self._theta)
         self._feedback, self._touch, self._pinch_force, rest = self._force_display()
         self.glove.write_feedback(self._feedback)
 
@@ -551,10 +603,10 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         reward = float(sum(terms.values()))
         offset = self.data.xpos[self._pen_body] - self._pen_start
         cfg = self.config
-        terminated = bool(
+        terminated = not self._unstable and bool(
             offset[2] < -cfg.drop_height or float(np.linalg.norm(offset)) > cfg.max_distance
         )
-        truncated = self._steps >= self.max_steps or bool(fault)
+        truncated = self._steps >= self.max_steps or bool(fault) or self._unstable
         return self._observation(), reward, terminated, truncated, self._info(terms, rest, fault)
 
     def render(self) -> NDArray[np.uint8] | None:

@@ -13,6 +13,8 @@
 - :mod:`~ias_gym.glove.device`: the :class:`GloveDevice` interface, :class:`SimulatedGlove`
   and the scripted operator :class:`ReachPinchLift`.
 - :mod:`~ias_gym.glove.commands`: ``ias-gym calibrate``.
+- :mod:`~ias_gym.glove.ids`: :func:`check_id`, the one rule for person and glove ids
+  (they name files).
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ from ias_gym.glove.hand import (
     fingertip_gap,
     hand_points,
 )
+from ias_gym.glove.ids import check_id
 from ias_gym.glove.profile import Profile, ProfileError, load_profile, save_profile
 from ias_gym.glove.sensor_model import (
     NOISE_STD,
@@ -105,6 +108,7 @@ __all__ = [
     "TrainingReport",
     "add_glove_commands",
     "calibrate_person",
+    "check_id",
     "evaluate",
     "fingertip_gap",
     "fit_linear",

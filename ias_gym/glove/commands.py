@@ -2,7 +2,7 @@
 
 :func:`add_glove_commands` adds ``calibrate`` to the ``ias-gym`` parser's sub-commands::
 
-    ias-gym calibrate --person ID [--seed S] --out DIR [--json]
+    ias-gym calibrate --person ID [--seed S] --out DIR [--json] [--overwrite [--force]]
 
 It records a simulated calibration session for person ID (:class:`PersonParams` sampled from
 the id), trains the calibration (:func:`~ias_gym.glove.training.calibrate_person`), writes
@@ -13,6 +13,16 @@ against (a) the linear calibration and (b) the ANN), and prints the held-out err
 RMS over all joints), ``ann_pinch_rms_deg``, ``linear_pinch_rms_deg`` (pinch poses),
 ``ann_pinch_gap_mm``, ``linear_pinch_gap_mm`` (fingertip gap error in pinch), and more.
 Torch and matplotlib are imported when the command runs, so ``--help`` stays fast.
+
+Nothing is overwritten silently: if the profile or the figure exists, the command refuses
+unless ``--overwrite``; even then it keeps an existing profile whose held-out joint RMS
+error is lower than the new one's (each measured on its own held-out readings) unless
+``--force``. Ids follow :func:`~ias_gym.glove.ids.check_id`; ``--readings``,
+``--max-iter`` and ``--seed`` must lie in the ranges of :data:`MIN_READINGS` ...
+:data:`MAX_SEED` (``--max-iter 0`` would write an untrained profile, about 4x worse than the
+linear one). Errors raise :class:`~ias_gym.errors.InputError` (the ``ias-gym`` command
+prints one line) before any training or writing, except the better-profile check, which
+needs the new error.
 """
 
 from __future__ import annotations
@@ -20,28 +30,36 @@ from __future__ import annotations
 import argparse
 import io
 import json
-import re
+import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ias_gym.errors import IasGymError, InputError
 from ias_gym.glove.calibration import DEFAULT_MAX_ITER, DEFAULT_READINGS
 from ias_gym.glove.hand import JOINT_NAMES, PersonParams, hand_points
-from ias_gym.glove.profile import DEFAULT_GLOVE_ID, save_profile, write_bytes_atomic
+from ias_gym.glove.ids import ID_RULE, check_id
+from ias_gym.glove.profile import (
+    DEFAULT_GLOVE_ID,
+    Profile,
+    ProfileError,
+    load_profile,
+    save_profile,
+    write_bytes_atomic,
+)
 
 if TYPE_CHECKING:
     from ias_gym.glove.training import CalibrationRun
 
-#: Exit code of a handled error.
-EXIT_ERROR = 1
-_ID_PATTERN = re.compile(r"^[A-Za-z0-9_.-]{1,64}$")
-
-
-def _fail(message: str) -> int:
-    print(f"error: {message}", file=sys.stderr)
-    return EXIT_ERROR
+#: Accepted ``--readings``: fewer leave too few held-out pinch poses for the figure; more
+#: than a million is not a calibration session (memory and hours of training).
+MIN_READINGS, MAX_READINGS = 100, 1_000_000
+#: Accepted ``--max-iter`` (L-BFGS iterations per network): 0 would save untrained weights.
+MAX_ITER = 100_000
+#: Largest ``--seed`` (numpy seeds are non-negative).
+MAX_SEED = 2**32 - 1
 
 
 def pick_pinch_pose(run: CalibrationRun) -> int:
@@ -147,30 +165,76 @@ def calibration_summary(run: CalibrationRun) -> dict[str, Any]:
     return summary
 
 
+def _check_range(name: str, value: int, low: int, high: int) -> int:
+    if not low <= value <= high:
+        raise InputError(f"{name} must be in [{low}, {high}], got {value}")
+    return value
+
+
+def _writable_dir(out: Path) -> None:
+    """Refuse an output folder that is a file or cannot be created or written."""
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out} is a file, not a folder; pass a folder")
+    existing = out
+    while not existing.exists():  # the folder is created; its nearest parent must allow it
+        existing = existing.parent
+    if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(f"--out {out}: cannot write in {existing}; pass a writable folder")
+
+
+def _existing_profile(path: Path) -> Profile | None:
+    """The profile at ``path``, or None if it cannot be read as one (nothing to keep)."""
+    try:
+        return load_profile(path)
+    except ProfileError as exc:
+        print(f"note: replacing {path}, which is not a usable profile ({exc})", file=sys.stderr)
+        return None
+
+
 def _calibrate(args: argparse.Namespace) -> int:
-    if not _ID_PATTERN.match(args.person):
-        return _fail(f"--person must be 1-64 letters, digits, '.', '_' or '-', got {args.person!r}")
-    if args.readings < 100:
-        return _fail(f"--readings must be at least 100, got {args.readings}")
+    person_id = check_id(args.person, "--person")
+    glove_id = check_id(args.glove_id, "--glove-id")
+    _check_range("--readings", args.readings, MIN_READINGS, MAX_READINGS)
+    _check_range("--max-iter", args.max_iter, 1, MAX_ITER)
+    _check_range("--seed", args.seed, 0, MAX_SEED)
+    out = Path(args.out)
+    _writable_dir(out)
+    profile_target = out / f"profile_{person_id}.json"
+    figure_target = out / f"calibration_{person_id}.png"
+    overwrite = args.overwrite or args.force
+    existing = [p for p in (profile_target, figure_target) if p.exists()]
+    if existing and not overwrite:
+        raise InputError(
+            f"{', '.join(map(str, existing))} exist(s) already; pass --overwrite to replace "
+            "(a profile with a lower held-out error than the new one is still kept unless "
+            "--force), or choose another --out"
+        )
+    previous = _existing_profile(profile_target) if profile_target.exists() else None
     try:
         from ias_gym.glove.calibration import metrics_table
         from ias_gym.glove.training import calibrate_person
     except ImportError as exc:
-        return _fail(str(exc))
-    out = Path(args.out)
-    person = PersonParams.sample(args.person)
+        raise IasGymError(str(exc)) from exc
+    person = PersonParams.sample(person_id)
     run = calibrate_person(
         person,
         seed=args.seed,
         n_readings=args.readings,
-        glove_id=args.glove_id,
+        glove_id=glove_id,
         max_iter=args.max_iter,
     )
+    new_error = run.profile.held_out.rms_deg
+    if previous is not None and previous.held_out.rms_deg < new_error and not args.force:
+        raise InputError(
+            f"kept {profile_target}: its held-out joint RMS {previous.held_out.rms_deg:.3f} deg "
+            f"is better than the new calibration's {new_error:.3f} deg; pass --force to "
+            "replace it anyway, or choose another --out"
+        )
     try:
-        profile_path = save_profile(run.profile, out / f"profile_{args.person}.json")
-        figure_path = plot_pinch_calibration(run, out / f"calibration_{args.person}.png")
+        profile_path = save_profile(run.profile, profile_target)
+        figure_path = plot_pinch_calibration(run, figure_target)
     except OSError as exc:
-        return _fail(f"cannot write to {out}: {exc}")
+        raise InputError(f"cannot write to {out}: {exc}") from exc
     held = run.metrics["ann"]
     print(
         f"person {person.person_id}: hand scale {person.hand_scale:.3f}, "
@@ -185,6 +249,11 @@ def _calibrate(args: argparse.Namespace) -> int:
     }
     print("held-out errors:")
     print(metrics_table({labels[k]: v for k, v in run.metrics.items()}))
+    if previous is not None:
+        print(
+            f"replaced a profile with held-out joint RMS {previous.held_out.rms_deg:.3f} deg "
+            f"by one with {new_error:.3f} deg"
+        )
     print(f"wrote profile {profile_path}")
     print(f"wrote figure {figure_path}")
     if args.json:
@@ -193,38 +262,68 @@ def _calibrate(args: argparse.Namespace) -> int:
 
 
 def add_glove_commands(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """Add ``calibrate`` to the ``ias-gym`` sub-commands (``parser.add_subparsers()``)."""
+    """Add ``calibrate`` to the ``ias-gym`` sub-commands (``parser.add_subparsers()``).
+
+    Args:
+        subparsers: the object ``parser.add_subparsers(...)`` returned; the parser sets
+            ``run`` (``args -> exit code``, raising :class:`~ias_gym.errors.IasGymError` on
+            an error) as its default.
+    """
     calibrate = subparsers.add_parser(
         "calibrate",
         help="calibrate the sensor glove for a (simulated) person: profile + Fig. 7",
         description="Record a simulated calibration session for a person, train the "
         "calibration Θ = f(Ψ) (eq. 1; ANN and the linear baseline), write "
         "DIR/profile_ID.json and DIR/calibration_ID.png (Fig. 7: a pinch pose, truth vs "
-        "linear vs ANN) and print the held-out errors.",
+        "linear vs ANN) and print the held-out errors. Existing files are never replaced "
+        "silently: see --overwrite and --force.",
     )
-    calibrate.add_argument("--person", required=True, metavar="ID", help="person id, e.g. p1")
     calibrate.add_argument(
-        "--seed", type=int, default=0, metavar="S", help="seeds the session, split and training"
+        "--person", required=True, metavar="ID", help=f"person id, e.g. p1 ({ID_RULE})"
+    )
+    calibrate.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        metavar="S",
+        help=f"seeds the session, split and training, 0 to {MAX_SEED} (default: 0)",
     )
     calibrate.add_argument("--out", required=True, metavar="DIR", help="output directory")
     calibrate.add_argument(
         "--json", action="store_true", help="print one JSON object as the last line"
     )
     calibrate.add_argument(
-        "--glove-id", default=DEFAULT_GLOVE_ID, metavar="ID", help="glove id stored in the profile"
+        "--glove-id",
+        default=DEFAULT_GLOVE_ID,
+        metavar="ID",
+        help=f"glove id stored in the profile, same rule as --person (default: {DEFAULT_GLOVE_ID})",
     )
     calibrate.add_argument(
         "--readings",
         type=int,
         default=DEFAULT_READINGS,
         metavar="N",
-        help="readings in the session (20%% held out)",
+        help=f"readings in the session, 20%% held out; {MIN_READINGS} to {MAX_READINGS} "
+        f"(default: {DEFAULT_READINGS})",
     )
     calibrate.add_argument(
         "--max-iter",
         type=int,
         default=DEFAULT_MAX_ITER,
         metavar="N",
-        help="L-BFGS iterations per network",
+        help=f"L-BFGS iterations per network, 1 to {MAX_ITER} (default: {DEFAULT_MAX_ITER})",
+    )
+    calibrate.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an existing profile_ID.json / calibration_ID.png in DIR, but keep a "
+        "profile whose held-out joint RMS error is lower than the new one's (then nothing "
+        "is written and the command fails)",
+    )
+    calibrate.add_argument(
+        "--force",
+        action="store_true",
+        help="with or without --overwrite: replace the files even if the existing profile "
+        "has a lower held-out error",
     )
     calibrate.set_defaults(run=_calibrate)

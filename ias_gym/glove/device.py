@@ -44,6 +44,7 @@ from ias_gym.glove.hand import (
     PersonParams,
     joint_index,
 )
+from ias_gym.glove.ids import check_id
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.glove.sensor_model import index_pinch_angles, sensor_readings
 
@@ -153,8 +154,13 @@ class SimulatedGlove(GloveDevice):
         operator: intended joint angles Θ(t) [rad], t [s].
         seed: seeds the sensor noise.
         rate_hz: sample rate [Hz]; the k-th read is at t = k / rate_hz.
-        glove_id: the glove's id (profiles are checked against it).
+        glove_id: the glove's id (profiles are checked against it; the rule of
+            :func:`~ias_gym.glove.ids.check_id`).
         noise: add sensor noise (False: the noise-free g_person(Θ)).
+
+    Raises:
+        ValueError: ``rate_hz`` is not positive.
+        InputError: ``glove_id`` is not a valid id.
     """
 
     def __init__(
@@ -172,7 +178,7 @@ class SimulatedGlove(GloveDevice):
         self.person = person
         self.operator = operator
         self.rate_hz = float(rate_hz)
-        self.glove_id = glove_id
+        self.glove_id = check_id(glove_id, "glove_id")
         self._rng = np.random.default_rng(seed) if noise else None
         self._k = 0
         self._last_read_time = 0.0

@@ -34,6 +34,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ias_gym.glove.ids import check_id
+
 #: The joint angles Θ of the hand model, in this order (paper 2.3) [rad].
 JOINT_NAMES: tuple[str, ...] = (
     "wrist_flexion",  # + flexion, - extension
@@ -190,6 +192,8 @@ class PersonParams:
     push_thumb: float
 
     def __post_init__(self) -> None:
+        # The id names this person's profile files: one rule for every id (glove.ids).
+        check_id(self.person_id, "person_id")
         for name in ("gains", "offsets"):
             value = getattr(self, name)
             if len(value) != N_SENSORS:
@@ -225,8 +229,12 @@ class PersonParams:
 
     @classmethod
     def sample(cls, person_id: str, seed: int = 0) -> PersonParams:
-        """Sample a person's parameters, reproducibly from ``(person_id, seed)``."""
-        rng = _person_rng(person_id, seed)
+        """Sample a person's parameters, reproducibly from ``(person_id, seed)``.
+
+        Raises:
+            InputError: ``person_id`` is not a valid id (:func:`~ias_gym.glove.ids.check_id`).
+        """
+        rng = _person_rng(check_id(person_id, "person_id"), seed)
         s = float(rng.uniform(0.85, 1.15))
 
         def lengths(nominal: tuple[float, float, float]) -> tuple[float, float, float]:

@@ -24,6 +24,13 @@ folder, fsyncs it and renames it over the target (``os.replace``), so a reader n
 a profile. :func:`load_profile` raises :class:`ProfileError` naming what is wrong (missing,
 truncated, not JSON, wrong schema, bad arrays, another glove, another reading count) and
 what to do about it.
+
+Numbers a trained calibration cannot hold are refused on load, naming the array: NaN and
+inf (also ``1e309``, which JSON parsers read as inf), any weight, bias or mean beyond
++-:data:`MAX_PARAMETER`, and normalisation scales below :data:`MIN_SCALE` (dividing by one
+is a weight beyond that bound). Such a profile would drive the hand with overflowing,
+NaN joint angles. Person and glove ids must follow :func:`~ias_gym.glove.ids.check_id`
+(they name files), on load and when a :class:`Profile` is made.
 """
 
 from __future__ import annotations
@@ -41,9 +48,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ias_gym.errors import IasGymError
+from ias_gym.errors import IasGymError, InputError
 from ias_gym.glove.calibration import Calibration, CalibrationMetrics, GroupModel
 from ias_gym.glove.hand import JOINT_NAMES, N_SENSORS, SENSOR_NAMES
+from ias_gym.glove.ids import check_id
 
 FORMAT = "ias-gym/glove-profile"
 SCHEMA_VERSION = 1
@@ -51,6 +59,11 @@ SCHEMA_VERSION = 1
 MAX_PROFILE_BYTES = 16 * 1024 * 1024
 #: The glove id of :class:`~ias_gym.glove.device.SimulatedGlove` unless told otherwise.
 DEFAULT_GLOVE_ID = "sim-glove-0"
+#: Largest |weight|, |bias| or |mean| a profile may hold (normalised units; [rad] for the
+#: means). Trained ones stay below 1e2 (weight decay, z-scored data); 1e6 leaves room.
+MAX_PARAMETER = 1e6
+#: Smallest normalisation scale [rad] (training uses 1 for a constant column).
+MIN_SCALE = 1e-9
 
 _REMEDY = "re-run `ias-gym calibrate --person ID --out DIR` to write a new profile"
 
@@ -75,6 +88,10 @@ class Profile:
         held_out: errors on the held-out readings of the calibration session.
         created: UTC ISO 8601 time stamp.
         training: free-form JSON-able facts about the training (seed, readings, seconds).
+
+    Raises:
+        InputError: ``person_id`` or ``glove_id`` is not a valid id
+            (:func:`~ias_gym.glove.ids.check_id`).
     """
 
     person_id: str
@@ -83,6 +100,11 @@ class Profile:
     held_out: CalibrationMetrics
     created: str = field(default_factory=utc_now)
     training: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        # The ids end up in file names (profile_<person>.json): never save a hostile one.
+        check_id(self.person_id, "person_id")
+        check_id(self.glove_id, "glove_id")
 
     @property
     def model_kind(self) -> str:
@@ -177,7 +199,12 @@ class _Checker:
             raise self.fail(f"{where}.{key} must be a list of strings")
         return tuple(value)
 
-    def array(self, value: Any, ndim: int, where: str) -> NDArray[np.float64]:
+    def array(
+        self, value: Any, ndim: int, where: str, *, scale: bool = False
+    ) -> NDArray[np.float64]:
+        """``value`` as a float array: ``ndim``-D, finite, |x| <= MAX_PARAMETER, and for a
+        normalisation ``scale`` >= MIN_SCALE."""
+
         def ok(v: Any, depth: int) -> bool:
             if depth == 0:
                 return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
@@ -186,9 +213,21 @@ class _Checker:
         if not ok(value, ndim):
             raise self.fail(f"{where} must be a {ndim}-D list of finite numbers")
         try:
-            return np.array(value, dtype=np.float64)
+            out = np.array(value, dtype=np.float64)
         except ValueError:  # ragged rows
             raise self.fail(f"{where} has rows of different lengths") from None
+        if out.size and float(np.abs(out).max()) > MAX_PARAMETER:
+            raise self.fail(
+                f"{where} holds {float(out.flat[np.argmax(np.abs(out))]):.6g}, beyond "
+                f"+-{MAX_PARAMETER:g}: not a trained calibration (its joint angles would "
+                "overflow)"
+            )
+        if scale and out.size and float(out.min()) < MIN_SCALE:
+            raise self.fail(
+                f"{where} holds {float(out.min()):.6g}, below {MIN_SCALE:g}: not a trained "
+                "calibration (dividing by it overflows the joint angles)"
+            )
+        return out
 
 
 def _parse_group(c: _Checker, g: Any, k: int) -> GroupModel:
@@ -214,13 +253,20 @@ def _parse_group(c: _Checker, g: Any, k: int) -> GroupModel:
             inputs=c.strings(g, "inputs", where),
             outputs=c.strings(g, "outputs", where),
             x_mean=c.array(c.get(g, "x_mean", list, where), 1, f"{where}.x_mean"),
-            x_scale=c.array(c.get(g, "x_scale", list, where), 1, f"{where}.x_scale"),
+            x_scale=c.array(c.get(g, "x_scale", list, where), 1, f"{where}.x_scale", scale=True),
             y_mean=c.array(c.get(g, "y_mean", list, where), 1, f"{where}.y_mean"),
-            y_scale=c.array(c.get(g, "y_scale", list, where), 1, f"{where}.y_scale"),
+            y_scale=c.array(c.get(g, "y_scale", list, where), 1, f"{where}.y_scale", scale=True),
             layers=tuple(layers),
         )
     except (ValueError, KeyError) as exc:
         raise c.fail(f"{where} is not a valid model: {exc}") from None
+
+
+def _checked_id(c: _Checker, value: str, what: str) -> str:
+    try:
+        return check_id(value, what)
+    except InputError as exc:
+        raise c.fail(str(exc)) from None
 
 
 def profile_from_json_dict(
@@ -244,13 +290,13 @@ def profile_from_json_dict(
             f"schema version {version}, this ias-gym reads version {SCHEMA_VERSION}",
             "upgrade ias-gym to read it" if newer else _REMEDY,
         )
-    file_glove = c.get(data, "glove_id", str, "profile")
+    file_glove = _checked_id(c, c.get(data, "glove_id", str, "profile"), "glove_id")
     if glove_id is not None and file_glove != glove_id:
         raise c.fail(
             f"made for glove {file_glove!r}, not for this glove {glove_id!r}",
             f"calibrate this person on glove {glove_id!r} (a profile fits one glove)",
         )
-    file_person = c.get(data, "person_id", str, "profile")
+    file_person = _checked_id(c, c.get(data, "person_id", str, "profile"), "person_id")
     if person_id is not None and file_person != person_id:
         raise c.fail(
             f"belongs to person {file_person!r}, not {person_id!r}", "load their own profile"
@@ -308,7 +354,9 @@ def load_profile(
 
     Raises:
         ProfileError: missing, unreadable, truncated or malformed file, unknown schema
-            version, or a profile for another glove, person or reading count.
+            version, non-finite or absurd numbers (the message names the array), an
+            invalid person or glove id, or a profile for another glove, person or reading
+            count.
     """
     p = Path(path)
     c = _Checker(p)

@@ -6,16 +6,18 @@
 - :func:`record_skills` rolls out a policy on a pen task, or records glove sessions of
   ``IAS-GloveGrasp-v0`` (policy ``teleop``), and stores every episode.
 - :func:`export_minari` writes the demonstrations of a task as a Minari dataset (no jax).
-- :func:`add_skills_commands` adds ``ias-gym skills record|list|show|export``.
+- :func:`add_skills_commands` adds ``ias-gym skills record|list|show|export|check|delete|
+  migrate``; :func:`check_database` verifies every skill's checksums.
 """
 
-from ias_gym.skills.commands import add_skills_commands
+from ias_gym.skills.commands import add_skills_commands, check_database
 from ias_gym.skills.db import (
     SCHEMA_VERSION,
     SkillDB,
     SkillDBError,
     SkillNotFoundError,
     SkillSummary,
+    array_checksum,
 )
 from ias_gym.skills.glove_session import (
     GloveSkillModelRecorder,
@@ -46,6 +48,8 @@ __all__ = [
     "SkillSampler",
     "SkillSummary",
     "add_skills_commands",
+    "array_checksum",
+    "check_database",
     "export_minari",
     "glove_session_source",
     "policy_source",

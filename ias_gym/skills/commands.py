@@ -1,51 +1,56 @@
-"""The ``ias-gym skills`` command group: record, list, show and export skills.
+"""The ``ias-gym skills`` command group: record, list, show, export, check, delete, migrate.
 
 :func:`add_skills_commands` adds the group to the ``ias-gym`` parser's sub-commands; each
-handler takes the parsed arguments and returns an exit code (0 ok, 1 an error whose message
-went to stderr). Handlers import what they need when they run, so ``--help`` stays fast.
+handler takes the parsed arguments and returns an exit code (0 ok; ``check``: 2 when a skill
+is corrupt). An error raises :class:`~ias_gym.errors.IasGymError` (bad input:
+:class:`~ias_gym.errors.InputError`), which the ``ias-gym`` command prints as one line.
+Handlers import what they need when they run, so ``--help`` stays fast.
+
+``list``, ``show``, ``export`` and ``check`` open the database read-only
+(``SkillDB(path, readonly=True)``): they never create a file or a folder, and refuse a
+missing path or an empty file. ``delete`` and ``migrate`` open an existing database for
+writing; only ``record`` creates one.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-#: Exit code of a handled error (bad database, unknown id, bad arguments).
-EXIT_ERROR = 1
+from ias_gym.errors import IasGymError, InputError
+
+#: Exit code of ``skills check`` when a skill is corrupt.
+EXIT_CORRUPT = 2
 
 
-def _fail(message: str) -> int:
-    print(f"error: {message}", file=sys.stderr)
-    return EXIT_ERROR
+@contextmanager
+def _as_package_errors() -> Iterator[None]:
+    """Re-raise the library's other expected errors as :class:`IasGymError` (one line).
 
-
-def _expected_errors() -> tuple[type[BaseException], ...]:
-    from ias_gym.hardware.can_glove import GloveTimeoutError  # a CAN glove that is silent
-    from ias_gym.skills.db import SkillDBError
-
-    return (
-        SkillDBError,
-        ValueError,
-        FileNotFoundError,
-        FileExistsError,
-        ImportError,
-        GloveTimeoutError,
-    )
+    ValueError (bad arguments, a policy that does not fit the env), FileNotFoundError and
+    FileExistsError become :class:`InputError`; ImportError (a missing extra) an
+    IasGymError with the install hint. The package's own errors pass unchanged.
+    """
+    try:
+        yield
+    except IasGymError:
+        raise
+    except (ValueError, FileNotFoundError, FileExistsError) as exc:
+        raise InputError(str(exc)) from exc
+    except ImportError as exc:
+        raise IasGymError(str(exc)) from exc
 
 
 def _record(args: argparse.Namespace) -> int:
     from ias_gym.cli import parse_env_kwargs
     from ias_gym.skills.record import record_skills
 
-    try:
+    with _as_package_errors():
         env_kwargs = parse_env_kwargs(args.env_kwargs)
-    except ValueError as exc:
-        return _fail(str(exc))
-
-    try:
         ids = record_skills(
             args.env,
             args.policy,
@@ -56,8 +61,6 @@ def _record(args: argparse.Namespace) -> int:
             env_kwargs=env_kwargs,
             person_id=args.person,
         )
-    except _expected_errors() as exc:
-        return _fail(str(exc))
     print(f"stored {len(ids)} skills (ids {', '.join(map(str, ids))}) in {args.db}")
     return 0
 
@@ -66,11 +69,8 @@ def _list(args: argparse.Namespace) -> int:
     from ias_gym.skills.db import SkillDB
 
     success = True if args.success_only else None
-    try:
-        with SkillDB(args.db) as db:
-            skills = db.list_skills(task=args.task, success=success)
-    except _expected_errors() as exc:
-        return _fail(str(exc))
+    with SkillDB(args.db, readonly=True) as db:
+        skills = db.list_skills(task=args.task, success=success)
     if args.json:
         keys = ("id", "name", "task", "source", "is_success", "return", "length", "created")
         print(json.dumps([{k: s.to_dict()[k] for k in keys} for s in skills]))
@@ -92,12 +92,9 @@ def _list(args: argparse.Namespace) -> int:
 def _show(args: argparse.Namespace) -> int:
     from ias_gym.skills.db import SkillDB
 
-    try:
-        with SkillDB(args.db) as db:
-            skill = db.get(args.id)
-            summary = db.summary(args.id)
-    except _expected_errors() as exc:
-        return _fail(str(exc))
+    with SkillDB(args.db, readonly=True) as db:
+        skill = db.get(args.id)
+        summary = db.summary(args.id)
     info: dict[str, Any] = summary.to_dict()
     info["model"] = skill.model.summary()
     info["observation_shape"] = list(skill.demonstration.observations.shape)
@@ -152,18 +149,87 @@ def _spans(intervals: list[list[float]]) -> str:
 def _export(args: argparse.Namespace) -> int:
     from ias_gym.skills.minari_export import export_minari
 
-    try:
+    with _as_package_errors():
         path = export_minari(
             args.db, args.dataset_id, task=args.task, success_only=args.success_only
         )
-    except _expected_errors() as exc:
-        return _fail(str(exc))
     print(f"wrote Minari dataset {args.dataset_id} to {path}")
     return 0
 
 
+def check_database(path: str | Path, report: Callable[[int, str | None], None]) -> int:
+    """Verify every skill of the database at ``path`` (read-only): SQLite's integrity
+    check, then every array of every skill against its checksum
+    (:meth:`~ias_gym.skills.db.SkillDB.check_skill`).
+
+    Args:
+        path: the database file.
+        report: called per skill with its id and ``None`` (fine) or the problem found.
+
+    Returns:
+        The number of skills with a problem.
+
+    Raises:
+        SkillDBError: the file is missing, empty, not a skill database, or damaged beyond
+            single skills (``PRAGMA integrity_check`` fails; the message has its findings).
+    """
+    from ias_gym.skills.db import SkillDB, SkillDBError
+
+    bad = 0
+    with SkillDB(path, readonly=True) as db:
+        db.integrity_check()
+        for skill_id in db.ids():
+            try:
+                db.check_skill(skill_id)
+            except SkillDBError as exc:
+                bad += 1
+                report(skill_id, str(exc))
+            else:
+                report(skill_id, None)
+    return bad
+
+
+def _check(args: argparse.Namespace) -> int:
+    def report(skill_id: int, problem: str | None) -> None:
+        if args.json:
+            print(json.dumps({"id": skill_id, "ok": problem is None, "error": problem}))
+        else:
+            print(f"skill {skill_id}: {'OK' if problem is None else problem}", flush=True)
+
+    bad = check_database(args.db, report)
+    if not args.json:
+        verdict = "all OK" if bad == 0 else f"{bad} corrupt"
+        print(f"checked {args.db}: {verdict}")
+    return EXIT_CORRUPT if bad else 0
+
+
+def _delete(args: argparse.Namespace) -> int:
+    from ias_gym.skills.db import SkillDB
+
+    with SkillDB(args.db, create=False) as db:
+        name = db.delete(args.id)
+        left = len(db)
+    print(f"deleted skill {args.id} ({name}) from {args.db}; {left} skills left")
+    return 0
+
+
+def _migrate(args: argparse.Namespace) -> int:
+    from ias_gym.skills.db import SCHEMA_VERSION, SkillDB
+
+    with SkillDB(args.db, readonly=True) as db:  # read the version without changing it
+        before = db.schema_version
+    if before == SCHEMA_VERSION:
+        print(f"{args.db} is at schema version {SCHEMA_VERSION}; nothing to do")
+        return 0
+    with SkillDB(args.db, create=False) as db:  # opening for writing migrates
+        after, count = db.schema_version, len(db)
+    print(f"migrated {args.db} from schema version {before} to {after} ({count} skills)")
+    return 0
+
+
 def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse.ArgumentParser:
-    """Add ``skills`` with its sub-commands ``record``, ``list``, ``show``, ``export``.
+    """Add ``skills`` with its sub-commands ``record``, ``list``, ``show``, ``export``,
+    ``check``, ``delete`` and ``migrate``.
 
     Args:
         subparsers: the object ``parser.add_subparsers(...)`` returned; each leaf parser
@@ -176,14 +242,14 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
 
     skills = subparsers.add_parser(
         "skills",
-        help="the skill database: record, list, show and export skills",
+        help="the skill database: record, list, show, export, check and delete skills",
         description="Skills (paper sec. 3: contact schedule, object trajectory and the "
         "internal forces of G(t)) with their demonstrations, in an SQLite file.",
     )
     commands = skills.add_subparsers(dest="skills_command", metavar="SUBCOMMAND", required=True)
 
-    def db_argument(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--db", required=True, metavar="PATH", help="skill database file")
+    def db_argument(p: argparse.ArgumentParser, what: str = "an existing skill database") -> None:
+        p.add_argument("--db", required=True, metavar="PATH", help=f"{what} (required)")
 
     record = commands.add_parser(
         "record",
@@ -200,17 +266,22 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
         default="expert",
         metavar="expert|teleop|random|PATH",
         help="the grip-transform expert (pen tasks), teleop (glove envs: zero action, a glove "
-        "session), uniform random actions, or a saved SB3 model (.zip)",
+        "session), uniform random actions, or a saved SB3 model (.zip) (default: expert)",
     )
-    record.add_argument("--episodes", type=int, default=1, metavar="N", help="default 1")
-    db_argument(record)
-    record.add_argument("--seed", type=int, default=0, metavar="S", help="first seed (0)")
+    record.add_argument(
+        "--episodes", type=int, default=1, metavar="N", help="episodes to record (default: 1)"
+    )
+    db_argument(record, "skill database file, created with its folder if missing")
+    record.add_argument(
+        "--seed", type=int, default=0, metavar="S", help="seed of the first episode (default: 0)"
+    )
     env_kwargs_argument(record)
     record.add_argument(
         "--person",
         metavar="ID",
-        help="person id stored with the skills (glove envs: the env's person, the default; "
-        "choose it with --env-kwargs '{\"person_id\": ...}')",
+        help="person id stored with the skills: letters, digits, '.', '_', '-' (glove envs: "
+        "the env's person, the default; choose it with --env-kwargs "
+        "'{\"person_id\": ...}') (default: none)",
     )
     record.add_argument("--no-progress", action="store_true", help="no progress bar")
     record.set_defaults(run=_record)
@@ -219,10 +290,11 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
         "list",
         help="list the stored skills",
         description="One line per skill, or with --json one JSON list (id, name, task, "
-        "source, is_success, return, length, created) on the last line.",
+        "source, is_success, return, length, created) on the last line. Opens the database "
+        "read-only: a missing or empty file is an error, nothing is created.",
     )
     db_argument(listing)
-    listing.add_argument("--task", metavar="ID", help="only skills of this env id")
+    listing.add_argument("--task", metavar="ID", help="only skills of this env id (default: all)")
     listing.add_argument("--success-only", action="store_true", help="only successful skills")
     listing.add_argument("--json", action="store_true", help="print one JSON list")
     listing.set_defaults(run=_list)
@@ -231,10 +303,11 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
         "show",
         help="summarise one skill's model",
         description="Provenance, duration, contact schedule per finger, internal-force "
-        "ranges f_int = N^T c and |c_h|, pen excursion.",
+        "ranges f_int = N^T c and |c_h|, pen excursion. Opens the database read-only and "
+        "verifies the skill's checksums.",
     )
     db_argument(show)
-    show.add_argument("--id", required=True, type=int, metavar="N", help="skill id")
+    show.add_argument("--id", required=True, type=int, metavar="N", help="skill id (required)")
     show.add_argument("--json", action="store_true", help="print one JSON object")
     show.set_defaults(run=_show)
 
@@ -242,11 +315,12 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
         "export",
         help="export demonstrations as a dataset (Minari)",
         description="Write the demonstrations of one task as a Minari dataset under "
-        "MINARI_DATASETS_PATH (default ~/.minari/datasets); needs the [datasets] extra.",
+        "MINARI_DATASETS_PATH (default ~/.minari/datasets); needs the [datasets] extra. "
+        "Opens the database read-only and verifies every exported skill's checksums.",
     )
     db_argument(export)
     export.add_argument(
-        "--format", choices=("minari",), default="minari", help="dataset format (minari)"
+        "--format", choices=("minari",), default="minari", help="dataset format (default: minari)"
     )
     export.add_argument(
         "--dataset-id",
@@ -254,7 +328,43 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
         metavar="ID",
         help="Minari id (namespace/)name-v<version>, e.g. ias/pen-rotate-expert-v0",
     )
-    export.add_argument("--task", metavar="ID", help="only skills of this env id")
+    export.add_argument(
+        "--task", metavar="ID", help="only skills of this env id (default: the only task there)"
+    )
     export.add_argument("--success-only", action="store_true", help="only successful skills")
     export.set_defaults(run=_export)
+
+    check = commands.add_parser(
+        "check",
+        help="verify every array of every skill against its checksum",
+        description="Run SQLite's integrity check, then load every skill read-only and "
+        "verify each stored array against its SHA-256 checksum, completeness and "
+        "consistency. Prints one line per skill (OK or the problem), or with --json one "
+        "JSON object per line ({id, ok, error}). Exit code 0 if all are fine, 2 if any "
+        "skill is corrupt (remove it with `skills delete` or restore a backup).",
+    )
+    db_argument(check)
+    check.add_argument("--json", action="store_true", help="one JSON object per skill and line")
+    check.set_defaults(run=_check)
+
+    delete = commands.add_parser(
+        "delete",
+        help="delete one skill (also an incomplete or corrupt one)",
+        description="Remove a skill and all its arrays in one transaction. An unknown id "
+        "is an error listing the ids there are.",
+    )
+    db_argument(delete)
+    delete.add_argument("--id", required=True, type=int, metavar="N", help="skill id (required)")
+    delete.set_defaults(run=_delete)
+
+    migrate = commands.add_parser(
+        "migrate",
+        help="bring an older database to this schema version (adds checksums)",
+        description="Open an existing database for writing, which migrates it: schema "
+        "version 1 gets the SHA-256 checksum of every stored array, computed from the "
+        "bytes as they are now. Read-only commands refuse to load arrays of a version-1 "
+        "file until it is migrated.",
+    )
+    db_argument(migrate)
+    migrate.set_defaults(run=_migrate)
     return skills

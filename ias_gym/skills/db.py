@@ -25,6 +25,29 @@ Arrays are stored as raw bytes with their dtype (``numpy.dtype.str``, byte order
 and shape in their own columns; loading uses ``numpy.frombuffer``. Nothing is pickled and
 only numeric and bool dtypes are accepted, so a database file cannot run code.
 
+Every stored array carries a checksum, ``sha256:`` + SHA-256 of its dtype, shape and raw
+bytes (:func:`array_checksum`), and so does each skill's copy of its first observation.
+Loading verifies it: a flipped bit inside an array (which ``PRAGMA integrity_check`` does
+not see: the page is intact, only the numbers changed) raises :class:`SkillDBError` naming
+the skill id and the array, instead of returning, say, 4.8e303 in an observation.
+:meth:`SkillDB.check_skill` (``ias-gym skills check``) verifies a skill without using it.
+
+Databases of schema version 1 (before checksums) are **migrated when opened for writing**
+(``SkillDB(path)``, ``ias-gym skills record``, ``delete`` or ``migrate``): the migration
+computes the checksums of the bytes as they are at that moment, in one transaction, so it
+certifies what is stored then and detects every change after it. A read-only open
+(``readonly=True``: ``ias-gym skills list``, ``show``, ``export``, ``check``) never writes,
+so on a version-1 file it lists skills but refuses to load their arrays, saying to run
+``ias-gym skills migrate --db PATH`` once.
+
+Opening: ``SkillDB(path)`` opens for writing and creates a missing file (and its folder;
+an empty 0-byte file becomes a new database too);
+``SkillDB(path, create=False)`` opens for writing only an existing database;
+``SkillDB(path, readonly=True)`` opens SQLite read-only (a ``file:...?mode=ro`` URI) and
+never creates or changes the database or a folder: a missing path, a folder, an empty
+(0-byte) file or an SQLite file without the skill schema is refused naming the path
+(SQLite itself keeps its ``-wal``/``-shm`` index files next to a WAL database it reads).
+
 Validation (a bad skill raises ``ValueError`` saying what is wrong, and nothing is stored):
 an episode needs at least one step; lengths must agree; observations, actions and rewards
 must be finite (a NaN there is a broken rollout, and it would poison nearest-state queries
@@ -37,24 +60,28 @@ it); damage deeper inside surfaces as the same error when it is read, and
 :meth:`SkillDB.integrity_check` runs SQLite's full check.
 
 Schema (``PRAGMA user_version`` is the schema version, ``PRAGMA application_id`` marks the
-file as a skill database; migrations run on open, each in one transaction; version 0 is a
-new, empty file, and an SQLite file of another application is refused, not changed)::
+file as a skill database; migrations run on open for writing, each in one transaction;
+version 0 is a new, empty file, and an SQLite file of another application is refused, not
+changed)::
 
     skills(id INTEGER PRIMARY KEY AUTOINCREMENT, name, task, source, person_id, created,
            package_version, seed, env_kwargs (JSON), is_success, episode_return, length,
-           duration [s], observation_dim, initial_observation (float64 bytes))
+           duration [s], observation_dim, initial_observation (float64 bytes),
+           initial_observation_checksum (version 2))
     arrays(id INTEGER PRIMARY KEY, skill_id -> skills(id) ON DELETE CASCADE,
            part ('demo' | 'info' | 'model'), name, dtype, shape (JSON), data BLOB,
-           UNIQUE(skill_id, part, name))
+           checksum (version 2), UNIQUE(skill_id, part, name))
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import math
 import sqlite3
 import time
+import urllib.parse
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -76,12 +103,16 @@ from ias_gym.skills.skill import (
     check_storable_array,
 )
 
-#: The schema version this code writes (``PRAGMA user_version``).
-SCHEMA_VERSION = 1
+#: The schema version this code writes (``PRAGMA user_version``); 2 added the checksums.
+SCHEMA_VERSION = 2
+#: The first schema version with array checksums.
+CHECKSUM_VERSION = 2
 #: ``PRAGMA application_id`` of a skill database: ASCII "IASS".
 APPLICATION_ID = 0x49415353
 #: Seconds a connection waits for another process's write lock before failing.
 DEFAULT_TIMEOUT = 30.0
+#: An unknown id's error lists the ids there are up to this many (else their range).
+MAX_LISTED_IDS = 20
 
 #: Columns of ``skills`` that make up a :class:`SkillSummary` (in its field order).
 _SUMMARY_COLUMNS = (
@@ -96,6 +127,25 @@ class SkillDBError(IasGymError):
 
 class SkillNotFoundError(SkillDBError):
     """No skill with the requested id."""
+
+
+def array_checksum(dtype: str, shape: str, data: bytes) -> str:
+    """``"sha256:<hex>"`` of a stored array: its dtype string, shape JSON and raw bytes.
+
+    The dtype and shape are hashed too (NUL-separated), so a changed byte order or shape
+    is caught like a changed number.
+    """
+    digest = hashlib.sha256()
+    digest.update(dtype.encode())
+    digest.update(b"\0")
+    digest.update(shape.encode())
+    digest.update(b"\0")
+    digest.update(data)
+    return "sha256:" + digest.hexdigest()
+
+
+def _initial_observation_checksum(data: bytes) -> str:
+    return array_checksum("<f8", json.dumps([len(data) // 8]), data)
 
 
 @dataclass(frozen=True)
@@ -124,24 +174,34 @@ class SkillSummary:
     duration: float
 
     @classmethod
-    def _from_row(cls, row: tuple[Any, ...]) -> SkillSummary:
+    def _from_row(cls, row: tuple[Any, ...], path: Path) -> SkillSummary:
         (id_, name, task, source, person, created, version, seed, kwargs) = row[:9]
         success, ret, length, duration = row[9:13]
-        return cls(
-            id=int(id_),
-            name=name,
-            task=task,
-            source=source,
-            person_id=person,
-            created=created,
-            package_version=version,
-            seed=seed,
-            env_kwargs=json.loads(kwargs),
-            is_success=bool(success),
-            episode_return=float(ret),
-            length=int(length),
-            duration=float(duration),
-        )
+        try:
+            env_kwargs = json.loads(kwargs)
+            if not isinstance(env_kwargs, dict):
+                raise TypeError(f"a {type(env_kwargs).__name__}, not an object")
+            return cls(
+                id=int(id_),
+                name=name,
+                task=task,
+                source=source,
+                person_id=person,
+                created=created,
+                package_version=version,
+                seed=seed,
+                env_kwargs=env_kwargs,
+                is_success=bool(success),
+                episode_return=float(ret),
+                length=int(length),
+                duration=float(duration),
+            )
+        except (TypeError, ValueError) as exc:  # a damaged row: one error type, its id
+            raise SkillDBError(
+                f"skill {id_} in {path} is corrupt: its row does not parse ({exc}); restore "
+                f"a backup, or delete the skill with `ias-gym skills delete --db {path} "
+                f"--id {id_}`"
+            ) from None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict of every field (``return`` is the key of ``episode_return``)."""
@@ -152,37 +212,57 @@ class SkillSummary:
 
 # ---------------------------------------------------------------------------- the database
 class SkillDB:
-    """An embedded SQLite skill database in one file (created if missing).
+    """An embedded SQLite skill database in one file.
 
     Use it as a context manager (``with SkillDB(path) as db: ...``) or call :meth:`close`.
     Several processes may read and write the same file (WAL journal; a writer waits up to
     ``timeout`` seconds for another one). Every write is one transaction.
 
     Args:
-        path: the database file; missing parent directories are created.
+        path: the database file.
         timeout: seconds to wait for another process's write lock [s].
+        readonly: open SQLite read-only (``mode=ro``): nothing is created, migrated or
+            written; :meth:`add` and :meth:`delete` raise. The file must exist and be a
+            skill database.
+        create: (for writing) create a missing file and its missing parent folders; with
+            ``False`` the database must exist (as with ``readonly``).
 
     Raises:
-        SkillDBError: the file is not a skill database or is corrupt (the message says the
-            path and what to do), was written by a newer ias-gym, or cannot be opened.
+        SkillDBError: the path is missing (read-only or ``create=False``), a folder or an
+            empty file (read-only or ``create=False``); the file is not a skill database or
+            is corrupt (the message says the path and what to do), was written by a newer
+            ias-gym, or cannot be opened.
     """
 
-    def __init__(self, path: str | Path, *, timeout: float = DEFAULT_TIMEOUT) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        timeout: float = DEFAULT_TIMEOUT,
+        readonly: bool = False,
+        create: bool = True,
+    ) -> None:
         self.path = Path(path)
+        self.readonly = bool(readonly)
         self._conn: sqlite3.Connection | None = None
         if self.path.is_dir():
             raise SkillDBError(f"{self.path} is a directory; pass the path of a database file")
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        if self.readonly or not create:
+            self._check_existing_file()
+        else:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
         with self._errors("open"):
-            conn = sqlite3.connect(self.path, timeout=timeout, isolation_level=None)
+            if self.readonly:
+                conn = sqlite3.connect(
+                    _readonly_uri(self.path), uri=True, timeout=timeout, isolation_level=None
+                )
+            else:
+                conn = sqlite3.connect(self.path, timeout=timeout, isolation_level=None)
         self._conn = conn
         try:
             with self._errors("open"):
                 # Reading the header first: a file that is not SQLite or is truncated fails here.
                 version = self._pragma("user_version")
-                conn.execute("PRAGMA foreign_keys = ON")
-                # FULL: a committed skill survives power loss too, not only a killed process.
-                conn.execute("PRAGMA synchronous = FULL")
                 if version > 0:
                     self._check_application_id()
                 if version > SCHEMA_VERSION:
@@ -192,12 +272,39 @@ class SkillDB:
                     )
                 if version == 0:
                     self._check_empty()  # before touching the file (again inside _migrate)
-                self._use_wal(timeout)
-                self._migrate()
+                    if self.readonly or not create:  # only a new file gets the schema
+                        raise SkillDBError(
+                            f"{self.path} is an SQLite file without the skill schema, not a "
+                            "skill database (nothing was changed); pass another path"
+                        )
+                if not self.readonly:
+                    conn.execute("PRAGMA foreign_keys = ON")
+                    # FULL: a committed skill survives power loss too, not only a killed process.
+                    conn.execute("PRAGMA synchronous = FULL")
+                    self._use_wal(timeout)
+                    self._migrate()
+                self._checksums = self._pragma("user_version") >= CHECKSUM_VERSION
         except BaseException:
             conn.close()
             self._conn = None
             raise
+
+    def _check_existing_file(self) -> None:
+        """Refuse a missing or empty file without creating anything (read-only opens)."""
+        try:
+            size = self.path.stat().st_size
+        except FileNotFoundError:
+            raise SkillDBError(
+                f"no skill database at {self.path} (nothing was created); check the path, "
+                "or record skills into it with `ias-gym skills record --db PATH`"
+            ) from None
+        except OSError as exc:
+            raise SkillDBError(f"cannot open skill database {self.path}: {exc.strerror}") from None
+        if size == 0:
+            raise SkillDBError(
+                f"{self.path} is empty (0 bytes), not a skill database; check the path (a "
+                "new database is made by `ias-gym skills record --db PATH`)"
+            )
 
     # ------------------------------------------------------------------ plumbing
     @property
@@ -319,8 +426,9 @@ class SkillDB:
 
         Raises:
             ValueError: the skill is invalid (nothing is stored; the message says why).
-            SkillDBError: the database cannot be written.
+            SkillDBError: the database cannot be written (or was opened read-only).
         """
+        self._check_writable()
         skill.validate()
         demo, model = skill.demonstration, skill.model
         rows: list[tuple[str, str, NDArray[Any]]] = [
@@ -347,39 +455,60 @@ class SkillDB:
             model.duration,
             int(first.size),
             first.tobytes(),
+            _initial_observation_checksum(first.tobytes()),
         )
         with self._errors("write"), self._transaction():
             cur = self.conn.execute(
                 "INSERT INTO skills (name, task, source, person_id, created, package_version, "
                 "seed, env_kwargs, is_success, episode_return, length, duration, "
-                "observation_dim, initial_observation) "
-                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                "observation_dim, initial_observation, initial_observation_checksum) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 record,
             )
             skill_id = cur.lastrowid
             assert skill_id is not None
             self.conn.executemany(
-                "INSERT INTO arrays (skill_id, part, name, dtype, shape, data) "
-                "VALUES (?, ?, ?, ?, ?, ?)",
+                "INSERT INTO arrays (skill_id, part, name, dtype, shape, data, checksum) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?)",
                 [(skill_id, *row) for row in encoded],
             )
         return int(skill_id)
 
-    def delete(self, skill_id: int) -> None:
-        """Delete a skill and its arrays (one transaction).
+    def delete(self, skill_id: int) -> str:
+        """Delete a skill and its arrays (one transaction), whatever state its arrays are in
+        (incomplete or corrupt skills too).
+
+        Returns:
+            The deleted skill's name.
 
         Raises:
-            SkillNotFoundError: no skill has this id.
+            SkillNotFoundError: no skill has this id (the message lists the ids there are).
+            SkillDBError: the database was opened read-only or cannot be written.
         """
+        self._check_writable()
         with self._errors("write"), self._transaction():
-            cur = self.conn.execute("DELETE FROM skills WHERE id = ?", (int(skill_id),))
-            if cur.rowcount == 0:
+            row = self.conn.execute(
+                "SELECT name FROM skills WHERE id = ?", (int(skill_id),)
+            ).fetchone()
+            if row is None:
                 raise self._not_found(skill_id)
+            self.conn.execute("DELETE FROM skills WHERE id = ?", (int(skill_id),))
+        return str(row[0])
 
     # ------------------------------------------------------------------ reads
+    def _check_writable(self) -> None:
+        if self.readonly:
+            raise SkillDBError(f"skill database {self.path} is open read-only; open it with "
+                               "SkillDB(path) to write")  # fmt: skip
+
     def _not_found(self, skill_id: int) -> SkillNotFoundError:
-        row = self.conn.execute("SELECT count(*), min(id), max(id) FROM skills").fetchone()
-        have = "it holds no skills" if row[0] == 0 else f"it holds {row[0]} (ids {row[1]}-{row[2]})"
+        ids = [int(r[0]) for r in self.conn.execute("SELECT id FROM skills ORDER BY id")]
+        if not ids:
+            have = "it holds no skills"
+        elif len(ids) <= MAX_LISTED_IDS:
+            have = f"its ids are {', '.join(map(str, ids))}"
+        else:
+            have = f"it holds {len(ids)} skills with ids {ids[0]}-{ids[-1]}"
         return SkillNotFoundError(f"no skill with id {skill_id} in {self.path}; {have}")
 
     def list_skills(
@@ -395,7 +524,12 @@ class SkillDB:
         where, params = _filters(task, success)
         with self._errors("read"):
             rows = self.conn.execute(f"{query}{where} ORDER BY id", params).fetchall()
-        return [SkillSummary._from_row(r) for r in rows]
+        return [SkillSummary._from_row(r, self.path) for r in rows]
+
+    def ids(self) -> list[int]:
+        """The stored skills' ids, ascending (reads no other column: works on damaged rows)."""
+        with self._errors("read"):
+            return [int(r[0]) for r in self.conn.execute("SELECT id FROM skills ORDER BY id")]
 
     def tasks(self) -> list[str]:
         """The distinct task ids, sorted."""
@@ -418,15 +552,21 @@ class SkillDB:
             ).fetchone()
             if row is None:
                 raise self._not_found(skill_id)
-        return SkillSummary._from_row(row)
+        return SkillSummary._from_row(row, self.path)
 
     def get(self, skill_id: int) -> Skill:
         """Load a skill with its demonstration and model (arrays bit-identical, dtypes kept).
 
+        Every array's checksum is verified before it is used.
+
         Raises:
             SkillNotFoundError: no skill has this id.
-            SkillDBError: the stored arrays are incomplete or inconsistent.
+            SkillDBError: the stored arrays are incomplete, inconsistent or do not match
+                their checksums (the message names the skill and the array), or the file
+                predates checksums and was opened read-only (the message says how to
+                migrate it).
         """
+        checksum = "checksum" if self._checksums else "NULL"
         with self._errors("read"), self._transaction("DEFERRED"):  # one consistent snapshot
             row = self.conn.execute(
                 f"SELECT {_SUMMARY_COLUMNS} FROM skills WHERE id = ?", (int(skill_id),)
@@ -434,19 +574,21 @@ class SkillDB:
             if row is None:
                 raise self._not_found(skill_id)
             arrays = self.conn.execute(
-                "SELECT part, name, dtype, shape, data FROM arrays WHERE skill_id = ?",
+                f"SELECT part, name, dtype, shape, data, {checksum} FROM arrays WHERE skill_id = ?",
                 (int(skill_id),),
             ).fetchall()
-        summary = SkillSummary._from_row(row)
+        summary = SkillSummary._from_row(row, self.path)
         parts: dict[str, dict[str, NDArray[Any]]] = {"demo": {}, "info": {}, "model": {}}
-        for part, name, dtype, shape, data in arrays:
-            parts[part][name] = _decode(self.path, skill_id, f"{part}/{name}", dtype, shape, data)
+        for part, name, dtype, shape, data, digest in arrays:
+            what = f"{part}/{name}"
+            self._verify(skill_id, what, dtype, shape, data, digest)
+            parts[part][name] = _decode(self.path, skill_id, what, dtype, shape, data)
         for part, names in (("demo", DEMO_ARRAYS), ("model", MODEL_ARRAYS)):
             missing = sorted(set(names) - set(parts[part]))
             if missing:
                 raise SkillDBError(
                     f"skill {skill_id} in {self.path} is incomplete (missing {part} arrays "
-                    f"{missing}); delete it with SkillDB.delete({skill_id})"
+                    f"{missing}); {self._delete_hint(skill_id)}"
                 )
         skill = Skill(
             name=summary.name,
@@ -465,9 +607,73 @@ class SkillDB:
         if skill.length != summary.length:
             raise SkillDBError(
                 f"skill {skill_id} in {self.path} is inconsistent: {skill.length} actions "
-                f"stored, {summary.length} recorded"
+                f"stored, {summary.length} recorded; {self._delete_hint(skill_id)}"
             )
         return skill
+
+    def _delete_hint(self, skill_id: int) -> str:
+        return (
+            f"restore a backup, or delete the skill with `ias-gym skills delete --db "
+            f"{self.path} --id {skill_id}`"
+        )
+
+    def _verify(
+        self, skill_id: int, what: str, dtype: str, shape: str, data: bytes, digest: str | None
+    ) -> None:
+        """Raise SkillDBError unless the array's bytes match its stored checksum."""
+        if digest is None:
+            if not self._checksums:
+                raise SkillDBError(
+                    f"{self.path} has schema version {self.schema_version}, written before "
+                    "arrays had checksums, and was opened read-only; add them once with "
+                    f"`ias-gym skills migrate --db {self.path}` (any open for writing does)"
+                )
+            raise SkillDBError(
+                f"skill {skill_id} in {self.path} is corrupt: array {what} has no checksum; "
+                f"{self._delete_hint(skill_id)}"
+            )
+        try:
+            actual = array_checksum(dtype, shape, data)
+        except (AttributeError, TypeError):  # not text / bytes: a damaged row
+            actual = None
+        if actual != digest:
+            raise SkillDBError(
+                f"skill {skill_id} in {self.path} is corrupt: array {what} does not match its "
+                f"checksum (its stored bytes changed since it was written); "
+                f"{self._delete_hint(skill_id)}"
+            )
+
+    def check_skill(self, skill_id: int) -> None:
+        """Verify one skill completely without returning it: every array against its
+        checksum, complete and consistent (:meth:`get`), its first-observation copy (the
+        nearest-state index) against its checksum and the demonstration, and the skill's
+        fields (:meth:`Skill.validate`).
+
+        Raises:
+            SkillNotFoundError: no skill has this id.
+            SkillDBError: the first problem found (naming the skill and the array).
+        """
+        skill = self.get(skill_id)
+        checksum = "initial_observation_checksum" if self._checksums else "NULL"
+        with self._errors("read"):
+            first, digest = self.conn.execute(
+                f"SELECT initial_observation, {checksum} FROM skills WHERE id = ?",
+                (int(skill_id),),
+            ).fetchone()
+        shape = json.dumps([len(first) // 8])
+        self._verify(skill_id, "initial_observation", "<f8", shape, first, digest)
+        expected = np.ascontiguousarray(skill.demonstration.observations[0], dtype="<f8")
+        if first != expected.ravel().tobytes():
+            raise SkillDBError(
+                f"skill {skill_id} in {self.path} is inconsistent: initial_observation differs "
+                f"from the first stored observation; {self._delete_hint(skill_id)}"
+            )
+        try:
+            skill.validate()
+        except ValueError as exc:
+            raise SkillDBError(
+                f"skill {skill_id} in {self.path} is invalid: {exc}; {self._delete_hint(skill_id)}"
+            ) from None
 
     def nearest_initial_state(
         self, observation: Any, task: str | None = None, k: int = 1
@@ -484,6 +690,11 @@ class SkillDB:
 
         Returns:
             Up to ``k`` pairs ``(summary, distance)``, nearest first; empty if none match.
+
+        Raises:
+            ValueError: ``observation`` is not finite, or ``k < 1``.
+            SkillDBError: a candidate's stored first observation does not match its
+                checksum (naming the skill).
         """
         obs = np.asarray(observation, dtype=np.float64).ravel()
         if not np.all(np.isfinite(obs)):
@@ -492,17 +703,24 @@ class SkillDB:
             raise ValueError(f"k must be >= 1, got {k}")
         where, params = _filters(task, None)
         where += (" AND " if where else " WHERE ") + "observation_dim = ?"
+        checksum = "initial_observation_checksum" if self._checksums else "NULL"
         with self._errors("read"):
             rows = self.conn.execute(
-                f"SELECT {_SUMMARY_COLUMNS}, initial_observation FROM skills{where} ORDER BY id",
+                f"SELECT {_SUMMARY_COLUMNS}, initial_observation, {checksum} FROM skills"
+                f"{where} ORDER BY id",
                 (*params, obs.size),
             ).fetchall()
         if not rows:
             return []
-        starts = np.stack([np.frombuffer(r[-1], dtype="<f8") for r in rows])
+        shape = json.dumps([obs.size])
+        for r in rows:
+            self._verify(int(r[0]), "initial_observation", "<f8", shape, r[-2], r[-1])
+        starts = np.stack([np.frombuffer(r[-2], dtype="<f8") for r in rows])
         distance = np.linalg.norm(starts - obs, axis=1)
         order = np.argsort(distance, kind="stable")[:k]
-        return [(SkillSummary._from_row(rows[i][:-1]), float(distance[i])) for i in order]
+        return [
+            (SkillSummary._from_row(rows[i][:-2], self.path), float(distance[i])) for i in order
+        ]
 
     def integrity_check(self) -> None:
         """Run SQLite's full ``PRAGMA integrity_check``.
@@ -557,9 +775,38 @@ def _migrate_0_to_1(conn: sqlite3.Connection) -> None:
     )
 
 
+def _migrate_1_to_2(conn: sqlite3.Connection) -> None:
+    """Version 2 adds a checksum to every array and to each skill's first observation.
+
+    The rows there are get theirs from their bytes as they are now (one row at a time, so
+    a large file is not held in memory).
+    """
+    conn.execute("ALTER TABLE arrays ADD COLUMN checksum TEXT")
+    conn.execute("ALTER TABLE skills ADD COLUMN initial_observation_checksum TEXT")
+    for (row_id,) in conn.execute("SELECT id FROM arrays ORDER BY id").fetchall():
+        dtype, shape, data = conn.execute(
+            "SELECT dtype, shape, data FROM arrays WHERE id = ?", (row_id,)
+        ).fetchone()
+        conn.execute(
+            "UPDATE arrays SET checksum = ? WHERE id = ?",
+            (array_checksum(dtype, shape, data), row_id),
+        )
+    for (row_id,) in conn.execute("SELECT id FROM skills ORDER BY id").fetchall():
+        (first,) = conn.execute(
+            "SELECT initial_observation FROM skills WHERE id = ?", (row_id,)
+        ).fetchone()
+        conn.execute(
+            "UPDATE skills SET initial_observation_checksum = ? WHERE id = ?",
+            (_initial_observation_checksum(first), row_id),
+        )
+
+
 #: ``MIGRATIONS[v]`` turns a version-``v`` database into version ``v + 1`` (inside a
 #: transaction that also sets ``user_version``).
-MIGRATIONS: dict[int, Callable[[sqlite3.Connection], None]] = {0: _migrate_0_to_1}
+MIGRATIONS: dict[int, Callable[[sqlite3.Connection], None]] = {
+    0: _migrate_0_to_1,
+    1: _migrate_1_to_2,
+}
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -620,11 +867,18 @@ class _ErrorTranslation:
         raise SkillDBError(f"cannot {self.action} skill database {self.path}: {text}") from exc
 
 
-def _encode(value: NDArray[Any]) -> tuple[str, str, bytes]:
-    """``(dtype, shape, bytes)`` of an array: C order, byte order kept in the dtype string."""
+def _readonly_uri(path: Path) -> str:
+    """SQLite's read-only URI of ``path`` (percent-encoded: ``?`` and ``#`` are data)."""
+    return f"file:{urllib.parse.quote(str(path.absolute()))}?mode=ro"
+
+
+def _encode(value: NDArray[Any]) -> tuple[str, str, bytes, str]:
+    """``(dtype, shape, bytes, checksum)`` of an array: C order, byte order kept in the
+    dtype string."""
     check_storable_array("array", value)
     data = np.ascontiguousarray(value)
-    return data.dtype.str, json.dumps(list(data.shape)), data.tobytes()
+    dtype, shape, raw = data.dtype.str, json.dumps(list(data.shape)), data.tobytes()
+    return dtype, shape, raw, array_checksum(dtype, shape, raw)
 
 
 def _decode(

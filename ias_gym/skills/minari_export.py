@@ -8,6 +8,12 @@ rewards, terminations and truncations, and ``T + 1`` rows per info entry. The en
 (id plus the keyword arguments the skills were recorded with) goes into the dataset, so
 ``minari.load_dataset(id).recover_environment()`` makes the same env. Datasets are written
 under ``MINARI_DATASETS_PATH`` (default ``~/.minari/datasets``).
+
+The database is opened read-only (nothing is created) and every exported skill's arrays
+are verified against their checksums as they are loaded. A person id in the env kwargs
+must be a valid id (:func:`~ias_gym.glove.ids.check_id`): the recovered env names its
+profile file with it (and the env checks it again when a dataset from elsewhere is
+recovered).
 """
 
 from __future__ import annotations
@@ -66,15 +72,19 @@ def export_minari(
     Raises:
         ImportError: minari is not installed (the message says which extra to install).
         ValueError: no skills match, or they come from different envs or env settings.
+        InputError: the env kwargs hold an invalid ``person_id``.
         FileExistsError: a dataset with this id exists already.
+        SkillDBError: the database is missing, empty or not one, or a skill's arrays do
+            not match their checksums (nothing is left of the dataset then).
     """
     minari = _import_minari()
     from minari.data_collector.episode_buffer import EpisodeBuffer
     from minari.storage import get_dataset_path
 
     import ias_gym
+    from ias_gym.glove.ids import check_id
 
-    with SkillDB(db_path) as db:
+    with SkillDB(db_path, readonly=True) as db:
         summaries = db.list_skills(task=task, success=True if success_only else None)
         if not summaries:
             which = f" of task {task!r}" if task else ""
@@ -90,6 +100,8 @@ def export_minari(
                 "(task, env kwargs); pass task= (--task) to choose one"
             )
         task_id, env_kwargs = summaries[0].task, summaries[0].env_kwargs
+        if "person_id" in env_kwargs:
+            check_id(env_kwargs["person_id"], "the skills' env kwargs person_id")
         try:
             registered = gym.spec(task_id)
         except gym.error.Error as exc:

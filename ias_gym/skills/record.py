@@ -268,15 +268,24 @@ def record_skills(
         The new skills' ids, in episode order.
 
     Raises:
+        InputError: ``person_id`` or ``env_kwargs["person_id"]`` is not a valid id
+            (:func:`~ias_gym.glove.ids.check_id`), checked before the database is opened.
         ValueError: ``expert`` on a glove env, ``teleop`` on a pen env
             (:func:`~ias_gym.evaluation.load_policy`), a person other than the glove env's
             (:func:`record_episode`).
     """
     from tqdm import tqdm
 
+    from ias_gym.glove.ids import check_id
+
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     kwargs = dict(env_kwargs or {})
+    # Person ids name profile files: refuse a hostile one before anything is created.
+    if person_id is not None:
+        check_id(person_id, "person_id")
+    if "person_id" in kwargs:
+        check_id(kwargs["person_id"], "env kwargs person_id")
     source = source or policy_source(policy_spec)
     ids: list[int] = []
     with SkillDB(db_path) as db:  # opened first: a bad path fails before any rollout

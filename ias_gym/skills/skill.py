@@ -376,20 +376,27 @@ class Skill:
         """Check every field.
 
         Raises:
-            ValueError: saying what is wrong.
+            ValueError: saying what is wrong (an invalid ``person_id`` or env kwargs
+                ``person_id``: :class:`~ias_gym.errors.InputError`, a ValueError).
         """
         for name in ("name", "task", "source"):
             value = getattr(self, name)
             if not isinstance(value, str) or not value.strip():
                 raise ValueError(f"skill {name} must be a non-empty string, got {value!r}")
-        if self.person_id is not None and not isinstance(self.person_id, str):
-            raise ValueError(f"person_id must be a string or None, got {self.person_id!r}")
+        if self.person_id is not None:
+            from ias_gym.glove.ids import check_id  # person ids name profile files
+
+            check_id(self.person_id, "skill person_id")
         if self.seed is not None and not isinstance(self.seed, (int, np.integer)):
             raise ValueError(f"seed must be an int or None, got {self.seed!r}")
         try:
             json.dumps(dict(self.env_kwargs), allow_nan=False)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"env_kwargs must be JSON-serialisable: {exc}") from exc
+        if "person_id" in self.env_kwargs:  # re-creating the env would name files with it
+            from ias_gym.glove.ids import check_id
+
+            check_id(self.env_kwargs["person_id"], "skill env_kwargs person_id")
         self.demonstration.validate()
         self.model.validate(samples=self.demonstration.length + 1)
 
