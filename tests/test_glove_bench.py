@@ -4,7 +4,6 @@ python-can loop, and one-line errors for what a user can get wrong (python-can's
 from __future__ import annotations
 
 import argparse
-import itertools
 import json
 import os
 
@@ -16,14 +15,6 @@ from ias_gym.hardware.bench import run_glove_bench
 from ias_gym.hardware.loop import realtime_priority
 
 pytestmark = pytest.mark.filterwarnings("error")
-
-_channels = itertools.count()
-
-
-@pytest.fixture
-def channel() -> str:
-    """A virtual-bus channel of this test alone."""
-    return f"ias-bench-{next(_channels)}"
 
 
 def run_command(argv: list[str]) -> int:

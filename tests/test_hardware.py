@@ -7,12 +7,9 @@ down" is a log record, not a warning)."""
 from __future__ import annotations
 
 import gc
-import itertools
 import json
-import logging
 import time
 import warnings
-from collections.abc import Iterator
 from pathlib import Path
 
 import can
@@ -40,24 +37,10 @@ from ias_gym.hardware.protocol import (
     torques_of,
 )
 
-pytestmark = pytest.mark.filterwarnings("error")
-
-_channels = itertools.count()
-
-
-@pytest.fixture
-def channel() -> str:
-    """A virtual-bus channel of this test alone."""
-    return f"ias-test-{next(_channels)}"
-
-
-@pytest.fixture(autouse=True)
-def no_python_can_warnings(caplog: pytest.LogCaptureFixture) -> Iterator[None]:
-    caplog.set_level(logging.WARNING, logger="can")
-    yield
-    records = caplog.get_records("setup") + caplog.get_records("call")
-    bad = [r.getMessage() for r in records if r.name.startswith("can")]
-    assert not bad, bad
+pytestmark = [
+    pytest.mark.filterwarnings("error"),
+    pytest.mark.usefixtures("no_python_can_warnings"),
+]
 
 
 def spy(channel: str) -> can.BusABC:

@@ -3,9 +3,6 @@ the same observations bit for bit, and one clear error for a file that is not a 
 
 from __future__ import annotations
 
-import itertools
-import logging
-from collections.abc import Iterator
 from pathlib import Path
 
 import can
@@ -18,24 +15,10 @@ from ias_gym.errors import InputError
 from ias_gym.hardware import GloveEmulator, ReplayError, ReplayGlove
 from ias_gym.hardware.protocol import encode_sensors, encode_torque
 
-pytestmark = pytest.mark.filterwarnings("error")
-
-_channels = itertools.count()
-
-
-@pytest.fixture
-def channel() -> str:
-    """A virtual-bus channel of this test alone."""
-    return f"ias-replay-{next(_channels)}"
-
-
-@pytest.fixture(autouse=True)
-def no_python_can_warnings(caplog: pytest.LogCaptureFixture) -> Iterator[None]:
-    caplog.set_level(logging.WARNING, logger="can")
-    yield
-    records = caplog.get_records("setup") + caplog.get_records("call")
-    bad = [r.getMessage() for r in records if r.name.startswith("can")]
-    assert not bad, bad
+pytestmark = [
+    pytest.mark.filterwarnings("error"),
+    pytest.mark.usefixtures("no_python_can_warnings"),
+]
 
 
 @pytest.mark.parametrize("suffix", [".asc", ".blf", ".log"])

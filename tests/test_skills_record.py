@@ -22,14 +22,14 @@ from ias_gym.skills import (
 ENV_ID = "IAS-PenRotate-v0"
 DURATION = 0.3  # [s] = 30 steps of 10 ms
 STEPS = 30
+#: A 0.3 s PenRotate episode judges tracking from 0.2 s on (settle_time < duration).
+ENV_KWARGS = {"duration": DURATION, "settle_time": 0.2}
 
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[int]]:
     path = tmp_path_factory.mktemp("skills") / "skills.db"
-    ids = record_skills(
-        ENV_ID, "expert", 2, path, seed=3, progress=False, env_kwargs={"duration": DURATION}
-    )
+    ids = record_skills(ENV_ID, "expert", 2, path, seed=3, progress=False, env_kwargs=ENV_KWARGS)
     return path, ids
 
 
@@ -41,7 +41,7 @@ def test_record_stores_one_skill_per_episode(recorded: tuple[Path, list[int]]) -
         assert [s.id for s in summaries] == ids
         for episode, summary in enumerate(summaries):
             assert (summary.source, summary.seed) == ("expert", 3 + episode)
-            assert summary.env_kwargs == {"duration": DURATION}
+            assert summary.env_kwargs == ENV_KWARGS
             assert summary.length == STEPS and summary.is_success
             assert summary.duration == pytest.approx(DURATION)
             demo = db.get(summary.id).demonstration
@@ -165,7 +165,7 @@ def test_cli_record_list_show_export(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     db = str(tmp_path / "cli.db")
-    kwargs = json.dumps({"duration": 0.1})
+    kwargs = json.dumps({"duration": 0.1, "settle_time": 0.0})
     assert _run(["skills", "record", "--env", ENV_ID, "--episodes", "2", "--db", db,
                  "--seed", "5", "--env-kwargs", kwargs, "--no-progress"]) == 0  # fmt: skip
     assert f"stored 2 skills (ids 1, 2) in {db}" in capsys.readouterr().out

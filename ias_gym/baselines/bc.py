@@ -207,7 +207,7 @@ def load_demonstrations(
     obs: list[NDArray[Any]] = []
     actions: list[NDArray[Any]] = []
     returns: list[FloatArray] = []
-    with SkillDB(path) as db:
+    with SkillDB(path, readonly=True) as db:
         summaries = db.list_skills(task=task, success=True if success_only else None)
         if source is not None:
             summaries = [s for s in summaries if s.source.startswith(source)]

@@ -31,6 +31,7 @@ from numpy.typing import ArrayLike
 
 from ias_gym.errors import IasGymError, InputError
 from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, GloveReading
+from ias_gym.glove.ids import check_id
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.hardware.protocol import (
     BITRATE,
@@ -201,7 +202,7 @@ class CanGlove(GloveDevice):
         )
         self.overwrite = bool(overwrite)
         self.interface, self.channel, self.fd = interface, channel, bool(fd)
-        self.glove_id = glove_id
+        self.glove_id = check_id(glove_id, "glove_id")
         self.watchdog_timeout = float(watchdog_timeout)
         self.startup_timeout = float(startup_timeout)
         bus_kwargs.setdefault("bitrate", BITRATE)  # the protocol's 1 Mbit/s (backends differ)

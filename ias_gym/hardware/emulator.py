@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 from ias_gym.errors import InputError
 from ias_gym.glove.device import ACTUATED_JOINTS
 from ias_gym.glove.hand import PersonParams
+from ias_gym.glove.ids import check_id
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.glove.sensor_model import sensor_readings
 from ias_gym.hardware.can_glove import SEND_TIMEOUT, open_bus, require_can, to_message
@@ -164,7 +165,7 @@ class GloveEmulator:
         self.fd = bool(fd)
         self.watchdog_timeout = float(watchdog_timeout)
         self.faults = faults if faults is not None else FaultInjection()
-        self.glove_id = glove_id
+        self.glove_id = check_id(glove_id, "glove_id")
         self._bus_kwargs = {"bitrate": BITRATE, **bus_kwargs}
         if fd:
             self._bus_kwargs.setdefault("fd", True)

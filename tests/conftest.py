@@ -1,0 +1,27 @@
+"""Fixtures shared by the CAN tests (python-can's virtual bus)."""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from collections.abc import Iterator
+
+import pytest
+
+_channels = itertools.count()
+
+
+@pytest.fixture
+def channel() -> str:
+    """A virtual-bus channel of this test alone (virtual buses of one name share frames)."""
+    return f"ias-test-{next(_channels)}"
+
+
+@pytest.fixture
+def no_python_can_warnings(caplog: pytest.LogCaptureFixture) -> Iterator[None]:
+    """Fail a test during which python-can logged a warning (e.g. a bus not shut down)."""
+    caplog.set_level(logging.WARNING, logger="can")
+    yield
+    records = caplog.get_records("setup") + caplog.get_records("call")
+    bad = [r.getMessage() for r in records if r.name.startswith("can")]
+    assert not bad, bad
