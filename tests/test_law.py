@@ -12,12 +12,16 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import ias_gym  # noqa: F401  (registers the envs)
 from ias_gym.baselines import law
+from ias_gym.baselines.grip_transform_control import GripTransformController
+from ias_gym.envs.pen_hand_env import PenHandEnv
 from ias_gym.grasp.contacts import cross3, wrench_matrix
 from ias_gym.grasp.grip_transform import GraspRankError, pseudo_inverse
 from ias_gym.grasp.internal_forces import InternalForceSettings, friction_cone_residual
@@ -307,3 +311,19 @@ def test_the_law_imports_only_numpy_and_the_grasp_layer() -> None:
     allowed = ("numpy", "ias_gym.grasp", "ias_gym.errors", "typing", "collections", "__future__")
     assert imported and all(m.split(".")[0] in allowed or m.startswith(allowed) for m in imported)
     assert not any(m.startswith(("ias_gym.sim", "ias_gym.envs", "mujoco")) for m in imported)
+
+
+def test_the_adapter_weighs_the_pen_with_the_model_gravity() -> None:
+    """GripTransformController passes the model's gravity (MuJoCo's -z is the paper's -y) to
+    eq. (33): on a model with weaker gravity the contacts carry less weight."""
+    env = gym.make("IAS-PenSlide-v0")
+    env.reset(seed=0)
+    u = env.unwrapped
+    assert isinstance(u, PenHandEnv)
+    mass = u.physics.pen_mass_nominal
+    wrench = GripTransformController().object_wrench(u, np.zeros(6))
+    assert wrench[1] == pytest.approx(mass * 9.81, rel=1e-12)
+    u.model.opt.gravity[:] = [0.0, 0.0, -4.0]
+    wrench = GripTransformController().object_wrench(u, np.zeros(6))
+    np.testing.assert_allclose(wrench[:3], [0.0, mass * 4.0, 0.0], rtol=1e-12, atol=1e-15)
+    env.close()
