@@ -1,4 +1,4 @@
-"""The terms of Theorem 1 (ias_gym.baselines.law) on synthetic grasps, without a simulation.
+"""The terms of Theorem 1 (ias_gym.baselines.law) on synthetic grasps; one check of the adapter.
 
 A synthetic grasp: four point contacts with friction on a cylinder along x (normals into the
 cylinder, t1 along its axis), W from :func:`ias_gym.grasp.contacts.wrench_matrix`, a random
