@@ -55,7 +55,8 @@ def test_internal_force_error_decays_at_the_rate_delta(delta: float) -> None:
     (tests/closed_loop.py); no step may lose a finger.
     """
     env = GripTransformAction(
-        gym.make("IAS-PenSlide-v0"),
+        # All four fingers hold the pen through the test (no finger slides before 3 s).
+        gym.make("IAS-PenSlide-v0", hold_time=3.0, duration=7.25),
         gains=ControllerGains(delta=delta),
         internal_force_scale=0.5,  # [N] per unit action
     )

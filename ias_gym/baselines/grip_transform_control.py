@@ -241,7 +241,7 @@ class GripTransformController:
             if self._N is not None:
                 # A requested offset is taken only as far as the cones allow (a squeeze that
                 # opens a contact or pushes one out of its cone would drop the object).
-                offset = self._N @ internal_offset
+                offset = law.keep_sliding_friction(self._N, internal_offset, sliding, settings.mu)
                 offset_scale = law.largest_step_inside_cones(
                     c_p + c_h_d, offset, active, sliding, settings
                 )

@@ -22,7 +22,7 @@ and why; docs/controller.md records the measurements.
 
 from __future__ import annotations
 
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from typing import Protocol
 
 import numpy as np
@@ -210,6 +210,43 @@ def largest_step_inside_cones(
         return 1.0
     bounds = np.maximum(a[crossing], 0.0) / -b[crossing]
     return float(min(1.0, bounds.min()))
+
+
+def keep_sliding_friction(
+    offset_basis: FloatArray, f: FloatArray, sliding: Mapping[int, FloatArray], mu: float
+) -> FloatArray:
+    """The internal-force offset ``N f`` with its part that breaks kinetic friction removed.
+
+    A sliding contact's tangential force is its kinetic friction, ``c_t = mu c_n s``
+    (docs/NOTES.md "Sliding contact"); an offset along an arbitrary internal direction would ask
+    the sliding finger for a tangential force that friction cannot deliver, and the difference
+    would push the object (measured: a slider 14 mm off its schedule under +-0.1 N steps). The
+    offset is projected, in least squares, onto the directions that keep ``c_t - mu c_n s = 0``
+    at every sliding contact.
+
+    Args:
+        offset_basis: ``(3 m, r)`` internal-force directions N (eq. 7).
+        f: ``(r,)`` requested offset along them [N].
+        sliding: {contact index: unit sliding direction s in (t1, t2)}.
+        mu: kinetic friction coefficient [-].
+
+    Returns:
+        ``(3 m,)`` the offset ``N f'`` [N] that respects every sliding contact's friction.
+    """
+    if not sliding:
+        result: FloatArray = offset_basis @ f
+        return result
+    rows = []
+    for k, s in sliding.items():
+        for axis in (0, 1):  # c_t[axis] - mu s[axis] c_n = 0
+            row = np.zeros(offset_basis.shape[0])
+            row[3 * k] = -mu * s[axis]
+            row[3 * k + 1 + axis] = 1.0
+            rows.append(row)
+    A = np.array(rows) @ offset_basis
+    kept = f - np.linalg.pinv(A) @ (A @ f)
+    result = offset_basis @ kept
+    return result
 
 
 def _face_rows(c: FloatArray, faces: FloatArray, k_mu: float) -> list[FloatArray]:
