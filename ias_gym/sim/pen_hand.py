@@ -32,14 +32,17 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ias_gym.errors import IasGymError
-from ias_gym.grasp.contacts import wrench_matrix as _wrench_matrix
+from ias_gym.sim.contacts import (
+    PointContacts,
+    axis_normals,
+    contact_frames,
+    contact_intensities,
+    cross,
+    masked_wrench_matrix,
+)
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
-
-# Index permutations for a written-out cross product (np.cross is slow on small arrays).
-_YZX = np.array([1, 2, 0])
-_ZXY = np.array([2, 0, 1])
 
 #: Finger name prefixes in the MJCF, in the paper's order (1, 2, 3, 4).
 FINGERS: tuple[str, ...] = ("f1", "f2", "f3", "f4")
@@ -252,7 +255,7 @@ class FreePenPhysics:
 
 
 @dataclass(frozen=True)
-class FingertipContacts:
+class FingertipContacts(PointContacts):
     """The fingertip-pen contacts of one instant, one row per finger (paper frame).
 
     Attributes:
@@ -268,11 +271,7 @@ class FingertipContacts:
         force: ``(k, 3)`` force of each fingertip on the pen [N] (zero when not touching).
     """
 
-    active: BoolArray
-    points: FloatArray
-    frames: FloatArray
     depth: FloatArray
-    force: FloatArray
 
 
 class PenHandPhysics(FreePenPhysics):
@@ -477,28 +476,21 @@ class PenHandPhysics(FreePenPhysics):
             # For fingers that do not touch: the tip centre, and the geometric normal from it
             # to the nearest point of the pen's axis segment.
             idle = ~active
-            rel = tips_mj[idle] - d.xpos[self.pen_body_id]
-            u = np.clip(rel @ axis_mj, -self._pen_half_length, self._pen_half_length)
-            geometric = np.multiply.outer(u, axis_mj) - rel
-            normal_mj[idle] = geometric / np.linalg.norm(geometric, axis=1, keepdims=True)
+            normal_mj[idle] = axis_normals(
+                tips_mj[idle], d.xpos[self.pen_body_id], axis_mj, self._pen_half_length
+            )
             points_mj[idle] = tips_mj[idle]
         # Force of the tip on the pen: MuJoCo's contact frame is (normal, tangent, n x t).
         tangent = block[:, 11:14]
-        binormal = normal_mj[:, _YZX] * tangent[:, _ZXY] - normal_mj[:, _ZXY] * tangent[:, _YZX]
+        binormal = cross(normal_mj, tangent)
         f = block[:, 1:4]
         force_mj = f[:, :1] * normal_mj + f[:, 1:2] * tangent + f[:, 2:3] * binormal
         force_mj[~active] = 0.0
 
-        # Frame rows in MuJoCo coordinates, converted to the paper frame in one product.
-        frames = np.empty((k, 3, 3))
-        n, t1, t2 = frames[:, 0], frames[:, 1], frames[:, 2]
-        n[:] = normal_mj
-        np.subtract(axis_mj, (n @ axis_mj)[:, None] * n, out=t1)
-        t1 /= np.sqrt(np.einsum("ij,ij->i", t1, t1))[:, None]
-        # t2 = sign * (t1 x n): both are in MuJoCo coordinates here, and the paper frame is a
-        # proper rotation of it, so the cross product commutes with the conversion.
-        np.subtract(t1[:, _YZX] * n[:, _ZXY], t1[:, _ZXY] * n[:, _YZX], out=t2)
-        t2 *= self._t2_sign[:, None]
+        # Frame rows in MuJoCo coordinates, converted to the paper frame in one product
+        # (t2 = sign * (t1 x n): the paper frame is a proper rotation of MuJoCo's, so the
+        # cross product commutes with the conversion).
+        frames = contact_frames(normal_mj, axis_mj, self._t2_sign)
         return FingertipContacts(
             active=active,
             points=(points_mj - self.origin_mj) @ R_PAPER_TO_MJ,
@@ -523,10 +515,7 @@ class PenHandPhysics(FreePenPhysics):
             ``(k,)`` bool mask of touching fingers.
         """
         c = self.fingertip_contacts() if contacts is None else contacts
-        w = _wrench_matrix(c.points, c.frames, reference=self.pen_com())
-        if not c.active.all():
-            w[:, np.repeat(~c.active, 3)] = 0.0
-        return w, c.active
+        return masked_wrench_matrix(c, self.pen_com()), c.active
 
     def contact_intensities(self, contacts: FingertipContacts | None = None) -> FloatArray:
         """The measured wrench intensities c of eq. (3), ``(3k,)`` [N].
@@ -535,8 +524,7 @@ class PenHandPhysics(FreePenPhysics):
         contact frame (normal >= 0 pushes); zeros for a finger not touching. With the pen's
         other loads, ``W @ c`` is the fingers' net wrench.
         """
-        cts = self.fingertip_contacts() if contacts is None else contacts
-        return np.einsum("kij,kj->ki", cts.frames, cts.force).reshape(-1)
+        return contact_intensities(self.fingertip_contacts() if contacts is None else contacts)
 
     def fingertip_jacobians(self, contacts: FingertipContacts | None = None) -> FloatArray:
         """The hand Jacobian J of eq. (30), ``(3k, n_hand_dofs)``.
