@@ -25,7 +25,7 @@ pressure. So ``W c`` carries the fingers' net force exactly, and their moment up
 0-3; the pen's weight times its radius is 1e-2 N m). :attr:`FingerContacts.moment` keeps
 the exact moment (it matches MuJoCo's ``cfrc_ext``).
 
-Frames and origin as :mod:`ias_gym.sim.pen_hand`: paper frame (x = MuJoCo x = the pen's
+Frames and origin as :mod:`ias_gym.sim.pen`: paper frame (x = MuJoCo x = the pen's
 axis at rest, y = MuJoCo z = up, z = -MuJoCo y), positions relative to the pen's nominal
 (model ``qpos0``) centre, moments about the pen's centre of mass. SI units.
 
@@ -53,7 +53,7 @@ from ias_gym.sim.contacts import (
     cross,
     masked_wrench_matrix,
 )
-from ias_gym.sim.pen_hand import R_PAPER_TO_MJ, FreePenPhysics, mj_to_paper
+from ias_gym.sim.pen import R_PAPER_TO_MJ, FreePenPhysics, mj_to_paper
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -153,7 +153,7 @@ class GlovePenPhysics(FreePenPhysics):
 
     Raises:
         KeyError: a name is missing; the message lists the names that exist (for the pen a
-            :class:`~ias_gym.sim.pen_hand.NameNotFoundError`, a ``KeyError``).
+            :class:`~ias_gym.sim.pen.NameNotFoundError`, a ``KeyError``).
         ValueError: ``tips``, ``above`` and ``fingers`` differ in length, a geom is in
             two fingers, or the pen is not on a free joint with its centre of mass at its
             body origin.
