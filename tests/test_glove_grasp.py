@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 from typing import Any
 
 import mujoco
@@ -10,14 +12,13 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from ias_gym.envs.glove_grasp import (
-    REWARD_TERMS,
-    GloveGraspEnv,
-    load_glove_scene,
-)
+from ias_gym.envs.glove_grasp import REWARD_TERMS, GloveGraspEnv
 from ias_gym.glove import JOINT_NAMES, PersonParams, fit_linear, record_session
 from ias_gym.glove.calibration import Calibration, GroupModel
 from ias_gym.glove.device import ACTUATED_JOINTS
+from ias_gym.glove.hand import THUMB_FLEXION_SHARES, hand_points
+from ias_gym.glove.operator import pen_operator
+from ias_gym.sim.glove_scene import INDEX_GEOMS, THUMB_GEOMS, load_glove_scene, thumb_coupling
 
 PERSONS = ("p1", "p2", "p3")
 
@@ -243,3 +244,86 @@ def test_diverging_simulation_is_reported_and_truncated(env: GloveGraspEnv) -> N
     assert info["sim_unstable"] is True and truncated and not terminated
     assert np.isfinite(obs).all()
     assert sum(int(w.number) for w in env.data.warning) > 0
+
+
+def test_pen_operator_opens_the_pinch_by_the_pen_it_is_given(person: PersonParams) -> None:
+    """The operator's pinch takes the pen's radius from its caller (the scene's model): a pen
+    2 mm thicker opens the pinch's tips 4 mm wider; a radius <= 0 is refused."""
+    tips = []
+    for radius in (0.01, 0.012):
+        index, thumb = hand_points(pen_operator(person, radius).poses["pinch"], person)
+        tips.append(float(np.linalg.norm(index[-1] - thumb[-1])))
+    assert tips[1] - tips[0] == pytest.approx(0.004, abs=1e-9)
+    with pytest.raises(ValueError, match="pen_radius"):
+        pen_operator(person, 0.0)
+
+
+def test_glove_layer_imports_no_physics() -> None:
+    """The operator and the profile cache sit below sim/ and envs/: importing them loads no
+    MuJoCo (the layer order of the package)."""
+    code = (
+        "import sys, ias_gym.glove.operator, ias_gym.glove.profile_cache; "
+        "bad = [m for m in ('mujoco', 'ias_gym.sim', 'ias_gym.envs') if m in sys.modules]; "
+        "sys.exit(str(bad) if bad else 0)"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+
+
+def test_thumb_coupling_is_read_from_the_model(env: GloveGraspEnv) -> None:
+    """The thumb's passive hinges follow thumb_flexion by the model's equalities (the ratio
+    of the glove's planar thumb), and reset places them there; a coupling the env cannot
+    fold into the force display (not linear) is refused."""
+    model = load_glove_scene()
+    joints, ratios = thumb_coupling(model)
+    assert sorted(model.joint(j).name for j in joints) == ["thumb_ip", "thumb_mcp_share"]
+    np.testing.assert_array_equal(ratios, THUMB_FLEXION_SHARES[1])
+    model.eq_data[0, 1] = 0.3
+    assert 0.3 in thumb_coupling(model)[1]
+    model.eq_data[0, 2] = 0.1  # quadratic term
+    with pytest.raises(ValueError, match="non-linearly"):
+        thumb_coupling(model)
+
+    env.reset(seed=0)
+    q = env.data.qpos
+    flexion = q[env.model.jnt_qposadr[env.model.joint("thumb_flexion").id]]
+    for j, ratio in zip(*thumb_coupling(env.model), strict=True):
+        assert q[env.model.jnt_qposadr[j]] == ratio * flexion
+
+
+def test_one_pass_over_the_contacts_feeds_force_display_and_skill_model(
+    env: GloveGraspEnv, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Each step reads every finger-pen contact force once: the env's pass gives the force
+    display and the recorder's W and c (before, both walked the contacts; measured 2 reads
+    per contact). The recorder's c is that of a fresh pass over the same state."""
+    from ias_gym.skills.glove_session import GloveSkillModelRecorder
+
+    calls = 0
+    contact_force = mujoco.mj_contactForce
+
+    def counting(*args: Any) -> None:
+        nonlocal calls
+        calls += 1
+        contact_force(*args)
+
+    monkeypatch.setattr(mujoco, "mj_contactForce", counting)
+    recorder = GloveSkillModelRecorder()
+    env.reset(seed=0)
+    recorder.sample(env)
+    finger_geoms = {env.model.geom(n).id for n in (*INDEX_GEOMS, *THUMB_GEOMS)}
+    pen = env.model.geom("pen").id
+    touched = 0
+    for _ in range(100):  # through the pinch's close
+        calls = 0
+        env.step(np.zeros(10, dtype=np.float32))
+        recorder.sample(env)
+        n = sum(
+            (int(a) == pen and int(b) in finger_geoms) or (int(b) == pen and int(a) in finger_geoms)
+            for a, b in env.data.contact.geom
+        )
+        assert calls == n
+        touched += n > 0
+    assert touched > 50
+    fresh = env.physics.finger_contacts()
+    np.testing.assert_array_equal(recorder.model().c[-1], env.physics.contact_intensities(fresh))

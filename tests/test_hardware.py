@@ -202,10 +202,10 @@ def test_close_sends_zero_torque_and_shuts_down(channel: str) -> None:
 
 # --------------------------------------------------------------------------- env, record, replay
 def test_profile_kwarg_sets_person_and_calibration(channel: str, tmp_path: Path) -> None:
-    from ias_gym.envs.glove_grasp import default_calibration
     from ias_gym.glove.calibration import evaluate
     from ias_gym.glove.hand import PersonParams
     from ias_gym.glove.profile import DEFAULT_GLOVE_ID, Profile, ProfileError, save_profile
+    from ias_gym.glove.profile_cache import default_calibration
     from ias_gym.glove.sensor_model import record_session
 
     person = PersonParams.sample("p1")

@@ -11,11 +11,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from ias_gym.envs.glove_grasp import INDEX_GEOMS, THUMB_GEOMS, GloveGraspEnv
+from ias_gym.envs.glove_grasp import GloveGraspEnv
 from ias_gym.errors import InputError
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.grasp.contacts import wrench_matrix
 from ias_gym.sim.glove_contacts import FingerContacts, GlovePenPhysics, squeeze_null_vector
+from ias_gym.sim.glove_scene import INDEX_GEOMS, THUMB_GEOMS, load_glove_scene
 from ias_gym.sim.pen_hand import mj_to_paper
 from ias_gym.skills import (
     SkillDB,
@@ -34,8 +35,10 @@ from ias_gym.skills.glove_session import (
 ENV_ID = "IAS-GloveGrasp-v0"
 STEPS = 400  # 4 s of 10 ms steps
 SEEDS = (0, 1)
-GRAVITY = np.array([0.0, -9.81, 0.0])  # paper frame: y is up [m/s^2]
-PEN_MASS = 0.10193680  # pen.xml [kg]: the weight is 1 N
+_SCENE = load_glove_scene()
+#: The scene's gravity in the paper frame (y is up) [m/s^2] and its pen's mass [kg] (1 N).
+GRAVITY = mj_to_paper(_SCENE.opt.gravity)
+PEN_MASS = float(_SCENE.body("pen").mass[0])
 
 
 @pytest.fixture(scope="module")
@@ -131,7 +134,7 @@ def test_held_pen_is_in_equilibrium(recorded: tuple[Path, list[int]]) -> None:
     1 N weight. A wrong sign of c, or a finger left out, misses by about 1 N.
     """
     path, ids = recorded
-    weight = PEN_MASS * 9.81
+    weight = PEN_MASS * float(np.linalg.norm(GRAVITY))
     with SkillDB(path) as db:
         for skill_id in ids:
             skill = db.get(skill_id)

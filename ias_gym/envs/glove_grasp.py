@@ -8,19 +8,15 @@ the glove's actuated joints, ``tau = J^T f`` (force display), observed and writt
 the glove (``device.write_feedback``).
 
 The scene (``scene_glove.xml`` = ``human_hand.xml`` + ``pen.xml`` + a support) is built per
-person by :func:`load_glove_scene` (hand rescaled with :class:`mujoco.MjSpec`, the pen placed
-between the person's thumb and index pads).
+person by :func:`~ias_gym.sim.glove_scene.load_glove_scene`; the scripted operator is
+:mod:`ias_gym.glove.operator`'s, the cached calibration :mod:`ias_gym.glove.profile_cache`'s.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import importlib.resources
 import math
-import os
-import tempfile
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -31,233 +27,41 @@ from numpy.typing import NDArray
 
 from ias_gym.errors import InputError
 from ias_gym.glove.calibration import Calibration
-from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, ReachPinchLift, SimulatedGlove
-from ias_gym.glove.hand import (
-    JOINT_HIGH,
-    JOINT_LOW,
-    JOINT_NAMES,
-    PersonParams,
-    hand_points,
-    thumb_directions,
-)
+from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, SimulatedGlove
+from ias_gym.glove.hand import JOINT_HIGH, JOINT_LOW, JOINT_NAMES, PersonParams
 from ias_gym.glove.ids import check_id
-from ias_gym.glove.profile import ProfileError, load_profile, save_profile
+from ias_gym.glove.operator import FromPreShape
+from ias_gym.glove.operator import pen_operator as _pen_operator
+from ias_gym.glove.profile_cache import default_calibration
+from ias_gym.sim.glove_contacts import GlovePenPhysics, PenContactPass
+from ias_gym.sim.glove_scene import (
+    FINGER_ABOVE,
+    FINGER_GEOMS,
+    FINGER_TIPS,
+    INDEX_GEOMS,
+    SUPPORT_GEOMS,
+    THUMB_DRIVER,
+    THUMB_GEOMS,
+    load_glove_scene,
+    thumb_coupling,
+)
+from ias_gym.sim.glove_scene import scene_operator as pen_operator  # its older name here
 
 FloatArray = NDArray[np.float64]
 
-SCENE_FILE = "scene_glove.xml"
-#: Wrist centre to index MCP along the metacarpal at hand scale 1 [m] (human_hand.xml).
-NOMINAL_WRIST_TO_MCP = 0.095
-#: Tip-to-tip distance of the operator's pen pinch minus the pen's diameter, at scale 1 [m].
-#: The model's pads need +13 mm (index 6 mm + thumb 7 mm radius); the targets lie 17 mm
-#: (+ ReachPinchLift's 2 mm) further in, so the position servos squeeze the pen with about
-#: 2 N (measured; the pen weighs 1 N, mu = 0.25).
-PEN_PAD_GAP = -0.004
-#: Pen pinches (thumb CMC, thumb flexion, index DIP) [rad], the first in reach is used:
-#: poses where the shipped ANN calibration is accurate (<= 2 deg on p1's and p3's index and
-#: thumb; the glove's calibration poses are bare-pad pinches and free poses).
-PEN_PINCH_POSES: tuple[tuple[float, float, float], ...] = (
-    (1.1, 0.4, 0.4),
-    (1.0, 0.4, 0.4),
-    (1.0, 0.6, 0.6),
-    (1.1, 0.4, 0.2),
-    (1.0, 0.2, 0.4),
-)
-PEN_RADIUS = 0.01  # pen.xml [m]
-#: The two posts the pen rests on: half width [m], distance of each from the pen's middle
-#: along the pen [m] (the thumb passes between them).
-POST_HALF_WIDTH = 0.006
-POST_OFFSET = 0.04
-#: The cradle rods on the posts: radius [m], half their spacing across the pen [m].
-ROD_RADIUS = 0.002
-ROD_SPACING = 0.006
-THUMB_PAD_RADIUS = 0.007  # human_hand.xml, scale 1 [m]
-#: The pinch pose's wrist flexion [rad] (ReachPinchLift's open/pinch wrist angle).
-PINCH_WRIST_FLEXION = -0.1
-#: Forearm pitch [rad]: the fingers point down by this much at zero wrist angles, so that the
-#: thumb, under the pen, still slopes down distally when the wrist extends to lift.
-FOREARM_PITCH = 0.3
-#: Names of the hand's geoms whose pen contacts make up the force display, per finger.
-INDEX_GEOMS = ("index_proximal", "index_middle", "index_distal", "index_pad")
-THUMB_GEOMS = ("thumb_metacarpal", "thumb_proximal", "thumb_distal", "thumb_pad")
-#: Geoms the pen rests on before the lift.
-SUPPORT_GEOMS = (
-    "floor",
-    "support_left",
-    "support_right",
-    *(f"cradle_{side}_{rod}" for side in ("left", "right") for rod in ("a", "b")),
-)
-#: Where the pad capsules sit along the distal phalanges (fraction of the length).
-PAD_AT = 0.75
-#: thumb MCP-share and IP hinges = this x thumb_flexion (equalities of human_hand.xml).
-THUMB_IP_RATIO_SHARE = 0.45
-
-
-def forearm_frame(pitch: float) -> FloatArray:
-    """Rotation world <- hand frame at zero wrist angles: palm down, fingers along world +y
-    tilted down by ``pitch`` [rad]; the hand's z (flexion axis) is along world -x."""
-    x = np.array([0.0, math.cos(pitch), -math.sin(pitch)])
-    y = np.array([0.0, -math.sin(pitch), -math.cos(pitch)])
-    return np.column_stack([x, y, np.cross(x, y)])
-
-
-def pen_operator(person: PersonParams) -> ReachPinchLift:
-    """The scripted operator pinching the pen: :class:`ReachPinchLift` with the pads apart.
-
-    ReachPinchLift puts the index tip ``pad_contact - force / pad_stiffness`` [m] from the
-    thumb tip along the thumb pad's normal (the glove's pinch of the bare pads); for the pen
-    this gap is set to the pen's diameter + :data:`PEN_PAD_GAP` (a person whose
-    ``pad_contact`` is the pen's width), so the index comes down on the pen right across from
-    the thumb pad: an antipodal pinch whose squeeze passes through the pen's axis (with the
-    bare-pad pinch, the pads meet at 110 degrees around the pen and squeeze it out). The
-    glove still reads the real person (no pad contact, no pinch cross-talk: the pads touch
-    the pen, not each other). The thumb is more opposed than in the default pinch
-    (:data:`PEN_PINCH_POSES`) so that the index reaches across a 2 cm pen.
-    """
-    s = person.hand_scale
-    wide = dataclasses.replace(person, pad_contact=2.0 * PEN_RADIUS + PEN_PAD_GAP * s)
-    for cmc, flexion, dip in PEN_PINCH_POSES:
-        try:
-            return ReachPinchLift(wide, thumb=(cmc, flexion), dip=dip)
-        except ValueError:  # out of this hand's reach: the next pose
-            continue
-    raise ValueError(f"no pen pinch of {PEN_PINCH_POSES} is in reach of {person.person_id}")
-
-
-def _pen_position_hand(person: PersonParams) -> FloatArray:
-    """Pen centre in the hand frame at zero wrist angles [m] (origin: wrist centre)."""
-    pinch = pen_operator(person).poses["pinch"]
-    thumb_angles = pinch[[JOINT_NAMES.index("thumb_cmc"), JOINT_NAMES.index("thumb_flexion")]]
-    _, thumb = hand_points(pinch, person)
-    a3 = float(thumb_directions(thumb_angles)[-1])
-    normal = np.array([math.sin(a3), -math.cos(a3)])  # thumb pad normal (hand.py's -i e^{ia})
-    s = person.hand_scale
-    centre = thumb[-1] + (THUMB_PAD_RADIUS * s + PEN_RADIUS) * normal  # on the thumb pad
-    return np.array([NOMINAL_WRIST_TO_MCP * s + centre[0], centre[1], 0.0])
-
-
-class FromPreShape:
-    """An operator started later: ``Θ(t) = operator(t + start)`` [rad], t [s].
-
-    The episodes of :class:`GloveGraspEnv` begin when the scripted reach has pre-shaped the
-    hand (thumb under the pen, index above it): in the glove's planar hand the thumb's
-    opposition swing passes through the place of the pinch, so a pen already lying there
-    would be struck (see HUMAN_HAND.md).
-    """
-
-    def __init__(self, operator: ReachPinchLift, start: float | None = None) -> None:
-        self.operator = operator
-        self.start = operator.timings.reach if start is None else float(start)
-
-    def __call__(self, t: float) -> FloatArray:
-        return self.operator(t + self.start)
-
-
-def load_glove_scene(person: PersonParams | None = None) -> mujoco.MjModel:
-    """Compile the glove scene for ``person``'s hand (default: the nominal hand).
-
-    The hand of ``human_hand.xml`` (nominal adult) is rescaled with :class:`mujoco.MjSpec`:
-    index and thumb segments get the person's lengths [m] (``index_lengths``,
-    ``thumb_lengths``), the thumb's CMC its ``thumb_base``, everything else (palm, radii,
-    other fingers) scales with ``hand_scale``. The pen is put where this person's pen pinch
-    (:func:`pen_operator`) closes, on the thumb pad, resting in the cradles of two posts.
-
-    Raises:
-        ValueError: no pen pinch of :data:`PEN_PINCH_POSES` is in reach of this hand.
-    """
-    person = person if person is not None else PersonParams.nominal()
-    s = person.hand_scale
-    resource = importlib.resources.files("ias_gym.assets") / SCENE_FILE
-    with importlib.resources.as_file(resource) as path:
-        spec = mujoco.MjSpec.from_file(str(path))
-
-    hand = spec.body("hand")
-    for body in hand.find_all(mujoco.mjtObj.mjOBJ_BODY):
-        body.pos = np.asarray(body.pos) * s
-    for geom in hand.find_all(mujoco.mjtObj.mjOBJ_GEOM):
-        geom.size = np.asarray(geom.size) * s
-        geom.fromto = np.asarray(geom.fromto) * s
-    for site in hand.find_all(mujoco.mjtObj.mjOBJ_SITE):
-        site.pos = np.asarray(site.pos) * s
-
-    def segment(geom: str, length: float, child: str | None, site: str | None) -> None:
-        spec.geom(geom).fromto = [0.0, 0.0, 0.0, length, 0.0, 0.0]
-        if child is not None:
-            spec.body(child).pos = [length, 0.0, 0.0]
-        if site is not None:
-            spec.site(site).pos = [length, 0.0, 0.0]
-
-    l1, l2, l3 = person.index_lengths
-    segment("index_proximal", l1, "index_middle", None)
-    segment("index_middle", l2, "index_distal", None)
-    segment("index_distal", l3, None, "index_tip")
-    t1, t2, t3 = person.thumb_lengths
-    segment("thumb_metacarpal", t1, "thumb_proximal", None)
-    segment("thumb_proximal", t2, "thumb_distal", None)
-    segment("thumb_distal", t3, None, "thumb_tip")
-    for pad, length in (("index_pad", l3), ("thumb_pad", t3)):
-        # across the fingertip, PAD_AT of the distal phalanx out (scaled half width)
-        geom = spec.geom(pad)
-        half = geom.fromto[5]
-        geom.fromto = [PAD_AT * length, 0.0, -half, PAD_AT * length, 0.0, half]
-    mcp = NOMINAL_WRIST_TO_MCP * s
-    spec.body("index_proximal").pos = [mcp, 0.0, 0.0]
-    spec.body("thumb_metacarpal").pos = [mcp + person.thumb_base[0], person.thumb_base[1], 0.0]
-
-    # The pen where this hand's pinch closes, resting on the support.
-    forearm = spec.body("forearm")
-    frame = forearm_frame(FOREARM_PITCH)
-    quat = np.zeros(4)
-    mujoco.mju_mat2Quat(quat, frame.ravel())
-    forearm.quat = quat
-    c, s_ = math.cos(PINCH_WRIST_FLEXION), math.sin(PINCH_WRIST_FLEXION)
-    wrist = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
-    pen_world = np.asarray(forearm.pos) + frame @ wrist @ _pen_position_hand(person)
-    spec.body("pen").pos = pen_world
-    rods = pen_world[2] - math.sqrt((PEN_RADIUS + ROD_RADIUS) ** 2 - ROD_SPACING**2)
-    for name, side in (("left", -1.0), ("right", 1.0)):
-        post = spec.geom(f"support_{name}")
-        post.size = [POST_HALF_WIDTH, POST_HALF_WIDTH, rods / 2.0]
-        post.pos = [side * POST_OFFSET, pen_world[1], rods / 2.0]
-        for rod, dy in (("a", -ROD_SPACING), ("b", ROD_SPACING)):
-            spec.geom(f"cradle_{name}_{rod}").pos = [side * POST_OFFSET, pen_world[1] + dy, rods]
-    return spec.compile()
-
-
-def _cache_dir() -> Path:
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    path = Path(base) / "ias_gym" / "glove_profiles"
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError:  # read-only home: a temp dir
-        path = Path(tempfile.gettempdir()) / "ias_gym_glove_profiles"
-        path.mkdir(parents=True, exist_ok=True)
-    return path
-
-
-def default_calibration(person: PersonParams) -> Calibration:
-    """The ANN calibration of a simulated ``person``, trained once and cached as a profile.
-
-    The profile lives in ``$XDG_CACHE_HOME/ias_gym/glove_profiles`` (``~/.cache/...``) as
-    ``<person_id>-seed<seed>.json``; training (the first time) needs torch (the ``[glove]``
-    extra) and takes seconds.
-
-    Raises:
-        InputError: the person's id is not a valid id (it names the cache file; see
-            :func:`~ias_gym.glove.ids.check_id`), checked before any file is touched.
-    """
-    name = f"{check_id(person.person_id, 'person_id')}-seed{int(person.seed)}.json"
-    path = _cache_dir() / name
-    if path.exists():
-        try:
-            return load_profile(path, person_id=person.person_id).calibration
-        except ProfileError:
-            pass  # stale or damaged: train again
-    from ias_gym.glove.training import calibrate_person  # torch, on first use only
-
-    run = calibrate_person(person)
-    save_profile(run.profile, path)
-    return run.profile.calibration
+#: Names that moved to the layers below and are still imported from here.
+__all__ = [
+    "INDEX_GEOMS",
+    "NONFINITE_THETA_FAULT",
+    "REWARD_TERMS",
+    "THUMB_GEOMS",
+    "FromPreShape",
+    "GloveGraspConfig",
+    "GloveGraspEnv",
+    "default_calibration",
+    "load_glove_scene",
+    "pen_operator",
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -298,7 +102,7 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     (``filter_tau``) and sets the hand's position targets to Θ + ``action_scale`` x action,
     clipped to the joint ranges. With zero
     action the env is pure teleoperation; the default glove is the simulated person
-    ``person_id`` running the pen pinch (:func:`pen_operator`, a
+    ``person_id`` running the pen pinch (:func:`~ias_gym.glove.operator.pen_operator`, a
     :class:`~ias_gym.glove.device.ReachPinchLift`) from its pre-shape (:class:`FromPreShape`):
     close the pinch (0.7 s), hold (0.5 s), lift by extending the wrist (1 s), hold.
 
@@ -334,6 +138,15 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     ``tau = J^T f`` [N m] on the actuated joints (MuJoCo Jacobians at the contact points; the
     thumb's coupled MCP/IP hinges fold into thumb_flexion), in the observation, in
     ``info["feedback_torques"]`` and written to the glove (``write_feedback``, saturated there).
+    The same pass over MuJoCo's contacts resolves each finger's contacts for the skill model
+    (:attr:`contact_pass`, read by
+    :class:`~ias_gym.skills.glove_session.GloveSkillModelRecorder`).
+
+    Attributes:
+        model, data: the compiled scene of the person's hand and its state.
+        physics: :class:`~ias_gym.sim.glove_contacts.GlovePenPhysics` of the scene (index,
+            thumb).
+        contact_pass: the pen's contacts of the last ``reset`` or ``step`` (``None`` before).
 
     Version history:
         v0: first version.
@@ -355,10 +168,12 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         Args:
             render_mode: ``None`` or ``"rgb_array"``.
             person: the hand's owner (default: ``PersonParams.sample(config.person_id)``).
-            calibration: Θ = f(Ψ) of that person (default: :func:`default_calibration`).
+            calibration: Θ = f(Ψ) of that person (default:
+                :func:`~ias_gym.glove.profile_cache.default_calibration`).
             glove_factory: ``seed -> GloveDevice`` called at every reset (a stream of
                 readings per episode). Default: a :class:`SimulatedGlove` (seeded noise) on
-                the person running :class:`FromPreShape` of :class:`ReachPinchLift`.
+                the person running :class:`~ias_gym.glove.operator.FromPreShape` of
+                :class:`~ias_gym.glove.device.ReachPinchLift`.
             **config: fields of :class:`GloveGraspConfig` to override.
         """
         fields = {f.name for f in dataclasses.fields(GloveGraspConfig)}
@@ -376,17 +191,18 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self.calibration = (
             calibration if calibration is not None else default_calibration(self.person)
         )
+        m = self.model = load_glove_scene(self.person)
+        self.data = mujoco.MjData(m)
         if glove_factory is None:
             person_ = self.person
+            # The operator pinches the scene's pen: its radius read from the compiled model.
+            operator = _pen_operator(person_, float(m.geom_size[m.geom("pen").id, 0]))
 
             def glove_factory(seed: int) -> GloveDevice:
-                return SimulatedGlove(person_, FromPreShape(pen_operator(person_)), seed)
+                return SimulatedGlove(person_, FromPreShape(operator), seed)
 
         self.glove_factory = glove_factory
         self.glove: GloveDevice | None = None
-
-        m = self.model = load_glove_scene(self.person)
-        self.data = mujoco.MjData(m)
         self.frame_skip = round(self.config.control_dt / m.opt.timestep)
         if self.frame_skip < 1 or not math.isclose(
             self.frame_skip * m.opt.timestep, self.config.control_dt
@@ -402,26 +218,24 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self._act = np.array([m.actuator(n).id for n in JOINT_NAMES])
         self._ctrl_lo = m.actuator_ctrlrange[self._act, 0].copy()
         self._ctrl_hi = m.actuator_ctrlrange[self._act, 1].copy()
-        self._coupled_q = [m.jnt_qposadr[m.joint(n).id] for n in ("thumb_mcp_share", "thumb_ip")]
-        self._flex = JOINT_NAMES.index("thumb_flexion")
+        # The thumb's passive hinges follow thumb_flexion by the model's equalities.
+        coupled, self._coupling = thumb_coupling(m)
+        self._coupled_q = m.jnt_qposadr[coupled].copy()
+        self._coupled_dofs = m.jnt_dofadr[coupled].copy()
+        self._flex = JOINT_NAMES.index(THUMB_DRIVER)
         self._fb_dofs = np.array([m.jnt_dofadr[m.joint(n).id] for n in ACTUATED_JOINTS])
-        self._fb_flex = ACTUATED_JOINTS.index("thumb_flexion")
-        self._coupled_dofs = np.array(
-            [m.jnt_dofadr[m.joint(n).id] for n in ("thumb_mcp_share", "thumb_ip")]
-        )
+        self._fb_flex = ACTUATED_JOINTS.index(THUMB_DRIVER)
         self._pen_body = m.body("pen").id
-        self._pen_q = m.jnt_qposadr[m.joint("pen").id]
         self._pen_v = m.jnt_dofadr[m.joint("pen").id]
-        self._pen_geom = m.geom("pen").id
-        self._index_geoms = {m.geom(n).id for n in INDEX_GEOMS}
-        self._thumb_geoms = {m.geom(n).id for n in THUMB_GEOMS}
-        self._rest_geoms = {m.geom(n).id for n in SUPPORT_GEOMS}
+        self._rest_geoms = frozenset(m.geom(n).id for n in SUPPORT_GEOMS)
+        # The pen and the fingers' contacts: one pass per step feeds the force display and
+        # (through contact_pass) the skill model's W and c.
+        self.physics = GlovePenPhysics(m, self.data, FINGER_GEOMS, FINGER_TIPS, FINGER_ABOVE)
+        self.contact_pass: PenContactPass | None = None  # of the last reset or step
         self._pen_start = np.zeros(3)
         self._warnings = self.data.warning.number  # a view: MuJoCo's warning counters
         self._unstable = False
         self._fault = ""  # latched for the episode: a broken calibration stays broken
-        self._jac = np.zeros((3, m.nv))
-        self._force6 = np.zeros(6)
 
         self.action_space = spaces.Box(-1.0, 1.0, shape=(len(JOINT_NAMES),), dtype=np.float32)
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(39,), dtype=np.float64)
@@ -465,43 +279,22 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         d.qpos[self._qadr] = theta
-        d.qpos[self._coupled_q] = THUMB_IP_RATIO_SHARE * theta[self._flex]
+        d.qpos[self._coupled_q] = self._coupling * theta[self._flex]
         d.ctrl[self._act] = theta
         mujoco.mj_forward(m, d)
 
     # ------------------------------------------------------------------ physics
     def _force_display(self) -> tuple[FloatArray, tuple[bool, bool], float, bool]:
         """(tau on ACTUATED_JOINTS [N m], (index, thumb) touch, pinch normal force [N],
-        pen touches the support or floor)."""
-        m, d = self.model, self.data
-        tau_dof = np.zeros(m.nv)
-        touch_i = touch_t = rest = False
-        normal = 0.0
-        for k in range(d.ncon):
-            c = d.contact[k]
-            g1, g2 = int(c.geom1), int(c.geom2)
-            if self._pen_geom not in (g1, g2):
-                continue
-            other = g2 if g1 == self._pen_geom else g1
-            if other in self._rest_geoms:
-                rest = True
-                continue
-            is_index = other in self._index_geoms
-            if not (is_index or other in self._thumb_geoms):
-                continue
-            mujoco.mj_contactForce(m, d, k, self._force6)
-            # Force of geom1 on geom2 in the contact frame (rows normal, t1, t2) -> world.
-            f_world = c.frame.reshape(3, 3).T @ self._force6[:3]
-            f_finger = f_world if other == g2 else -f_world  # the pen's force on the finger
-            mujoco.mj_jac(m, d, self._jac, None, c.pos, int(m.geom_bodyid[other]))
-            tau_dof += self._jac.T @ f_finger
-            normal += float(self._force6[0])
-            touch_i |= is_index
-            touch_t |= not is_index
-        tau = tau_dof[self._fb_dofs].copy()
-        # thumb_flexion drives the coupled MCP-share and IP hinges (0.45 each): virtual work.
-        tau[self._fb_flex] += THUMB_IP_RATIO_SHARE * float(tau_dof[self._coupled_dofs].sum())
-        return tau, (touch_i, touch_t), normal, rest
+        pen touches the support or floor), from one pass over the contacts (kept in
+        :attr:`contact_pass`)."""
+        cp = self.contact_pass = self.physics.contact_pass()
+        tau = cp.qfrc[self._fb_dofs].copy()
+        # thumb_flexion drives the coupled MCP-share and IP hinges: virtual work.
+        tau[self._fb_flex] += float(self._coupling @ cp.qfrc[self._coupled_dofs])
+        touch = (bool(cp.count[0]), bool(cp.count[1]))
+        rest = not self._rest_geoms.isdisjoint(cp.other_geoms)
+        return tau, touch, float(cp.normal_force.sum()), rest
 
     def _observation(self) -> FloatArray:
         d = self.data

@@ -12,6 +12,9 @@
 - :mod:`~ias_gym.glove.profile`: a person's profile as safe JSON, atomic writes, checked loads.
 - :mod:`~ias_gym.glove.device`: the :class:`GloveDevice` interface, :class:`SimulatedGlove`
   and the scripted operator :class:`ReachPinchLift`.
+- :mod:`~ias_gym.glove.operator`: the scripted pen pinch of the glove world
+  (:func:`~ias_gym.glove.operator.pen_operator`, :class:`~ias_gym.glove.operator.FromPreShape`).
+- :mod:`~ias_gym.glove.profile_cache`: the simulated persons' calibrations, cached as profiles.
 - :mod:`~ias_gym.glove.commands`: ``ias-gym calibrate``.
 - :mod:`~ias_gym.glove.ids`: :func:`check_id`, the one rule for person and glove ids
   (they name files).

@@ -25,7 +25,7 @@ pressure. So ``W c`` carries the fingers' net force exactly, and their moment up
 0-3; the pen's weight times its radius is 1e-2 N m). :attr:`FingerContacts.moment` keeps
 the exact moment (it matches MuJoCo's ``cfrc_ext``).
 
-Frames and origin as :mod:`ias_gym.sim.pen_hand`: paper frame (x = MuJoCo x = the pen's
+Frames and origin as :mod:`ias_gym.sim.pen`: paper frame (x = MuJoCo x = the pen's
 axis at rest, y = MuJoCo z = up, z = -MuJoCo y), positions relative to the pen's nominal
 (model ``qpos0``) centre, moments about the pen's centre of mass. SI units.
 
@@ -44,9 +44,16 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.grasp.contacts import wrench_matrix as _wrench_matrix
 from ias_gym.grasp.grip_transform import RANK_RTOL
-from ias_gym.sim.pen_hand import R_PAPER_TO_MJ, FreePenPhysics, mj_to_paper
+from ias_gym.sim.contacts import (
+    PointContacts,
+    axis_normals,
+    contact_frames,
+    contact_intensities,
+    cross,
+    masked_wrench_matrix,
+)
+from ias_gym.sim.pen import R_PAPER_TO_MJ, FreePenPhysics, mj_to_paper
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -57,7 +64,7 @@ PINCH_RANK = 5
 
 
 @dataclass(frozen=True)
-class FingerContacts:
+class FingerContacts(PointContacts):
     """Each finger's pen contacts resolved as one point contact with friction (paper frame).
 
     Attributes:
@@ -73,12 +80,59 @@ class FingerContacts:
         count: ``(k,)`` number of MuJoCo contacts summed per finger.
     """
 
-    active: BoolArray
-    points: FloatArray
-    frames: FloatArray
-    force: FloatArray
     moment: FloatArray
     count: NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class PenContactPass:
+    """One pass over MuJoCo's contacts of the pen (MuJoCo's world frame, SI units).
+
+    :meth:`GlovePenPhysics.contact_pass` reads each finger-pen contact's force once; the
+    force display uses the pass as it is (:attr:`qfrc`, :attr:`active`,
+    :attr:`normal_force`, :attr:`other_geoms`), the skill model resolves it into
+    :class:`FingerContacts` (:meth:`GlovePenPhysics.finger_contacts`). It keeps the pen's
+    and the tips' positions of its forward pass, so it can be resolved later.
+
+    Attributes:
+        finger: ``(n,)`` finger index of each finger-pen contact, in MuJoCo's order.
+        force6: ``(n, 6)`` MuJoCo's contact force and torque in the contact frame.
+        frames: ``(n, 3, 3)`` MuJoCo's contact frames (rows normal geom1 -> geom2, t1, t2).
+        pos: ``(n, 3)`` contact points [m].
+        sign: ``(n, 1)`` +1 where the pen is geom2 (it feels ``force6``), else -1.
+        force: ``(n, 3)`` force of the finger on the pen [N].
+        count: ``(k,)`` contacts per finger.
+        normal_force: ``(k,)`` summed normal force of each finger's contacts [N] (as MuJoCo
+            reports them).
+        qfrc: ``(nv,)`` the pen's contact forces on the fingers as generalised forces,
+            ``sum J^T (-force)`` with the finger bodies' Jacobians at the contact points
+            [N m on hinges]: the force display's torques before the glove's joints are
+            picked out.
+        other_geoms: ids of the other geoms touching the pen (support, floor, palm...).
+        com, centre, axis: the pen's centre of mass and body position [m] and its unit axis.
+        tips: ``(k, 3)`` the fingers' tip sites [m].
+    """
+
+    finger: NDArray[np.int64]
+    force6: FloatArray
+    frames: FloatArray
+    pos: FloatArray
+    sign: FloatArray
+    force: FloatArray
+    count: NDArray[np.int64]
+    normal_force: FloatArray
+    qfrc: FloatArray
+    other_geoms: frozenset[int]
+    com: FloatArray
+    centre: FloatArray
+    axis: FloatArray
+    tips: FloatArray
+
+    @property
+    def active(self) -> BoolArray:
+        """``(k,)`` finger i touches the pen."""
+        active: BoolArray = self.count > 0
+        return active
 
 
 class GlovePenPhysics(FreePenPhysics):
@@ -99,7 +153,7 @@ class GlovePenPhysics(FreePenPhysics):
 
     Raises:
         KeyError: a name is missing; the message lists the names that exist (for the pen a
-            :class:`~ias_gym.sim.pen_hand.NameNotFoundError`, a ``KeyError``).
+            :class:`~ias_gym.sim.pen.NameNotFoundError`, a ``KeyError``).
         ValueError: ``tips``, ``above`` and ``fingers`` differ in length, a geom is in
             two fingers, or the pen is not on a free joint with its centre of mass at its
             body origin.
@@ -135,6 +189,7 @@ class GlovePenPhysics(FreePenPhysics):
         # pushing sideways would flip its frame with every wobble.
         self._t2_sign = np.where(above, -1.0, 1.0)
         self._force6 = np.zeros(6)
+        self._jac = np.zeros((3, model.nv))
 
     @property
     def n_fingers(self) -> int:
@@ -164,71 +219,91 @@ class GlovePenPhysics(FreePenPhysics):
                     names.append(mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, other))
         return names
 
-    def finger_contacts(self) -> FingerContacts:
-        """Each finger's pen contacts as one point contact with friction (module docstring)."""
+    def contact_pass(self) -> PenContactPass:
+        """Read the pen's contacts once (:class:`PenContactPass`), from the last forward pass."""
         m, d, k = self.model, self.data, self.n_fingers
-        com_mj = d.xipos[self.pen_body_id]
-        force = np.zeros((k, 3))
-        moment = np.zeros((k, 3))
-        weighted_point = np.zeros((k, 3))
-        plain_point = np.zeros((k, 3))
-        weighted_normal = np.zeros((k, 3))
-        plain_normal = np.zeros((k, 3))
-        weight = np.zeros(k)
-        count = np.zeros(k, dtype=np.int64)
-        for j in range(d.ncon):
-            contact = d.contact[j]
-            g1, g2 = int(contact.geom1), int(contact.geom2)
-            if self.pen_geom_id not in (g1, g2):
-                continue
-            other = g2 if g1 == self.pen_geom_id else g1
-            i = int(self._finger_of_geom[other])
-            if i < 0:
-                continue
-            mujoco.mj_contactForce(m, d, j, self._force6)
-            frame = contact.frame.reshape(3, 3)  # rows normal (geom1 -> geom2), t1, t2
-            # The force of geom1 on geom2 (docs/DESIGN.md); the pen feels it if the pen is geom2.
-            sign = 1.0 if g2 == self.pen_geom_id else -1.0
-            f = sign * (frame.T @ self._force6[:3])
-            normal_into_pen = sign * frame[0]
-            w = max(float(self._force6[0]), 0.0)
-            force[i] += f
-            # The pads are soft contacts (condim 4): their torsion counts in the exact moment.
-            moment[i] += np.cross(contact.pos - com_mj, f) + sign * (frame.T @ self._force6[3:])
-            weighted_point[i] += w * contact.pos
-            plain_point[i] += contact.pos
-            weighted_normal[i] += w * normal_into_pen
-            plain_normal[i] += normal_into_pen
-            weight[i] += w
-            count[i] += 1
-        active = count > 0
-        points = d.site_xpos[self.tip_site_ids].copy()
+        pen = self.pen_geom_id
+        geom = d.contact.geom
+        pen_first = geom[:, 0] == pen
+        on_pen = pen_first | (geom[:, 1] == pen)
+        other = np.where(pen_first, geom[:, 1], geom[:, 0])
+        finger_of = self._finger_of_geom[other]
+        sel = np.flatnonzero(on_pen & (finger_of >= 0))
+        n = len(sel)
+        force6 = np.empty((n, 6))
+        for r, j in enumerate(sel):
+            mujoco.mj_contactForce(m, d, int(j), force6[r])
+        frames = d.contact.frame[sel].reshape(n, 3, 3)
+        pos = d.contact.pos[sel]
+        # The force of geom1 on geom2 (docs/DESIGN.md); the pen feels it if the pen is geom2.
+        sign = np.where(pen_first[sel], -1.0, 1.0)[:, None]
+        force = sign * np.einsum("nji,nj->ni", frames, force6[:, :3])
+        qfrc = np.zeros(m.nv)
+        for r, j in enumerate(sel):
+            # The pen pushes the finger with -force, at the contact point on the finger's body.
+            mujoco.mj_jac(m, d, self._jac, None, pos[r], int(m.geom_bodyid[other[j]]))
+            qfrc -= self._jac.T @ force[r]
+        finger = finger_of[sel]
+        return PenContactPass(
+            finger=finger,
+            force6=force6,
+            frames=frames,
+            pos=pos,
+            sign=sign,
+            force=force,
+            count=np.bincount(finger, minlength=k),
+            normal_force=np.bincount(finger, weights=force6[:, 0], minlength=k).astype(float),
+            qfrc=qfrc,
+            other_geoms=frozenset(other[on_pen & (finger_of < 0)].tolist()),
+            com=d.xipos[self.pen_body_id].copy(),
+            centre=d.xpos[self.pen_body_id].copy(),
+            axis=d.xmat[self.pen_body_id, [0, 3, 6]],
+            tips=d.site_xpos[self.tip_site_ids],
+        )
+
+    def finger_contacts(self, contact_pass: PenContactPass | None = None) -> FingerContacts:
+        """Each finger's pen contacts as one point contact with friction (module docstring).
+
+        Args:
+            contact_pass: the pass over the contacts to resolve (default: a new one). The
+                env's pass of its last step (``GloveGraspEnv.contact_pass``) serves both the
+                force display and the skill model.
+        """
+        cp = self.contact_pass() if contact_pass is None else contact_pass
+        k = self.n_fingers
+        frames, pos, sign, f = cp.frames, cp.pos, cp.sign, cp.force
+        # The pads are soft contacts (condim 4): their torsion counts in the exact moment.
+        torsion = sign * np.einsum("nji,nj->ni", frames, cp.force6[:, 3:])
+        moments = cross(pos - cp.com, f) + torsion
+        normal_into_pen = sign * frames[:, 0]
+        w = np.maximum(cp.force6[:, 0], 0.0)
+        # Sums per finger: finger i's rows of a (k, n) one-hot matrix.
+        onehot = (cp.finger[None, :] == np.arange(k)[:, None]).astype(float)
+        weight = onehot @ w
+        active = cp.active
+        points = cp.tips.copy()
         normals = np.zeros((k, 3))
-        axis = d.xmat[self.pen_body_id, [0, 3, 6]]
         for i in range(k):
             if not active[i]:
                 # The geometric normal from the tip to the nearest point of the pen's axis.
-                rel = points[i] - d.xpos[self.pen_body_id]
-                u = np.clip(rel @ axis, -self._pen_half_length, self._pen_half_length)
-                normals[i] = u * axis - rel
+                normals[i] = axis_normals(
+                    points[i : i + 1], cp.centre, cp.axis, self._pen_half_length
+                )[0]
             elif weight[i] > 0:
-                points[i] = weighted_point[i] / weight[i]
-                normals[i] = weighted_normal[i]
+                points[i] = (onehot[i] * w) @ pos / weight[i]
+                normals[i] = (onehot[i] * w) @ normal_into_pen
             else:  # touching without force (a contact inside the margin): plain means
-                points[i] = plain_point[i] / count[i]
-                normals[i] = plain_normal[i]
+                points[i] = onehot[i] @ pos / cp.count[i]
+                normals[i] = onehot[i] @ normal_into_pen
         normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-        t1 = axis - (normals @ axis)[:, None] * normals
-        t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-        t2 = self._t2_sign[:, None] * np.cross(t1, normals)
-        frames_mj = np.stack([normals, t1, t2], axis=1)
+        frames_mj = contact_frames(normals, cp.axis, self._t2_sign)
         return FingerContacts(
             active=active,
             points=mj_to_paper(points - self.origin_mj),
             frames=frames_mj @ R_PAPER_TO_MJ,
-            force=mj_to_paper(force),
-            moment=mj_to_paper(moment),
-            count=count,
+            force=mj_to_paper(onehot @ f),
+            moment=mj_to_paper(onehot @ moments),
+            count=cp.count,
         )
 
     def wrench_matrix(self, contacts: FingerContacts) -> tuple[FloatArray, BoolArray]:
@@ -237,16 +312,13 @@ class GlovePenPhysics(FreePenPhysics):
         Columns per finger [normal, t1, t2] of :class:`FingerContacts`; zero columns for a
         finger not touching. Returns ``(W, active)``.
         """
-        w = _wrench_matrix(contacts.points, contacts.frames, reference=self.pen_com())
-        if not contacts.active.all():
-            w[:, np.repeat(~contacts.active, 3)] = 0.0
-        return w, contacts.active
+        return masked_wrench_matrix(contacts, self.pen_com()), contacts.active
 
     @staticmethod
     def contact_intensities(contacts: FingerContacts) -> FloatArray:
         """Wrench intensities c of eq. (3), ``(3k,)`` [N]: each finger's force on the pen
         along its [normal, t1, t2] (normal >= 0 pushes); zeros for a finger not touching."""
-        return np.einsum("kij,kj->ki", contacts.frames, contacts.force).reshape(-1)
+        return contact_intensities(contacts)
 
 
 def squeeze_null_vector(W: FloatArray, contacts: FingerContacts) -> FloatArray | None:

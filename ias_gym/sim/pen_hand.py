@@ -6,7 +6,8 @@ names are looked up once in ``__init__``, every method then indexes by id and an
 question in the paper's terms - the wrench matrix W (eqs. 3, 16), the contact intensities c,
 the hand Jacobian J (eq. 30), the hand's M and H (eq. 35), the pen's pose (eq. 25), twist
 (eq. 15), mass and inertia (eq. 33). The pen's part (:class:`FreePenPhysics`: pose, twist,
-mass of a pen on a free joint) is shared with the glove scene's physics.
+mass of a pen on a free joint, and the paper frame: :mod:`ias_gym.sim.pen`) is shared
+with the glove scene's physics.
 
 Frames. The paper frame has x = pen axis, y = vertical (up), z = lateral. MuJoCo's world has
 z up, so ``paper x = MuJoCo x``, ``paper y = MuJoCo z``, ``paper z = -MuJoCo y``
@@ -31,15 +32,49 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ias_gym.errors import IasGymError
-from ias_gym.grasp.contacts import wrench_matrix as _wrench_matrix
+from ias_gym.sim.contacts import (
+    PointContacts,
+    axis_normals,
+    contact_frames,
+    contact_intensities,
+    cross,
+    masked_wrench_matrix,
+)
+from ias_gym.sim.pen import (
+    R_PAPER_TO_MJ,
+    FreePenPhysics,
+    NameNotFoundError,
+    lookup,
+    matrix_to_rpy,
+    mj_to_paper,
+    paper_to_mj,
+    rpy_to_matrix,
+    wrench_mj_to_paper,
+    wrench_paper_to_mj,
+)
+
+#: Public names, with those of :mod:`ias_gym.sim.pen` that were first defined here.
+__all__ = [
+    "FINGERS",
+    "FINGER_JOINTS",
+    "GRASP_KEYFRAME",
+    "R_PAPER_TO_MJ",
+    "SCENE_FILE",
+    "FingertipContacts",
+    "FreePenPhysics",
+    "NameNotFoundError",
+    "PenHandPhysics",
+    "load_pen_hand_model",
+    "matrix_to_rpy",
+    "mj_to_paper",
+    "paper_to_mj",
+    "rpy_to_matrix",
+    "wrench_mj_to_paper",
+    "wrench_paper_to_mj",
+]
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
-
-# Index permutations for a written-out cross product (np.cross is slow on small arrays).
-_YZX = np.array([1, 2, 0])
-_ZXY = np.array([2, 0, 1])
 
 #: Finger name prefixes in the MJCF, in the paper's order (1, 2, 3, 4).
 FINGERS: tuple[str, ...] = ("f1", "f2", "f3", "f4")
@@ -53,96 +88,6 @@ _CONTACT_SENSOR_DIM = 14
 #: Keyframe with the paper's four-finger grasp (phi = [3, 2, 2, 3] cm).
 GRASP_KEYFRAME = "grasp"
 
-#: Rotation from the paper frame to MuJoCo's world frame: ``v_mj = R_PAPER_TO_MJ @ v_paper``.
-#: Columns are the paper axes in MuJoCo coordinates: x -> x, y -> z, z -> -y.
-R_PAPER_TO_MJ: FloatArray = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
-R_PAPER_TO_MJ.flags.writeable = False
-
-
-def mj_to_paper(v: ArrayLike) -> FloatArray:
-    """Vectors (``(..., 3)``) from MuJoCo's world frame to the paper frame (direction only)."""
-    return np.asarray(v, dtype=float) @ R_PAPER_TO_MJ
-
-
-def paper_to_mj(v: ArrayLike) -> FloatArray:
-    """Vectors (``(..., 3)``) from the paper frame to MuJoCo's world frame (direction only)."""
-    return np.asarray(v, dtype=float) @ R_PAPER_TO_MJ.T
-
-
-def wrench_mj_to_paper(w: ArrayLike) -> FloatArray:
-    """Wrenches ``[f; m]`` (``(..., 6)``, N and N m) from MuJoCo's world frame to the paper's.
-
-    Both halves rotate with ``R_PAPER_TO_MJ``; the reference point is unchanged.
-    """
-    w = np.asarray(w, dtype=float)
-    return (w.reshape(*w.shape[:-1], 2, 3) @ R_PAPER_TO_MJ).reshape(w.shape)
-
-
-def wrench_paper_to_mj(w: ArrayLike) -> FloatArray:
-    """Wrenches ``[f; m]`` (``(..., 6)``) from the paper frame to MuJoCo's world frame."""
-    w = np.asarray(w, dtype=float)
-    return (w.reshape(*w.shape[:-1], 2, 3) @ R_PAPER_TO_MJ.T).reshape(w.shape)
-
-
-def rpy_to_matrix(rpy: ArrayLike) -> FloatArray:
-    """Rotation matrix of roll-pitch-yaw angles [rad], eq. (25).
-
-    Convention (ours; the paper does not fix it): fixed axes x, y, z, i.e.
-    ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``, roll about the pen axis (paper x), pitch about the
-    vertical (paper y), yaw about the lateral axis (paper z). The pen's axis ``R e_x`` does not
-    depend on roll, and the see-saw tilt of sec. 4.3 ("rotate about z") is the yaw angle.
-    """
-    r, p, y = np.asarray(rpy, dtype=float)
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-
-
-def matrix_to_rpy(rot: ArrayLike) -> FloatArray:
-    """Roll-pitch-yaw angles [rad] of a rotation matrix; inverse of :func:`rpy_to_matrix`.
-
-    Pitch is in [-pi/2, pi/2]; roll and yaw in (-pi, pi].
-    """
-    m = np.asarray(rot, dtype=float)
-    return np.array(
-        [
-            np.arctan2(m[2, 1], m[2, 2]),
-            np.arctan2(-m[2, 0], np.hypot(m[0, 0], m[1, 0])),
-            np.arctan2(m[1, 0], m[0, 0]),
-        ]
-    )
-
-
-class NameNotFoundError(IasGymError, KeyError):
-    """A name that the model does not contain; the message lists the names it does."""
-
-    def __str__(self) -> str:
-        return str(self.args[0])
-
-
-def _lookup(model: mujoco.MjModel, obj: mujoco.mjtObj, name: str) -> int:
-    idx = mujoco.mj_name2id(model, obj, name)
-    if idx < 0:
-        kind = obj.name.removeprefix("mjOBJ_").lower()
-        count = {
-            int(mujoco.mjtObj.mjOBJ_BODY): model.nbody,
-            int(mujoco.mjtObj.mjOBJ_JOINT): model.njnt,
-            int(mujoco.mjtObj.mjOBJ_GEOM): model.ngeom,
-            int(mujoco.mjtObj.mjOBJ_SITE): model.nsite,
-            int(mujoco.mjtObj.mjOBJ_SENSOR): model.nsensor,
-            int(mujoco.mjtObj.mjOBJ_KEY): model.nkey,
-        }[int(obj)]
-        names = [n for i in range(count) if (n := mujoco.mj_id2name(model, obj, i))]
-        raise NameNotFoundError(
-            f"no {kind} named {name!r} in the model. Available {kind} names: {names}"
-        )
-    return int(idx)
-
 
 def load_pen_hand_model(scene: str = SCENE_FILE) -> mujoco.MjModel:
     """Compile a scene of ``ias_gym.assets`` (default: the pen-hand scene).
@@ -155,104 +100,8 @@ def load_pen_hand_model(scene: str = SCENE_FILE) -> mujoco.MjModel:
         return mujoco.MjModel.from_xml_path(str(path))
 
 
-class FreePenPhysics:
-    """Named questions about a pen on a free joint: its pose, twist and mass (paper frame).
-
-    The part of a scene's physics that only depends on the pen, shared by the pen-hand
-    scene (:class:`PenHandPhysics`) and the glove scene
-    (:class:`~ias_gym.sim.glove_contacts.GlovePenPhysics`). Positions have their origin at
-    the pen's nominal centre (its position in the model's ``qpos0``); SI units.
-
-    Args:
-        model: compiled scene with a pen body on a free joint, its centre of mass at the
-            body origin.
-        data: its data.
-        pen: name of the pen's body, free joint and geom (a capsule).
-
-    Attributes:
-        model, data: as given.
-        pen_body_id, pen_geom_id, pen_qpos_adr, pen_dof_adr: the pen's body and geom ids and
-            its free joint's addresses (``qpos[adr:adr+7]`` = position, quaternion w-x-y-z;
-            ``qvel[adr:adr+6]`` = linear velocity (world), angular velocity (body frame)).
-        origin_mj: the nominal pen centre [m] in MuJoCo's world frame (origin of the paper
-            frame; the pen body's position in the XML).
-
-    Raises:
-        NameNotFoundError: a name is missing; the message lists the names that exist.
-        ValueError: the pen's joint is not free, or its centre of mass is off its origin.
-    """
-
-    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, pen: str = "pen") -> None:
-        self.model = model
-        self.data = data
-        obj = mujoco.mjtObj
-        self.pen_body_id = _lookup(model, obj.mjOBJ_BODY, pen)
-        self.pen_geom_id = _lookup(model, obj.mjOBJ_GEOM, pen)
-        pen_joint = _lookup(model, obj.mjOBJ_JOINT, pen)
-        if int(model.jnt_type[pen_joint]) != int(mujoco.mjtJoint.mjJNT_FREE):
-            raise ValueError(f"joint {pen!r} must be a free joint")
-        # qpos[0:3] of the free joint is then the centre of mass, as r of eq. (25) wants.
-        if not np.allclose(model.body_ipos[self.pen_body_id], 0.0, atol=1e-9):
-            raise ValueError("the pen's centre of mass must be at its body origin")
-        self.pen_qpos_adr = int(model.jnt_qposadr[pen_joint])
-        self.pen_dof_adr = int(model.jnt_dofadr[pen_joint])
-        #: Nominal pen centre in MuJoCo's world frame [m]: the origin of the paper frame.
-        self.origin_mj: FloatArray = model.qpos0[self.pen_qpos_adr : self.pen_qpos_adr + 3].copy()
-        # The pen's capsule: half-length of its cylindrical part [m] (for closest-point queries).
-        self._pen_half_length = float(model.geom_size[self.pen_geom_id, 1])
-        self._pen_rot_mj = np.zeros(9)  # reused by _pen_rot: no allocation per call
-        # The model's pen as built: what a controller plans with when a task scales the
-        # simulated pen's mass (ias_gym.envs.disturbances).
-        self.pen_mass_nominal = float(model.body_mass[self.pen_body_id])
-        self._pen_inertia_nominal = model.body_inertia[self.pen_body_id].copy()
-
-    def _pen_rot(self) -> FloatArray:
-        """The pen's rotation matrix in MuJoCo's world frame, from ``qpos`` (a reused buffer)."""
-        mujoco.mju_quat2Mat(
-            self._pen_rot_mj, self.data.qpos[self.pen_qpos_adr + 3 : self.pen_qpos_adr + 7]
-        )
-        return self._pen_rot_mj.reshape(3, 3)
-
-    def pen_rotation(self) -> FloatArray:
-        """Orientation of the pen's frame in the paper frame, ``(3, 3)`` (identity at rest)."""
-        return R_PAPER_TO_MJ.T @ self._pen_rot() @ R_PAPER_TO_MJ
-
-    def pen_pose(self) -> tuple[FloatArray, FloatArray]:
-        """The pen's pose as in eq. (25): ``(r, phi)``.
-
-        Returns:
-            r: centre-of-mass position [m], paper frame, relative to the nominal pen centre.
-            phi: roll, pitch, yaw [rad] of the pen in the paper frame, fixed axes x-y-z
-                (``R = Rz(yaw) Ry(pitch) Rx(roll)``, see :func:`rpy_to_matrix`): roll about
-                the pen axis, the see-saw tilt of sec. 4.3 is yaw.
-        """
-        pos = mj_to_paper(
-            self.data.qpos[self.pen_qpos_adr : self.pen_qpos_adr + 3] - self.origin_mj
-        )
-        return pos, matrix_to_rpy(self.pen_rotation())
-
-    def pen_twist(self) -> tuple[FloatArray, FloatArray]:
-        """The pen's twist ``(v, omega)`` of eq. (15), paper frame.
-
-        Returns:
-            v: centre-of-mass velocity [m/s].
-            omega: angular velocity [rad/s] in the (world-aligned) paper frame. MuJoCo keeps a
-                free joint's angular velocity ``qvel[3:6]`` in the body frame; it is rotated here.
-        """
-        qv = self.data.qvel[self.pen_dof_adr : self.pen_dof_adr + 6]
-        return mj_to_paper(qv[:3]), mj_to_paper(self._pen_rot() @ qv[3:])
-
-    def pen_com(self) -> FloatArray:
-        """Pen centre of mass [m], paper frame (from the last forward pass)."""
-        return mj_to_paper(self.data.xipos[self.pen_body_id] - self.origin_mj)
-
-    def pen_mass(self) -> float:
-        """Pen mass m [kg] of eq. (33)."""
-        return float(self.model.body_mass[self.pen_body_id])
-
-
 @dataclass(frozen=True)
-class FingertipContacts:
+class FingertipContacts(PointContacts):
     """The fingertip-pen contacts of one instant, one row per finger (paper frame).
 
     Attributes:
@@ -268,11 +117,7 @@ class FingertipContacts:
         force: ``(k, 3)`` force of each fingertip on the pen [N] (zero when not touching).
     """
 
-    active: BoolArray
-    points: FloatArray
-    frames: FloatArray
     depth: FloatArray
-    force: FloatArray
 
 
 class PenHandPhysics(FreePenPhysics):
@@ -311,7 +156,7 @@ class PenHandPhysics(FreePenPhysics):
         obj = mujoco.mjtObj
 
         joints = [
-            _lookup(model, obj.mjOBJ_JOINT, f"{f}_{j}") for f in fingers for j in FINGER_JOINTS
+            lookup(model, obj.mjOBJ_JOINT, f"{f}_{j}") for f in fingers for j in FINGER_JOINTS
         ]
         self.hand_qpos_ids = np.array([model.jnt_qposadr[j] for j in joints])
         self.hand_dof_ids = np.array([model.jnt_dofadr[j] for j in joints])
@@ -330,14 +175,14 @@ class PenHandPhysics(FreePenPhysics):
         self.hand_actuator_ids = np.array([act_of_joint[j] for j in joints])
         self._gear = model.actuator_gear[self.hand_actuator_ids, 0].copy()
 
-        self.tip_site_ids = np.array([_lookup(model, obj.mjOBJ_SITE, f"{f}_tip") for f in fingers])
+        self.tip_site_ids = np.array([lookup(model, obj.mjOBJ_SITE, f"{f}_tip") for f in fingers])
         self.tip_geom_ids = np.array(
-            [_lookup(model, obj.mjOBJ_GEOM, f"{f}_tip_collision") for f in fingers]
+            [lookup(model, obj.mjOBJ_GEOM, f"{f}_tip_collision") for f in fingers]
         )
         self._tip_bodies = model.geom_bodyid[self.tip_geom_ids].copy()
-        touch = [_lookup(model, obj.mjOBJ_SENSOR, f"{f}_touch") for f in fingers]
+        touch = [lookup(model, obj.mjOBJ_SENSOR, f"{f}_touch") for f in fingers]
         self._touch_adr = model.sensor_adr[touch].copy()
-        contact = [_lookup(model, obj.mjOBJ_SENSOR, f"{f}_pen_contact") for f in fingers]
+        contact = [lookup(model, obj.mjOBJ_SENSOR, f"{f}_pen_contact") for f in fingers]
         if np.any(model.sensor_dim[contact] != _CONTACT_SENSOR_DIM):
             raise ValueError(
                 "the fN_pen_contact sensors must have data='found force dist pos normal "
@@ -380,7 +225,7 @@ class PenHandPhysics(FreePenPhysics):
         if keyframe is None:
             mujoco.mj_resetData(self.model, self.data)
         else:
-            key = _lookup(self.model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
+            key = lookup(self.model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
             mujoco.mj_resetDataKeyframe(self.model, self.data, key)
         mujoco.mj_forward(self.model, self.data)
 
@@ -477,28 +322,21 @@ class PenHandPhysics(FreePenPhysics):
             # For fingers that do not touch: the tip centre, and the geometric normal from it
             # to the nearest point of the pen's axis segment.
             idle = ~active
-            rel = tips_mj[idle] - d.xpos[self.pen_body_id]
-            u = np.clip(rel @ axis_mj, -self._pen_half_length, self._pen_half_length)
-            geometric = np.multiply.outer(u, axis_mj) - rel
-            normal_mj[idle] = geometric / np.linalg.norm(geometric, axis=1, keepdims=True)
+            normal_mj[idle] = axis_normals(
+                tips_mj[idle], d.xpos[self.pen_body_id], axis_mj, self._pen_half_length
+            )
             points_mj[idle] = tips_mj[idle]
         # Force of the tip on the pen: MuJoCo's contact frame is (normal, tangent, n x t).
         tangent = block[:, 11:14]
-        binormal = normal_mj[:, _YZX] * tangent[:, _ZXY] - normal_mj[:, _ZXY] * tangent[:, _YZX]
+        binormal = cross(normal_mj, tangent)
         f = block[:, 1:4]
         force_mj = f[:, :1] * normal_mj + f[:, 1:2] * tangent + f[:, 2:3] * binormal
         force_mj[~active] = 0.0
 
-        # Frame rows in MuJoCo coordinates, converted to the paper frame in one product.
-        frames = np.empty((k, 3, 3))
-        n, t1, t2 = frames[:, 0], frames[:, 1], frames[:, 2]
-        n[:] = normal_mj
-        np.subtract(axis_mj, (n @ axis_mj)[:, None] * n, out=t1)
-        t1 /= np.sqrt(np.einsum("ij,ij->i", t1, t1))[:, None]
-        # t2 = sign * (t1 x n): both are in MuJoCo coordinates here, and the paper frame is a
-        # proper rotation of it, so the cross product commutes with the conversion.
-        np.subtract(t1[:, _YZX] * n[:, _ZXY], t1[:, _ZXY] * n[:, _YZX], out=t2)
-        t2 *= self._t2_sign[:, None]
+        # Frame rows in MuJoCo coordinates, converted to the paper frame in one product
+        # (t2 = sign * (t1 x n): the paper frame is a proper rotation of MuJoCo's, so the
+        # cross product commutes with the conversion).
+        frames = contact_frames(normal_mj, axis_mj, self._t2_sign)
         return FingertipContacts(
             active=active,
             points=(points_mj - self.origin_mj) @ R_PAPER_TO_MJ,
@@ -523,10 +361,7 @@ class PenHandPhysics(FreePenPhysics):
             ``(k,)`` bool mask of touching fingers.
         """
         c = self.fingertip_contacts() if contacts is None else contacts
-        w = _wrench_matrix(c.points, c.frames, reference=self.pen_com())
-        if not c.active.all():
-            w[:, np.repeat(~c.active, 3)] = 0.0
-        return w, c.active
+        return masked_wrench_matrix(c, self.pen_com()), c.active
 
     def contact_intensities(self, contacts: FingertipContacts | None = None) -> FloatArray:
         """The measured wrench intensities c of eq. (3), ``(3k,)`` [N].
@@ -535,8 +370,7 @@ class PenHandPhysics(FreePenPhysics):
         contact frame (normal >= 0 pushes); zeros for a finger not touching. With the pen's
         other loads, ``W @ c`` is the fingers' net wrench.
         """
-        cts = self.fingertip_contacts() if contacts is None else contacts
-        return np.einsum("kij,kj->ki", cts.frames, cts.force).reshape(-1)
+        return contact_intensities(self.fingertip_contacts() if contacts is None else contacts)
 
     def fingertip_jacobians(self, contacts: FingertipContacts | None = None) -> FloatArray:
         """The hand Jacobian J of eq. (30), ``(3k, n_hand_dofs)``.

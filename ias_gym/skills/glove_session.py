@@ -35,17 +35,18 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ias_gym.evaluation import TELEOP
+from ias_gym.sim.glove_contacts import squeeze_null_vector
+from ias_gym.sim.glove_scene import FINGER_ABOVE, FINGER_GEOMS, FINGER_TIPS
 from ias_gym.skills.skill import SkillModelSamples
 
 if TYPE_CHECKING:
     from ias_gym.envs.glove_grasp import GloveGraspEnv
-    from ias_gym.sim.glove_contacts import GlovePenPhysics
 
 #: The fingers of the glove env's skill model, in column order, their tip sites, and which
-#: comes down on the pen from above in the pinch (the index; the thumb is under the pen).
-GLOVE_FINGERS = ("index", "thumb")
-GLOVE_TIPS = ("index_tip", "thumb_tip")
-GLOVE_ABOVE = (True, False)
+#: comes down on the pen from above in the pinch (the scene's, :mod:`ias_gym.sim.glove_scene`).
+GLOVE_FINGERS = tuple(FINGER_GEOMS)
+GLOVE_TIPS = FINGER_TIPS
+GLOVE_ABOVE = FINGER_ABOVE
 
 
 def glove_session_source(source: str, glove_id: str) -> str:
@@ -65,34 +66,24 @@ def glove_session_source(source: str, glove_id: str) -> str:
 class GloveSkillModelRecorder(SkillModelSamples):
     """Samples the skill model of a glove env, one :meth:`sample` per observation.
 
-    Its :meth:`model` is a pinch: ``f_int`` has one column (the squeeze).
+    Its :meth:`model` is a pinch: ``f_int`` has one column (the squeeze). The contacts are
+    the env's own (``GloveGraspEnv.contact_pass``): the pass over MuJoCo's contacts that
+    gave the step's force display also gives W and c.
     """
-
-    def __init__(self) -> None:
-        super().__init__()
-        self._physics: GlovePenPhysics | None = None
-
-    def _physics_of(self, env: GloveGraspEnv) -> GlovePenPhysics:
-        from ias_gym.envs.glove_grasp import INDEX_GEOMS, THUMB_GEOMS
-        from ias_gym.sim.glove_contacts import GlovePenPhysics
-
-        if self._physics is None or self._physics.data is not env.data:
-            fingers = dict(zip(GLOVE_FINGERS, (INDEX_GEOMS, THUMB_GEOMS), strict=True))
-            self._physics = GlovePenPhysics(
-                env.model, env.data, fingers, GLOVE_TIPS, above=GLOVE_ABOVE
-            )
-        return self._physics
 
     def sample(self, env: GloveGraspEnv) -> None:
         """Append the contact schedule, pen state and wrench intensities of now.
 
         Args:
             env: the unwrapped glove env, just after ``reset`` or ``step``.
-        """
-        from ias_gym.sim.glove_contacts import squeeze_null_vector
 
-        p = self._physics_of(env)
-        contacts = p.finger_contacts()
+        Raises:
+            RuntimeError: the env has not been reset.
+        """
+        if env.contact_pass is None:
+            raise RuntimeError("sample the glove env after reset() or step()")
+        p = env.physics
+        contacts = p.finger_contacts(env.contact_pass)
         W, active = p.wrench_matrix(contacts)
         c = p.contact_intensities(contacts)
         N = squeeze_null_vector(W, contacts)

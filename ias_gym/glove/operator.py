@@ -1,0 +1,91 @@
+"""The scripted operator of the glove world: the person pinching and lifting the pen.
+
+:func:`pen_operator` adapts :class:`~ias_gym.glove.device.ReachPinchLift` (the glove's bare-pad
+pinch) to a pen of a given radius, and :class:`FromPreShape` starts it where the episodes of
+``IAS-GloveGrasp-v0`` begin. Pure hand geometry (numpy and :mod:`ias_gym.glove.hand`): the
+pen's radius comes from the caller, who reads it from the compiled scene
+(:mod:`ias_gym.sim.glove_scene`), so no number of the MJCF is copied here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ias_gym.glove.device import ReachPinchLift
+from ias_gym.glove.hand import PersonParams
+
+FloatArray = NDArray[np.float64]
+
+#: Tip-to-tip distance of the operator's pen pinch minus the pen's diameter, at scale 1 [m].
+#: The model's pads need +13 mm (index 6 mm + thumb 7 mm radius); the targets lie 17 mm
+#: (+ ReachPinchLift's 2 mm) further in, so the position servos squeeze the pen with about
+#: 2 N (measured; the pen weighs 1 N, mu = 0.25).
+PEN_PAD_GAP = -0.004
+#: Pen pinches (thumb CMC, thumb flexion, index DIP) [rad], the first in reach is used:
+#: poses where the shipped ANN calibration is accurate (<= 2 deg on p1's and p3's index and
+#: thumb; the glove's calibration poses are bare-pad pinches and free poses).
+PEN_PINCH_POSES: tuple[tuple[float, float, float], ...] = (
+    (1.1, 0.4, 0.4),
+    (1.0, 0.4, 0.4),
+    (1.0, 0.6, 0.6),
+    (1.1, 0.4, 0.2),
+    (1.0, 0.2, 0.4),
+)
+
+
+def pen_operator(person: PersonParams, pen_radius: float) -> ReachPinchLift:
+    """The scripted operator pinching the pen: :class:`ReachPinchLift` with the pads apart.
+
+    ReachPinchLift puts the index tip ``pad_contact - force / pad_stiffness`` [m] from the
+    thumb tip along the thumb pad's normal (the glove's pinch of the bare pads); for the pen
+    this gap is set to the pen's diameter + :data:`PEN_PAD_GAP` (a person whose
+    ``pad_contact`` is the pen's width), so the index comes down on the pen right across from
+    the thumb pad: an antipodal pinch whose squeeze passes through the pen's axis (with the
+    bare-pad pinch, the pads meet at 110 degrees around the pen and squeeze it out). The
+    glove still reads the real person (no pad contact, no pinch cross-talk: the pads touch
+    the pen, not each other). The thumb is more opposed than in the default pinch
+    (:data:`PEN_PINCH_POSES`) so that the index reaches across a 2 cm pen.
+
+    Args:
+        person: the operator's hand.
+        pen_radius: the pen's radius [m] (the scene's pen geom, ``model.geom_size[pen, 0]``).
+
+    Raises:
+        ValueError: ``pen_radius`` is not positive, or no pen pinch of
+            :data:`PEN_PINCH_POSES` is in reach of this hand.
+    """
+    if not pen_radius > 0:
+        raise ValueError(f"pen_radius must be positive [m], got {pen_radius}")
+    s = person.hand_scale
+    wide = dataclasses.replace(person, pad_contact=2.0 * pen_radius + PEN_PAD_GAP * s)
+    for cmc, flexion, dip in PEN_PINCH_POSES:
+        try:
+            return ReachPinchLift(wide, thumb=(cmc, flexion), dip=dip)
+        except ValueError:  # out of this hand's reach: the next pose
+            continue
+    raise ValueError(f"no pen pinch of {PEN_PINCH_POSES} is in reach of {person.person_id}")
+
+
+class FromPreShape:
+    """An operator started later: ``Θ(t) = operator(t + start)`` [rad], t [s].
+
+    The episodes of ``IAS-GloveGrasp-v0`` begin when the scripted reach has pre-shaped the
+    hand (thumb under the pen, index above it): in the glove's planar hand the thumb's
+    opposition swing passes through the place of the pinch, so a pen already lying there
+    would be struck (see HUMAN_HAND.md).
+
+    Args:
+        operator: the script to run.
+        start: where in it the episode begins [s] (default: the end of its reach).
+    """
+
+    def __init__(self, operator: ReachPinchLift, start: float | None = None) -> None:
+        self.operator = operator
+        self.start = operator.timings.reach if start is None else float(start)
+
+    def __call__(self, t: float) -> FloatArray:
+        """Intended joint angles Θ ``(10,)`` [rad] at episode time ``t`` [s]."""
+        return self.operator(t + self.start)

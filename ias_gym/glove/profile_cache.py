@@ -1,0 +1,58 @@
+"""The simulated persons' calibrations, trained once and cached as profiles in the home dir.
+
+``IAS-GloveGrasp-v0`` needs a calibration Θ = f(Ψ) of its simulated person; training the ANN
+takes seconds, so :func:`default_calibration` keeps it as a profile (safe JSON, atomic
+writes, checked loads: :mod:`ias_gym.glove.profile`) in the user's cache directory.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+from ias_gym.glove.calibration import Calibration
+from ias_gym.glove.hand import PersonParams
+from ias_gym.glove.ids import check_id
+from ias_gym.glove.profile import ProfileError, load_profile, save_profile
+
+
+def cache_dir() -> Path:
+    """The profile cache, ``$XDG_CACHE_HOME/ias_gym/glove_profiles`` (``~/.cache/...``),
+    created if missing; a directory in the temp dir when the home is read-only."""
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    path = Path(base) / "ias_gym" / "glove_profiles"
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:  # read-only home: a temp dir
+        path = Path(tempfile.gettempdir()) / "ias_gym_glove_profiles"
+        path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def default_calibration(person: PersonParams) -> Calibration:
+    """The ANN calibration of a simulated ``person``, trained once and cached as a profile.
+
+    The profile lives in :func:`cache_dir` as ``<person_id>-seed<seed>.json``; a stale or
+    damaged one is trained again. Training (the first time) needs torch (the ``[glove]``
+    extra) and takes seconds.
+
+    Args:
+        person: the simulated person (its id and seed name the file).
+
+    Raises:
+        InputError: the person's id is not a valid id (it names the cache file; see
+            :func:`~ias_gym.glove.ids.check_id`), checked before any file is touched.
+    """
+    name = f"{check_id(person.person_id, 'person_id')}-seed{int(person.seed)}.json"
+    path = cache_dir() / name
+    if path.exists():
+        try:
+            return load_profile(path, person_id=person.person_id).calibration
+        except ProfileError:
+            pass  # stale or damaged: train again
+    from ias_gym.glove.training import calibrate_person  # torch is optional: on first use only
+
+    run = calibrate_person(person)
+    save_profile(run.profile, path)
+    return run.profile.calibration
