@@ -23,7 +23,7 @@ from ias_gym.baselines import law
 from ias_gym.baselines.grip_transform_control import GripTransformController
 from ias_gym.envs.pen_hand_env import PenHandEnv
 from ias_gym.grasp.contacts import cross3, wrench_matrix
-from ias_gym.grasp.grip_transform import GraspRankError, pseudo_inverse
+from ias_gym.grasp.grip_transform import GraspRankError, null_space_basis, pseudo_inverse
 from ias_gym.grasp.internal_forces import InternalForceSettings, friction_cone_residual
 
 K = 4  # fingers
@@ -327,3 +327,29 @@ def test_the_adapter_weighs_the_pen_with_the_model_gravity() -> None:
     wrench = GripTransformController().object_wrench(u, np.zeros(6))
     np.testing.assert_allclose(wrench[:3], [0.0, mass * 4.0, 0.0], rtol=1e-12, atol=1e-15)
     env.close()
+
+
+# ---------------------------------------------------------------- offsets at sliding contacts
+@settings(max_examples=60, deadline=None)
+@given(seed=SEEDS)
+def test_offset_keeps_kinetic_friction_and_stays_internal(seed: int) -> None:
+    """An internal-force offset keeps every sliding contact on its kinetic-friction line
+    ``c_t = mu c_n s``, stays in the null space of W (no net wrench), is the requested offset
+    when nothing slides, and changes the request as little as possible (a projection)."""
+    rng = np.random.default_rng(seed)
+    W = cylinder_grasp(rng)
+    N = null_space_basis(W)
+    f = rng.normal(scale=0.1, size=N.shape[1])
+    mu = 0.25
+    np.testing.assert_allclose(law.keep_sliding_friction(N, f, {}, mu), N @ f, atol=1e-15)
+    angle = rng.uniform(0, 2 * np.pi)
+    sliding = {int(rng.integers(K)): np.array([np.cos(angle), np.sin(angle)])}
+    offset = law.keep_sliding_friction(N, f, sliding, mu)
+    np.testing.assert_allclose(W @ offset, 0.0, atol=1e-12)
+    for k, s in sliding.items():
+        c = offset[3 * k : 3 * k + 3]
+        np.testing.assert_allclose(c[1:], mu * c[0] * s, atol=1e-12)
+    # A projection: applying it again changes nothing, and what it removed is orthogonal.
+    kept = N.T @ offset
+    np.testing.assert_allclose(law.keep_sliding_friction(N, kept, sliding, mu), offset, atol=1e-12)
+    assert abs((f - kept) @ kept) < 1e-12
