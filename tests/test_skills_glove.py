@@ -11,6 +11,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from ias_gym.cli.skills import add_skills_commands
 from ias_gym.envs.glove_grasp import INDEX_GEOMS, THUMB_GEOMS, GloveGraspEnv
 from ias_gym.errors import InputError
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
@@ -20,7 +21,6 @@ from ias_gym.sim.pen_hand import mj_to_paper
 from ias_gym.skills import (
     SkillDB,
     SkillModel,
-    add_skills_commands,
     glove_session_source,
     record_skills,
 )

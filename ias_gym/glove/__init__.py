@@ -12,9 +12,11 @@
 - :mod:`~ias_gym.glove.profile`: a person's profile as safe JSON, atomic writes, checked loads.
 - :mod:`~ias_gym.glove.device`: the :class:`GloveDevice` interface, :class:`SimulatedGlove`
   and the scripted operator :class:`ReachPinchLift`.
-- :mod:`~ias_gym.glove.commands`: ``ias-gym calibrate``.
 - :mod:`~ias_gym.glove.ids`: :func:`check_id`, the one rule for person and glove ids
   (they name files).
+
+``ias-gym calibrate`` lives in :mod:`ias_gym.cli.glove` (this package never imports the
+command line).
 """
 
 from __future__ import annotations
@@ -34,7 +36,6 @@ from ias_gym.glove.calibration import (
     evaluate,
     fit_linear,
 )
-from ias_gym.glove.commands import add_glove_commands
 from ias_gym.glove.device import (
     ACTUATED_JOINTS,
     GloveDevice,
@@ -106,7 +107,6 @@ __all__ = [
     "ReachPinchLiftTimings",
     "SimulatedGlove",
     "TrainingReport",
-    "add_glove_commands",
     "calibrate_person",
     "check_id",
     "evaluate",

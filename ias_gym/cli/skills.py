@@ -16,12 +16,14 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from ias_gym.cli.args import env_kwargs_argument, parse_env_kwargs
 from ias_gym.errors import IasGymError, InputError
+from ias_gym.skills.check import check_database
 
 #: Exit code of ``skills check`` when a skill is corrupt.
 EXIT_CORRUPT = 2
@@ -46,7 +48,6 @@ def _as_package_errors() -> Iterator[None]:
 
 
 def _record(args: argparse.Namespace) -> int:
-    from ias_gym.cli import parse_env_kwargs
     from ias_gym.skills.record import record_skills
 
     with _as_package_errors():
@@ -157,38 +158,6 @@ def _export(args: argparse.Namespace) -> int:
     return 0
 
 
-def check_database(path: str | Path, report: Callable[[int, str | None], None]) -> int:
-    """Verify every skill of the database at ``path`` (read-only): SQLite's integrity
-    check, then every array of every skill against its checksum
-    (:meth:`~ias_gym.skills.db.SkillDB.check_skill`).
-
-    Args:
-        path: the database file.
-        report: called per skill with its id and ``None`` (fine) or the problem found.
-
-    Returns:
-        The number of skills with a problem.
-
-    Raises:
-        SkillDBError: the file is missing, empty, not a skill database, or damaged beyond
-            single skills (``PRAGMA integrity_check`` fails; the message has its findings).
-    """
-    from ias_gym.skills.db import SkillDB, SkillDBError
-
-    bad = 0
-    with SkillDB(path, readonly=True) as db:
-        db.integrity_check()
-        for skill_id in db.ids():
-            try:
-                db.check_skill(skill_id)
-            except SkillDBError as exc:
-                bad += 1
-                report(skill_id, str(exc))
-            else:
-                report(skill_id, None)
-    return bad
-
-
 def _check(args: argparse.Namespace) -> int:
     def report(skill_id: int, problem: str | None) -> None:
         if args.json:
@@ -238,8 +207,6 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
     Returns:
         The ``skills`` parser.
     """
-    from ias_gym.cli import env_kwargs_argument
-
     skills = subparsers.add_parser(
         "skills",
         help="the skill database: record, list, show, export, check and delete skills",
