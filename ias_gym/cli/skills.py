@@ -23,7 +23,6 @@ from typing import Any
 
 from ias_gym.cli.args import env_kwargs_argument, parse_env_kwargs
 from ias_gym.errors import IasGymError, InputError
-from ias_gym.skills.check import check_database
 
 #: Exit code of ``skills check`` when a skill is corrupt.
 EXIT_CORRUPT = 2
@@ -164,6 +163,8 @@ def _check(args: argparse.Namespace) -> int:
             print(json.dumps({"id": skill_id, "ok": problem is None, "error": problem}))
         else:
             print(f"skill {skill_id}: {'OK' if problem is None else problem}", flush=True)
+
+    from ias_gym.skills.check import check_database
 
     bad = check_database(args.db, report)
     if not args.json:

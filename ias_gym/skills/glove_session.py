@@ -23,7 +23,7 @@ carries the fingers' net force exactly and their moment to about 2e-3 N m (see
 :mod:`ias_gym.sim.glove_contacts`).
 
 The env has no expert: a glove session is teleoperation (the ``teleop`` policy of
-:func:`ias_gym.evaluation.load_policy`, zero action). Provenance: the person is the env's
+:func:`ias_gym.baselines.policies.load_policy`, zero action). Provenance: the person is the env's
 (``env.unwrapped.person.person_id``) and the source names the glove
 (:func:`glove_session_source`).
 """
@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ias_gym.evaluation import TELEOP
+from ias_gym.baselines.policies import TELEOP
 from ias_gym.skills.skill import SkillModelSamples
 
 if TYPE_CHECKING:

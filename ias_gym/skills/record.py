@@ -25,7 +25,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.evaluation import TELEOP, load_policy
+from ias_gym.baselines.policies import TELEOP, load_policy, stateful
 from ias_gym.grasp.grip_transform import GraspRankError, GripTransform
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.glove_session import glove_session_source
@@ -271,7 +271,7 @@ def record_skills(
         InputError: ``person_id`` or ``env_kwargs["person_id"]`` is not a valid id
             (:func:`~ias_gym.glove.ids.check_id`), checked before the database is opened.
         ValueError: ``expert`` on a glove env, ``teleop`` on a pen env
-            (:func:`~ias_gym.evaluation.load_policy`), a person other than the glove env's
+            (:func:`~ias_gym.baselines.policies.load_policy`), a person other than the glove env's
             (:func:`record_episode`).
     """
     from tqdm import tqdm
@@ -299,7 +299,7 @@ def record_skills(
             )
             successes = 0
             for episode in bar:
-                if policy_spec == "expert":
+                if stateful(policy_spec):
                     # a fresh controller per episode
                     act = load_policy(policy_spec, env, seed)
                 skill = record_episode(
