@@ -35,6 +35,7 @@ lint: setup
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy
+	$(BIN)/lint-imports  # the layers and contracts of [tool.importlinter] in pyproject.toml
 
 test: lint
 	$(BIN)/python -m pytest -q
