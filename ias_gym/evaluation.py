@@ -14,7 +14,9 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import imageio.v2 as imageio
 import numpy as np
+from tqdm import tqdm
 
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.baselines.policies import (  # re-exported: the loader's home is the policy layer
@@ -172,8 +174,6 @@ def evaluate(
     stride = max(1, round(fps / VIDEO_FPS))  # render only the frames the video keeps
     episode_iter: Any = range(episodes)
     if progress:
-        from tqdm import tqdm
-
         episode_iter = tqdm(episode_iter, desc=f"{env_id} / {policy}", unit="episode")
     for episode in episode_iter:
         frames: list[np.ndarray] | None = [] if (video is not None and episode == 0) else None
@@ -228,8 +228,6 @@ def write_video(
     Raises:
         OutputExistsError: ``path`` exists and ``overwrite`` is false.
     """
-    import imageio.v2 as imageio
-
     path = Path(path)
     with atomic_output(path, overwrite=overwrite) as tmp:
         writer: Any = imageio.get_writer(tmp, fps=fps, macro_block_size=8)

@@ -5,7 +5,8 @@ of the pen tasks, :class:`~ias_gym.baselines.expert.ExpertPolicy`), ``teleop`` (
 envs: zero action, the glove alone drives the hand), ``random``, or the path of a saved
 SB3 model (loaded without running code from it, :mod:`ias_gym.safe_sb3`).
 :mod:`ias_gym.evaluation` and :mod:`ias_gym.skills.record` (layers above this one) take the
-loaded callable; :func:`stateful` says when to load a fresh one per episode.
+loaded callable; :func:`stateful` says when to load a fresh one per episode and
+:func:`policy_source` what a recorded skill stores as its provenance.
 """
 
 from __future__ import annotations
@@ -65,8 +66,8 @@ def load_policy(
         MissingDependencyError: a model path was given but stable-baselines3 is not
             installed.
     """
-    # The env and the expert pull in MuJoCo models: imported when a policy is loaded, so
-    # that importing this module (``ias-gym --help``, the skills package) stays light.
+    # The expert and the envs load MuJoCo models: imported when a policy is loaded, so that
+    # importing this module (and the skill database above it) stays light.
     from ias_gym.baselines.expert import ExpertPolicy
     from ias_gym.envs.glove_grasp import GloveGraspEnv
 
@@ -117,3 +118,12 @@ def stateful(spec: str) -> bool:
         spec: a policy spec as for :func:`load_policy`.
     """
     return spec == EXPERT
+
+
+def policy_source(policy_spec: str) -> str:
+    """Provenance string of a policy spec: ``expert``, ``random``, ``teleop`` or
+    ``policy:<abs path>`` (a glove session's is refined by
+    :func:`~ias_gym.skills.record.record_episode`)."""
+    if policy_spec in (EXPERT, RANDOM, TELEOP):
+        return policy_spec
+    return f"policy:{Path(policy_spec).resolve()}"

@@ -12,6 +12,7 @@ The ``ias-gym skills ...`` commands live in :mod:`ias_gym.cli.skills` (this pack
 imports the command line).
 """
 
+from ias_gym.baselines.policies import policy_source
 from ias_gym.skills.check import check_database
 from ias_gym.skills.db import (
     SCHEMA_VERSION,
@@ -29,7 +30,6 @@ from ias_gym.skills.minari_export import export_minari
 from ias_gym.skills.record import (
     SkillModelRecorder,
     SkillSampler,
-    policy_source,
     record_episode,
     record_skills,
     skill_model_recorder,

@@ -73,6 +73,8 @@ class GloveSkillModelRecorder(SkillModelSamples):
         self._physics: GlovePenPhysics | None = None
 
     def _physics_of(self, env: GloveGraspEnv) -> GlovePenPhysics:
+        # MuJoCo scene code: imported on first use, so that importing the skills package
+        # (the database) does not load MuJoCo
         from ias_gym.envs.glove_grasp import INDEX_GEOMS, THUMB_GEOMS
         from ias_gym.sim.glove_contacts import GlovePenPhysics
 
@@ -89,7 +91,7 @@ class GloveSkillModelRecorder(SkillModelSamples):
         Args:
             env: the unwrapped glove env, just after ``reset`` or ``step``.
         """
-        from ias_gym.sim.glove_contacts import squeeze_null_vector
+        from ias_gym.sim.glove_contacts import squeeze_null_vector  # as in _physics_of
 
         p = self._physics_of(env)
         contacts = p.finger_contacts()
