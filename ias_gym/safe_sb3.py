@@ -17,7 +17,8 @@ from the JSON alone:
   bounds), so a model of another task is refused before it acts;
 * ``policy_kwargs``: JSON values as they are; a class (``activation_fn``,
   ``features_extractor_class``, ``optimizer_class``) only if its name is on an allow-list
-  (torch activations and optimisers, SB3's extractors, :class:`ObservationNormalizer`);
+  (torch activations and optimisers, SB3's extractors,
+  :class:`~ias_gym.learning.normalisation.ObservationNormalizer`, also by its old path);
 * the weights: ``policy.pth`` with ``torch.load(..., weights_only=True)``. The optimiser
   states, ``pytorch_variables.pth`` and the training-only fields (schedules, buffers) are
   not read at all: acting does not need them.
@@ -53,15 +54,25 @@ POLICY_CLASSES: Mapping[str, frozenset[str]] = {
     "stable_baselines3.sac.policies": frozenset({"SACPolicy", "CnnPolicy", "MultiInputPolicy"}),
     "stable_baselines3.td3.policies": frozenset({"TD3Policy", "CnnPolicy", "MultiInputPolicy"}),
 }
-#: Features extractors rebuilt from their name (module, class).
-FEATURES_EXTRACTORS = frozenset(
-    {
-        ("stable_baselines3.common.torch_layers", "FlattenExtractor"),
-        ("stable_baselines3.common.torch_layers", "NatureCNN"),
-        ("stable_baselines3.common.torch_layers", "CombinedExtractor"),
-        ("ias_gym.baselines.bc", "ObservationNormalizer"),
-    }
-)
+#: Features extractors rebuilt from their name: the (module, class) a file names -> the
+#: (module, class) built for it.
+FEATURES_EXTRACTORS: Mapping[tuple[str, str], tuple[str, str]] = {
+    **{
+        (module, name): (module, name)
+        for module, name in (
+            ("stable_baselines3.common.torch_layers", "FlattenExtractor"),
+            ("stable_baselines3.common.torch_layers", "NatureCNN"),
+            ("stable_baselines3.common.torch_layers", "CombinedExtractor"),
+            ("ias_gym.learning.normalisation", "ObservationNormalizer"),
+        )
+    },
+    # Models saved before the normaliser moved out of ias_gym.baselines.bc (removed) name
+    # it there.
+    ("ias_gym.baselines.bc", "ObservationNormalizer"): (
+        "ias_gym.learning.normalisation",
+        "ObservationNormalizer",
+    ),
+}
 #: Largest ``data`` member read [bytes]: SB3 writes a few kB; a bigger one is not a model.
 MAX_DATA_BYTES = 64 * 2**20
 TRUST_HINT = (
@@ -199,6 +210,8 @@ def _resolve_class(path: Path, key: str, text: str) -> type:
         allowed = module.startswith("torch.optim.")
     elif key == "features_extractor_class":
         allowed = (module, name) in FEATURES_EXTRACTORS
+        if allowed:
+            module, name = FEATURES_EXTRACTORS[module, name]
     else:
         allowed = False
     if not allowed:
@@ -286,15 +299,40 @@ def _check_loaded_spaces(path: Path, model: Any, env: gym.Env[Any, Any]) -> None
             )
 
 
+def _moved_classes(path: Path, data: Mapping[str, Any]) -> dict[str, Any] | None:
+    """``custom_objects`` for SB3's load if ``policy_kwargs`` names a class that has moved.
+
+    Its pickle refers to the old module, which no longer exists: ``policy_kwargs`` is then
+    rebuilt from the JSON instead (the other fields are still unpickled).
+    """
+    item = data.get("policy_kwargs")
+    if not isinstance(item, dict) or not _is_pickled(item):
+        return None
+    for value in item.values():
+        match = _CLASS_REPR.fullmatch(value) if isinstance(value, str) else None
+        if match is None:
+            continue
+        module, _, name = match.group(1).rpartition(".")
+        if FEATURES_EXTRACTORS.get((module, name), (module, name)) != (module, name):
+            try:
+                return {"policy_kwargs": _policy_kwargs(path, data)}
+            except UntrustedPickleError:  # another class not known by name: only the pickle
+                return None
+    return None
+
+
 def _load_with_pickle(path: Path, data: Mapping[str, Any], env: gym.Env[Any, Any]) -> Any:
     """SB3's own load (it unpickles the file): the algorithm from the JSON, or each in turn."""
     import stable_baselines3
 
     known = algorithm_of(data)
+    custom_objects = _moved_classes(path, data)
     errors = []
     for name in (known,) if known else ALGORITHMS:
         try:
-            model = getattr(stable_baselines3, name).load(path, device="cpu")
+            model = getattr(stable_baselines3, name).load(
+                path, device="cpu", custom_objects=custom_objects
+            )
         except Exception as exc:  # each algorithm refuses another's file differently
             errors.append(f"{name}: {type(exc).__name__}: {exc}")
             continue

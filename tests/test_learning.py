@@ -7,8 +7,11 @@ better than an untrained one, and what is saved must be what is loaded.
 
 from __future__ import annotations
 
+import importlib.util
+import os
 import subprocess
 import sys
+import types
 from pathlib import Path
 
 import gymnasium as gym
@@ -20,22 +23,21 @@ pytest.importorskip("stable_baselines3")
 
 from stable_baselines3 import PPO  # noqa: E402
 
-from ias_gym.baselines.bc import (  # noqa: E402
-    GaussianActionNoise,
-    KeepBestPolicy,
-    ObservationNormalizer,
-    action_mse,
-    behaviour_clone,
-    discounted_returns,
-    fine_tune,
-    load_demonstrations,
-    make_vec_env,
-    policy_kwargs,
-    predicted_actions,
-    record_noisy_expert,
-)
 from ias_gym.baselines.expert import ExpertPolicy  # noqa: E402
 from ias_gym.evaluation import load_policy  # noqa: E402
+from ias_gym.learning.cloning import (  # noqa: E402
+    action_mse,
+    behaviour_clone,
+    predicted_actions,
+)
+from ias_gym.learning.dart import GaussianActionNoise, record_noisy_expert  # noqa: E402
+from ias_gym.learning.demonstrations import (  # noqa: E402
+    discounted_returns,
+    load_demonstrations,
+)
+from ias_gym.learning.finetune import KeepBestPolicy, fine_tune, make_vec_env  # noqa: E402
+from ias_gym.learning.normalisation import ObservationNormalizer, policy_kwargs  # noqa: E402
+from ias_gym.safe_sb3 import load_sb3_policy, read_model_json  # noqa: E402
 from ias_gym.skills import SkillDB, record_skills  # noqa: E402
 from tests.closed_loop import perturbed_starts  # noqa: E402
 
@@ -221,42 +223,81 @@ def test_policy_kwargs_build_sac() -> None:
         ObservationNormalizer(space, mean=[0.0], std=[1.0])
 
 
-@pytest.mark.parametrize("script", ["bc.py", "bc_ppo.py", "ppo.py", "sac.py"])
-def test_training_scripts_have_help(script: str) -> None:
-    result = subprocess.run(
-        [sys.executable, str(ROOT / "train" / script), "--help"],
+def test_model_saved_with_the_old_normaliser_path_loads(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A model saved when the normaliser was ``ias_gym.baselines.bc.ObservationNormalizer``
+    (a module since removed) loads, safely and with ``trust_pickle``, and acts as saved."""
+    env = _env()
+    space = env.observation_space
+    assert isinstance(space, gym.spaces.Box)
+    rng = np.random.default_rng(0)
+    mean = rng.normal(size=space.shape).astype(np.float32)
+    std = rng.uniform(0.5, 2.0, size=space.shape).astype(np.float32)
+    # Saved as the old code saved it: the class named, and pickled by reference, by its old
+    # path (checked against a model the old code wrote: the same JSON name and pickle path).
+    old_module = types.ModuleType("ias_gym.baselines.bc")
+    old_module.ObservationNormalizer = ObservationNormalizer  # type: ignore[attr-defined]
+    path = tmp_path / "old.zip"
+    with monkeypatch.context() as patch:
+        patch.setitem(sys.modules, "ias_gym.baselines.bc", old_module)
+        patch.setattr(ObservationNormalizer, "__module__", "ias_gym.baselines.bc")
+        model = PPO(
+            "MlpPolicy", env, policy_kwargs=policy_kwargs(mean, std, (16,)), device="cpu", seed=0
+        )
+        model.save(path)
+    saved_class = read_model_json(path)["policy_kwargs"]["features_extractor_class"]
+    assert saved_class == "<class 'ias_gym.baselines.bc.ObservationNormalizer'>"
+    assert importlib.util.find_spec("ias_gym.baselines.bc") is None
+    observations = np.stack([env.reset(seed=seed)[0] for seed in range(5)])
+    expected = predicted_actions(model, observations)
+    for trust_pickle in (False, True):
+        loaded = load_sb3_policy(path, env, trust_pickle=trust_pickle)
+        extractor = loaded.policy.features_extractor
+        assert isinstance(extractor, ObservationNormalizer)
+        np.testing.assert_array_equal(extractor.mean.numpy(), mean)
+        np.testing.assert_array_equal(extractor.std.numpy(), std)
+        np.testing.assert_allclose(
+            np.stack([loaded(o) for o in observations]), expected, rtol=1e-5, atol=1e-7
+        )
+
+
+def _run_script(*args: str) -> subprocess.CompletedProcess[str]:
+    """``python train/ARGS...`` importing the ias_gym of this checkout (not an installed one)."""
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
+    return subprocess.run(
+        [sys.executable, str(ROOT / "train" / args[0]), *args[1:]],
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=120,
         check=False,
+        env={**os.environ, "PYTHONPATH": path},
     )
+
+
+@pytest.mark.parametrize("script", ["bc.py", "bc_ppo.py", "ppo.py", "sac.py"])
+def test_training_scripts_have_help(script: str) -> None:
+    result = _run_script(script, "--help")
     assert result.returncode == 0, result.stderr
     assert "--out" in result.stdout
 
 
 def test_bc_script_end_to_end(demo_db: Path, tmp_path: Path) -> None:
     out = tmp_path / "bc_script.zip"
-    result = subprocess.run(
-        [
-            sys.executable,
-            str(ROOT / "train" / "bc.py"),
-            "--env",
-            ENV_ID,
-            "--db",
-            str(demo_db),
-            "--episodes",
-            "2",
-            "--epochs",
-            "2",
-            "--out",
-            str(out),
-            "--eval-episodes",
-            "0",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
+    result = _run_script(
+        "bc.py",
+        "--env",
+        ENV_ID,
+        "--db",
+        str(demo_db),
+        "--episodes",
+        "2",
+        "--epochs",
+        "2",
+        "--out",
+        str(out),
+        "--eval-episodes",
+        "0",
     )
     assert result.returncode == 0, result.stderr
     assert str(out) in result.stdout

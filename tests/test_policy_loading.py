@@ -27,9 +27,9 @@ sb3 = pytest.importorskip("stable_baselines3")
 
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor  # noqa: E402
 
-from ias_gym.baselines.bc import policy_kwargs  # noqa: E402
 from ias_gym.cli import main  # noqa: E402
 from ias_gym.evaluation import load_policy  # noqa: E402
+from ias_gym.learning.normalisation import policy_kwargs  # noqa: E402
 from ias_gym.safe_sb3 import (  # noqa: E402
     TRUST_HINT,
     PolicyFileError,

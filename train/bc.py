@@ -39,8 +39,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     import gymnasium as gym
     import torch
 
-    from ias_gym.baselines.bc import behaviour_clone
     from ias_gym.evaluation import report
+    from ias_gym.learning.cloning import behaviour_clone
 
     torch.set_num_threads(args.threads)
     demos = demonstrations(args)

@@ -3,14 +3,14 @@
     python train/bc_ppo.py --env IAS-PenSlide-v0 --db out/slide_dart.db --record \\
         --episodes 50 --steps 100000 --out out/bc_ppo_slide.zip
 
-The cloned policy (:func:`ias_gym.baselines.bc.behaviour_clone`: actor fitted to the
+The cloned policy (:func:`ias_gym.learning.cloning.behaviour_clone`: actor fitted to the
 demonstrations, exploration noise set to the cloning residual, critic fitted to the
 demonstrations' returns) is saved to ``--bc-out`` first and then fine-tuned with PPO's small
-steps (:func:`ias_gym.baselines.bc.fine_tune`, :data:`~ias_gym.baselines.bc.FINE_TUNE_PPO`;
-the actor frozen for the first ``--critic-warmup`` steps). The deterministic policy is
-validated on ``--val-episodes`` held-out seeds every ``--val-freq`` steps and the best one
-seen (the cloned one included) is saved to ``--out``. Both load with
-``ias-gym evaluate --env ID --policy FILE.zip``.
+steps (:func:`ias_gym.learning.finetune.fine_tune`,
+:data:`~ias_gym.learning.finetune.FINE_TUNE_PPO`; the actor frozen for the first
+``--critic-warmup`` steps). The deterministic policy is validated on ``--val-episodes``
+held-out seeds every ``--val-freq`` steps and the best one seen (the cloned one included) is
+saved to ``--out``. Both load with ``ias-gym evaluate --env ID --policy FILE.zip``.
 """
 
 from __future__ import annotations
@@ -67,14 +67,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     import torch
 
-    from ias_gym.baselines.bc import (
-        KeepBestPolicy,
-        WallClockLimit,
-        behaviour_clone,
-        fine_tune,
-        make_vec_env,
-    )
     from ias_gym.evaluation import report
+    from ias_gym.learning.cloning import behaviour_clone
+    from ias_gym.learning.finetune import KeepBestPolicy, WallClockLimit, fine_tune, make_vec_env
 
     torch.set_num_threads(args.threads)
     out = Path(args.out)

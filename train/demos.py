@@ -42,9 +42,11 @@ def add_demonstration_options(parser: argparse.ArgumentParser) -> None:
 
 def demonstrations(args: argparse.Namespace) -> Any:
     """Record ``--episodes`` noise-injected expert demonstrations if ``--record``, then load
-    the task's demonstrations of ``--source`` (:func:`ias_gym.baselines.bc.load_demonstrations`).
+    the task's demonstrations of ``--source``
+    (:func:`ias_gym.learning.demonstrations.load_demonstrations`).
     """
-    from ias_gym.baselines.bc import load_demonstrations, record_noisy_expert
+    from ias_gym.learning.dart import record_noisy_expert
+    from ias_gym.learning.demonstrations import load_demonstrations
 
     source = args.source
     if args.record:

@@ -59,14 +59,10 @@ def main(algo: str, description: str, argv: Sequence[str] | None = None) -> int:
     import torch
     from stable_baselines3 import PPO, SAC
 
-    from ias_gym.baselines.bc import (
-        GAMMA,
-        WallClockLimit,
-        make_vec_env,
-        policy_kwargs,
-        rollout_statistics,
-    )
     from ias_gym.evaluation import report
+    from ias_gym.learning.demonstrations import GAMMA
+    from ias_gym.learning.finetune import WallClockLimit, make_vec_env
+    from ias_gym.learning.normalisation import policy_kwargs, rollout_statistics
 
     torch.set_num_threads(args.threads)
     out = Path(args.out)

@@ -1,5 +1,10 @@
 """The grip-transform control law of Theorem 1 (paper section 3.3, eq. 45) on the MuJoCo hand.
 
+:class:`GripTransformController` is the adapter: it reads the physics (contacts, W, J, M,
+the pen's state, the task's reference) and calls the law's terms, pure functions on arrays in
+:mod:`ias_gym.baselines.law`; the servos beyond the paper and the memory of the previous step
+(W and J for their rates, the last feasible LP solution, N) stay here.
+
 Every control step (``control_dt``), from the measured contacts:
 
 - **Object motion** (eqs. 26-28, 41, 43): the desired object acceleration
@@ -49,26 +54,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ias_gym.baselines import law
 from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv, PenReference
-from ias_gym.grasp.grip_transform import null_space_basis
+from ias_gym.grasp.contacts import cross3
+from ias_gym.grasp.grip_transform import null_space_basis, pseudo_inverse
 from ias_gym.grasp.internal_forces import (
-    POLYGON_DIRECTIONS,
-    POLYGON_SCALE,
     Cone,
     InfeasibleGraspError,
     InternalForceSettings,
     InternalForceSolver,
 )
+from ias_gym.sim.pen_hand import mj_to_paper
 
 NDArrayBool = np.ndarray
-GRAVITY = 9.81  # [m/s^2]
-_UP = np.array([0.0, 1.0, 0.0])  # paper y
-
-
-def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
-    return np.array(
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-    )
 
 
 @dataclass(frozen=True)
@@ -143,32 +141,38 @@ class GripTransformController:
         self._N: FloatArray | None = None
         self._extra = np.zeros(12)  # servo forces commanded last step [N]
         self._joint_damping: FloatArray | None = None
+        self._gravity: FloatArray | None = None  # the model's, paper frame [m/s^2]
 
     def object_acceleration(self, env: PenHandEnv, ref: PenReference) -> FloatArray:
-        """Desired object acceleration ``[v'; omega']`` of eqs. (41), (43) [m/s^2, rad/s^2]."""
+        """Desired object acceleration ``[v'; omega']`` of eqs. (41), (43) [m/s^2, rad/s^2].
+
+        :func:`ias_gym.baselines.law.object_acceleration` with this controller's gains.
+
+        Args:
+            env: the unwrapped environment (its measured pen state).
+            ref: the reference to track.
+        """
         g = self.gains
-        s = env.state
-        omega = s.omega
-        axis = s.axis
-        acc = ref.acceleration - g.kv * (s.velocity - ref.velocity) - g.kp * s.position
-        acc += g.kp * ref.position
-        # Roll about the pen's own axis is left free: only omega's part across the axis.
-        omega_across = omega - (omega @ axis) * axis
-        alpha = (
-            ref.alpha + g.kp_rot * _cross(axis, ref.axis) - g.kv_rot * (omega_across - ref.omega)
+        return law.object_acceleration(
+            env.state, ref, kp=g.kp, kv=g.kv, kp_rot=g.kp_rot, kv_rot=g.kv_rot
         )
-        return np.concatenate([acc, alpha])
 
     def object_wrench(self, env: PenHandEnv, a_d: FloatArray) -> FloatArray:
-        """Net contact wrench for acceleration ``a_d`` (eq. 33 plus the weight, eq. 18)."""
+        """Net contact wrench [N, N m] for acceleration ``a_d`` (eq. 33 plus the weight, eq. 18).
+
+        :func:`ias_gym.baselines.law.object_wrench` with the model's pen as built (a
+        controller does not know a disturbed mass) and the model's gravity.
+
+        Args:
+            env: the unwrapped environment.
+            a_d: ``(6,)`` desired object acceleration [m/s^2, rad/s^2].
+        """
         p = env.physics
-        # The model's pen as built: a controller does not know a disturbed mass.
-        mass = p.pen_mass_nominal
-        inertia = p.pen_inertia(nominal=True)
-        omega = env.state.omega
-        force = mass * a_d[:3] + mass * GRAVITY * _UP
-        moment = inertia @ a_d[3:] + _cross(omega, inertia @ omega)
-        return np.concatenate([force, moment])
+        if self._gravity is None:
+            self._gravity = mj_to_paper(env.model.opt.gravity)
+        return law.object_wrench(
+            p.pen_mass_nominal, p.pen_inertia(nominal=True), env.state.omega, a_d, self._gravity
+        )
 
     def torques(
         self,
@@ -226,10 +230,11 @@ class GripTransformController:
             feasible = False
 
         # Grip transform of the measured W (eqs. 5, 7): c = c_p + c_h.
-        W_pinv = _pinv_rows(W)
+        W_pinv = pseudo_inverse(W, least_squares_if_singular=True)
         dW = np.zeros_like(W) if self._prev_W is None else (W - self._prev_W) / dt
         c_p = W_pinv @ wrench
-        c_h_d = c_ref - W_pinv @ (W @ c_ref)
+        c_h_d = law.internal_part(c_ref, W, W_pinv)
+        settings = self._solver.settings
         offset_scale = 1.0
         if internal_offset is not None and np.any(internal_offset):
             self._N = null_space_basis(W, self._N) if bool(active.all()) else self._N
@@ -237,17 +242,19 @@ class GripTransformController:
                 # A requested offset is taken only as far as the cones allow (a squeeze that
                 # opens a contact or pushes one out of its cone would drop the object).
                 offset = self._N @ internal_offset
-                offset_scale = self._inside_cones(c_p + c_h_d, offset, active, sliding)
+                offset_scale = law.largest_step_inside_cones(
+                    c_p + c_h_d, offset, active, sliding, settings
+                )
                 c_h_d = c_h_d + offset_scale * offset
         # The servo forces below (lateral, sliding) are part of what the contacts carry but not
         # of the grasp model's c; left in the measurement, eq. (44) would feed them back and
         # amplify them by 1 / (delta dt) (measured: at delta dt = 0.25 the grasp broke).
         c_model = c_measured - self._extra
-        c_h = c_model - W_pinv @ (W @ c_model)
+        c_h = law.internal_part(c_model, W, W_pinv)
         e_f = c_h - c_h_d
         # One explicit-Euler step of eq. (44): e_f' = -(delta I + W+ W') e_f.
-        step = e_f - dt * (g.delta * e_f + W_pinv @ (dW @ e_f))
-        error_scale = self._inside_cones(c_p + c_h_d, step, active, sliding)
+        step = law.internal_force_step(e_f, W_pinv, dW, g.delta, dt)
+        error_scale = law.largest_step_inside_cones(c_p + c_h_d, step, active, sliding, settings)
         c_h_cmd = c_h_d + error_scale * step
         c_cmd = c_p + c_h_cmd
 
@@ -266,87 +273,32 @@ class GripTransformController:
         d = env.data
         dofs = p.hand_dof_ids
         coriolis = d.qfrc_bias[dofs] - d.qfrc_gravcomp[dofs]
-        tau = J.T @ f + coriolis
+        inertia = feedforward = None
         if g.finger_inertia or g.damping_feedforward:
-            J_pinv = _damped_pinv_blocks(J, g.jacobian_damping)
+            J_pinv = law.damped_pinv_blocks(J, g.jacobian_damping)
             touching = np.repeat(active, 3)
         if g.finger_inertia:
-            tau += self._finger_inertia(env, W, dW, J, J_pinv, qvel, a_d, touching, dt)
+            # J' over one control period; zero on the first step (no previous J).
+            dJ = np.zeros_like(J) if self._prev_J is None else (J - self._prev_J) / dt
+            v = np.concatenate([env.state.velocity, env.state.omega])
+            inertia = law.finger_inertia_torques(
+                p.hand_mass_matrix(), J_pinv, W, dW, dJ, qvel, a_d, v, touching
+            )
         if g.damping_feedforward:
             # The joints' damping along the *reference* motion (never the measured one, which
             # would cancel the damping, see above): fingers that follow the object drag on
             # it otherwise (measured: a 23 ms lag of the pen's tilt behind its reference).
             v_ref = np.concatenate([ref.velocity, ref.omega])
-            qvel_ref = _apply_blocks(J_pinv, np.where(touching, W.T @ v_ref, 0.0))
-            tau += self._damping(env) * qvel_ref
+            feedforward = law.damping_feedforward_torques(
+                self._damping(env), J_pinv, W, v_ref, touching
+            )
+        tau = law.joint_torques(J, f, coriolis, inertia, feedforward)
 
         self._prev_W, self._prev_J = W, J
         self.last = ControlStep(
             tau, wrench, c_h_d, c_h, c_cmd, active, feasible, offset_scale, error_scale
         )
         return tau
-
-    def _inside_cones(
-        self,
-        c_ref: FloatArray,
-        step: FloatArray,
-        active: NDArrayBool,
-        sliding: dict[int, FloatArray],
-    ) -> float:
-        """The largest ``lam`` in [0, 1] that keeps ``c_ref + lam step`` in the solver's cones.
-
-        ``c_ref = c_p + c_h^d`` is feasible (the internal-force solution: normal forces >= f0,
-        sticking contacts inside their box cones ``|c_t| <= mu (1 - margin) c_n``), and the
-        feasible set is convex, so the admissible ``lam`` form an interval from 0: the first
-        constraint that ``step`` would cross ends it. Eq. (44) lets the internal forces lag
-        their reference; the particular part ``c_p`` acts at once, so a lagging squeeze let
-        the commanded forces leave the friction cones during transients (measured: the top
-        fingers at ``|c_t| / c_n = 0.36`` before the grasp broke, docs/controller.md).
-        """
-        settings = self._solver.settings
-        c, d = c_ref.reshape(-1, 3), step.reshape(-1, 3)
-        if settings.cone == "polygon":
-            faces, scale = POLYGON_DIRECTIONS, POLYGON_SCALE
-        else:
-            faces, scale = np.eye(2), 1.0
-        k_mu = scale * settings.mu_sticking
-        # Rows a + lam b >= 0: n - f0, then k mu n -+ d . t for each face direction d
-        # (the friction rows only for sticking contacts).
-        a = np.column_stack([c[:, 0] - settings.f0, *_face_rows(c, faces, k_mu)])
-        b = np.column_stack([d[:, 0], *_face_rows(d, faces, k_mu)])
-        use = np.repeat(active[:, None], a.shape[1], axis=1)
-        for k in sliding:
-            use[k, 1:] = False
-        crossing = use & (b < 0)
-        if not crossing.any():
-            return 1.0
-        bounds = np.maximum(a[crossing], 0.0) / -b[crossing]
-        return float(min(1.0, bounds.min()))
-
-    def _finger_inertia(
-        self,
-        env: PenHandEnv,
-        W: FloatArray,
-        dW: FloatArray,
-        J: FloatArray,
-        J_pinv: FloatArray,
-        qvel: FloatArray,
-        a_d: FloatArray,
-        touching: NDArrayBool,
-        dt: float,
-    ) -> FloatArray:
-        """``M J+ (W^T a_d + W'^T v - J' theta')``: eqs. (32), (39), (45) with v_int = 0.
-
-        The joint accelerations that keep the contact points moving with the object.
-        """
-        s = env.state
-        v = np.concatenate([s.velocity, s.omega])
-        dJ_qvel = np.zeros(len(qvel)) if self._prev_J is None else (J - self._prev_J) @ qvel / dt
-        contact_acc = W.T @ a_d + dW.T @ v - dJ_qvel
-        contact_acc[~touching] = 0.0
-        qacc = _apply_blocks(J_pinv, contact_acc)
-        result: FloatArray = env.physics.hand_mass_matrix() @ qacc
-        return result
 
     def _damping(self, env: PenHandEnv) -> FloatArray:
         """The hand joints' damping coefficients [N m s/rad] (looked up once)."""
@@ -406,17 +358,11 @@ class GripTransformController:
         return np.clip(tau / env._ctrl_max, -1.0, 1.0)
 
 
-def _face_rows(c: FloatArray, faces: FloatArray, k_mu: float) -> list[FloatArray]:
-    """``k mu c_n -+ d . c_t`` per contact for each face direction d (``>= 0``: inside)."""
-    normal, along = c[:, 0], c[:, 1:] @ faces.T
-    return [k_mu * normal + sign * along[:, f] for f in range(len(faces)) for sign in (-1, 1)]
-
-
 def _ahead(ref: PenReference, lead: float) -> PenReference:
     """The reference ``lead`` seconds ahead, extrapolated with its own derivatives."""
     if lead == 0.0:
         return ref
-    axis = ref.axis + lead * _cross(ref.omega, ref.axis)
+    axis = ref.axis + lead * cross3(ref.omega, ref.axis)
     return PenReference(
         position=ref.position + lead * ref.velocity + 0.5 * lead**2 * ref.acceleration,
         velocity=ref.velocity + lead * ref.acceleration,
@@ -428,33 +374,3 @@ def _ahead(ref: PenReference, lead: float) -> PenReference:
         contact_x=ref.contact_x,
         contact_vx=ref.contact_vx,
     )
-
-
-def _damped_pinv_blocks(J: FloatArray, damping: float) -> FloatArray:
-    """The diagonal blocks of ``J+ = J^T (J J^T + damping I)^-1`` (eq. 32), ``(k, 3, 3)``.
-
-    J is block diagonal, one 3 x 3 block per finger (eq. 35's ``diag(J_1 ... J_k)``), so J+
-    is too; the blocks are inverted together in one batched call (damped near singular
-    fingers).
-    """
-    k = len(J) // 3
-    fingers = np.arange(k)
-    blocks = J.reshape(k, 3, k, 3)[fingers, :, fingers, :]
-    blocks_t = blocks.transpose(0, 2, 1)
-    result: FloatArray = blocks_t @ np.linalg.inv(blocks @ blocks_t + damping * np.eye(3))
-    return result
-
-
-def _apply_blocks(blocks: FloatArray, x: FloatArray) -> FloatArray:
-    """``blockdiag(blocks) @ x`` for ``(k, 3, 3)`` blocks and ``(3k,)`` x."""
-    result: FloatArray = np.einsum("kij,kj->ki", blocks, x.reshape(-1, 3)).reshape(-1)
-    return result
-
-
-def _pinv_rows(W: FloatArray) -> FloatArray:
-    """``W+ = W^T (W W^T)^-1`` (eq. 5), least squares where a finger is missing (rank < 6)."""
-    try:
-        result: FloatArray = W.T @ np.linalg.inv(W @ W.T)
-    except np.linalg.LinAlgError:
-        result = np.linalg.pinv(W).astype(np.float64)
-    return result

@@ -54,14 +54,37 @@ def _checked_wrench_matrix(W: ArrayLike) -> tuple[FloatArray, FloatArray, FloatA
     return W, U, s
 
 
-def pseudo_inverse(W: ArrayLike) -> FloatArray:
+def pseudo_inverse(W: ArrayLike, *, least_squares_if_singular: bool = False) -> FloatArray:
     """Right generalised inverse ``W+ = W^T (W W^T)^-1`` of eq. (5).
 
+    Args:
+        W: the 6 x n wrench matrix [1, m].
+        least_squares_if_singular: for a controller's every step: skip the rank check (an
+            SVD) and, where ``W W^T`` cannot be inverted (a grasp that lost fingers has zero
+            columns), return the least-squares inverse ``np.linalg.pinv(W)`` instead of
+            raising.
+
     Raises:
-        GraspRankError: if rank W < 6, with the rank in the message.
+        GraspRankError: if rank W < 6, with the rank in the message (unless
+            ``least_squares_if_singular``).
+        ValueError: if W is not 6 x n, or (with the check) holds NaN or inf.
     """
+    if least_squares_if_singular:
+        W = np.asarray(W, dtype=float)
+        if W.ndim != 2 or W.shape[0] != 6:
+            raise ValueError(f"W must be a 6 x n matrix, got shape {W.shape}")
+        try:
+            return _right_inverse(W)
+        except np.linalg.LinAlgError:
+            return np.linalg.pinv(W).astype(np.float64)
     W, _, _ = _checked_wrench_matrix(W)
-    return W.T @ np.linalg.inv(W @ W.T)
+    return _right_inverse(W)
+
+
+def _right_inverse(W: FloatArray) -> FloatArray:
+    """``W^T (W W^T)^-1`` (eq. 5); raises ``LinAlgError`` where ``W W^T`` is singular."""
+    result: FloatArray = W.T @ np.linalg.inv(W @ W.T)
+    return result
 
 
 def null_space_basis(W: ArrayLike, previous: ArrayLike | None = None) -> FloatArray:
@@ -114,7 +137,7 @@ class GripTransform:
         """Grip transform of W; ``previous`` keeps N continuous along a trajectory."""
         W, _, _ = _checked_wrench_matrix(W)
         N = null_space_basis(W, None if previous is None else previous.N)
-        return cls(W=W, W_pinv=W.T @ np.linalg.inv(W @ W.T), N=N)
+        return cls(W=W, W_pinv=_right_inverse(W), N=N)
 
     @property
     def n(self) -> int:

@@ -1,0 +1,335 @@
+"""The terms of Theorem 1 (paper sec. 3.3, eqs. 33, 41-45) as pure functions on arrays.
+
+Each function is one term of the control law, named after its equation; none reads a
+simulation (numpy and :mod:`ias_gym.grasp` only), so each can be checked on a synthetic grasp
+(``tests/test_law.py``). :class:`~ias_gym.baselines.grip_transform_control.GripTransformController`
+reads the physics and calls them in the order of eq. (45)::
+
+    a_d    = object_acceleration(state, ref, ...)                  eqs. (41), (43)
+    w      = object_wrench(m, I, omega, a_d, g)                    eq. (33) + weight (eq. 18)
+    c_p    = W+ w,  c_h^d = internal part of the LP's solution      eqs. (5), (7), (19)-(24)
+    step   = internal_force_step(e_f, W+, W', delta, dt)            eq. (44), one Euler step
+    lam    = largest_step_inside_cones(c_p + c_h^d, step, ...)      (the cones, not the paper)
+    f      = c_p + c_h^d + lam step (+ servo forces)
+    tau    = joint_torques(J, f, H, finger_inertia_torques(...), damping_feedforward_torques(...))
+
+Frames and units as the adapter's: the paper frame (x the pen's axis, y up), SI units;
+intensities per contact ``[normal, t1, t2]`` [N]; ``J`` is block diagonal with one 3 x 3 block
+per finger (eq. 35's ``diag(J_1 ... J_k)``). The module docstring of
+:mod:`~ias_gym.baselines.grip_transform_control` explains where the code departs from the paper
+and why; docs/controller.md records the measurements.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ias_gym.grasp.contacts import cross3
+from ias_gym.grasp.internal_forces import (
+    POLYGON_DIRECTIONS,
+    POLYGON_SCALE,
+    InternalForceSettings,
+)
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+class ObjectMotion(Protocol):
+    """The measured object state the law needs (the env's ``PenState`` has it)."""
+
+    @property
+    def position(self) -> FloatArray:
+        """Object centre [m] (3,)."""
+
+    @property
+    def velocity(self) -> FloatArray:
+        """Object centre velocity [m/s] (3,)."""
+
+    @property
+    def axis(self) -> FloatArray:
+        """Unit direction of the object's axis (3,) (its roll about it is free)."""
+
+    @property
+    def omega(self) -> FloatArray:
+        """Angular velocity [rad/s] (3,)."""
+
+
+class ObjectReference(ObjectMotion, Protocol):
+    """The desired object trajectory of eqs. (25)-(28) (the env's ``PenReference`` has it)."""
+
+    @property
+    def acceleration(self) -> FloatArray:
+        """Desired acceleration of the centre ``r''_d`` [m/s^2] (3,)."""
+
+    @property
+    def alpha(self) -> FloatArray:
+        """Desired angular acceleration ``omega'_d`` [rad/s^2] (3,)."""
+
+
+def object_acceleration(
+    state: ObjectMotion,
+    ref: ObjectReference,
+    *,
+    kp: float,
+    kv: float,
+    kp_rot: float,
+    kv_rot: float,
+) -> FloatArray:
+    """Desired object acceleration ``a_d = [v'; omega']`` of eqs. (41), (43).
+
+    PD with feed-forward: ``r''_d - Kv e_v - Kp e_p`` for the centre, and
+    ``omega'_d + Kp_rot (axis x axis_d) - Kv_rot (omega_across - omega_d)`` for the orientation,
+    whose error is taken on the axis (eq. 41 with ``Psi = I``), so the roll about the object's
+    own axis is left free: only the part of ``omega`` across the axis is damped.
+
+    Args:
+        state: the measured object motion (paper frame) [m, m/s, -, rad/s].
+        ref: the reference at this instant [m, m/s, m/s^2, -, rad/s, rad/s^2].
+        kp: position stiffness Kp [1/s^2].
+        kv: position damping Kv [1/s].
+        kp_rot: orientation stiffness [1/s^2].
+        kv_rot: orientation damping [1/s].
+
+    Returns:
+        ``(6,)`` ``[a (m/s^2); alpha (rad/s^2)]``.
+    """
+    omega, axis = state.omega, state.axis
+    acc = ref.acceleration - kv * (state.velocity - ref.velocity) - kp * state.position
+    acc += kp * ref.position
+    omega_across = omega - (omega @ axis) * axis
+    alpha = ref.alpha + kp_rot * cross3(axis, ref.axis) - kv_rot * (omega_across - ref.omega)
+    return np.concatenate([acc, alpha])
+
+
+def object_wrench(
+    mass: float, inertia: FloatArray, omega: FloatArray, a_d: FloatArray, gravity: FloatArray
+) -> FloatArray:
+    """Net contact wrench that gives the object the acceleration ``a_d``: eq. (33) plus weight.
+
+    ``w = [m a; I alpha + omega x I omega] - [m g; 0]``: Newton-Euler solved for the wrench.
+    The paper's eq. (33) has no gravity (its ``f_ext`` is the contact wrench); the weight of
+    eq. (18) is added here, so that ``c_p = W+ w`` (eqs. 5, 36) holds the object up.
+
+    Args:
+        mass: object mass [kg].
+        inertia: ``(3, 3)`` inertia tensor about the centre of mass [kg m^2], same frame.
+        omega: angular velocity [rad/s] (3,).
+        a_d: ``(6,)`` desired acceleration ``[a; alpha]`` [m/s^2, rad/s^2].
+        gravity: gravitational acceleration [m/s^2] (3,), e.g. ``(0, -9.81, 0)`` paper frame.
+
+    Returns:
+        ``(6,)`` ``[force (N); moment about the centre of mass (N m)]``.
+    """
+    force = mass * a_d[:3] - mass * gravity
+    moment = inertia @ a_d[3:] + cross3(omega, inertia @ omega)
+    return np.concatenate([force, moment])
+
+
+def internal_part(c: FloatArray, W: FloatArray, W_pinv: FloatArray) -> FloatArray:
+    """The internal (null-space) part ``c_h = c - W+ W c`` of intensities c (eqs. 4, 5, 7).
+
+    Args:
+        c: ``(n,)`` wrench intensities [N].
+        W: ``(6, n)`` wrench matrix.
+        W_pinv: ``(n, 6)`` its right inverse ``W+``.
+    """
+    result: FloatArray = c - W_pinv @ (W @ c)
+    return result
+
+
+def internal_force_step(
+    e_f: FloatArray, W_pinv: FloatArray, dW: FloatArray, delta: float, dt: float
+) -> FloatArray:
+    """The internal-force error one explicit-Euler step of eq. (44) ahead.
+
+    Eq. (44) prescribes ``e_f' = -(delta I + W+ W') e_f``; one step of length ``dt`` gives
+    ``e_f + dt e_f'``. With ``W' = 0`` that is ``(1 - delta dt) e_f``.
+
+    Args:
+        e_f: ``(n,)`` internal-force error ``c_h - c_h^d`` [N].
+        W_pinv: ``(n, 6)`` right inverse ``W+`` of the wrench matrix.
+        dW: ``(6, n)`` its rate ``W'`` [1/s, m/s].
+        delta: the error's decay rate delta [1/s].
+        dt: the control period [s].
+
+    Returns:
+        ``(n,)`` the error to command after one step [N].
+    """
+    result: FloatArray = e_f - dt * (delta * e_f + W_pinv @ (dW @ e_f))
+    return result
+
+
+def largest_step_inside_cones(
+    c_ref: FloatArray,
+    step: FloatArray,
+    active: BoolArray,
+    sliding: Collection[int],
+    settings: InternalForceSettings,
+) -> float:
+    """The largest ``lam`` in [0, 1] that keeps ``c_ref + lam step`` in the solver's cones.
+
+    The constraints are those of the internal-force problem (eqs. 19-24): for every active
+    contact the normal force ``c_n >= f0``, and for every sticking (active, not sliding) one
+    the friction faces ``|d . c_t| <= k mu (1 - margin) c_n`` (the box's two axes with
+    ``k = 1``, or the polygon's four directions with ``k = cos(pi / 8)``; an ``"exact"`` cone
+    is limited by its box). ``c_ref`` is feasible and the feasible set is convex, so the
+    admissible ``lam`` form an interval from 0 that the first constraint ``step`` crosses
+    ends. Not in the paper: eq. (44) lets the internal forces lag while ``c_p`` acts at once,
+    and the sum could leave the cones during transients (docs/controller.md).
+
+    Args:
+        c_ref: ``(3 k,)`` feasible intensities ``c_p + c_h^d`` [N].
+        step: ``(3 k,)`` the change to take [N].
+        active: ``(k,)`` contacts that touch.
+        sliding: indices of sliding contacts (only their normal bound applies).
+        settings: the internal-force problem's ``mu``, ``f0`` [N], ``margin`` and ``cone``.
+
+    Returns:
+        ``lam`` [-], 1.0 when the whole step is feasible.
+    """
+    c, d = c_ref.reshape(-1, 3), step.reshape(-1, 3)
+    if settings.cone == "polygon":
+        faces, scale = POLYGON_DIRECTIONS, POLYGON_SCALE
+    else:
+        faces, scale = np.eye(2), 1.0
+    k_mu = scale * settings.mu_sticking
+    # Rows a + lam b >= 0: n - f0, then k mu n -+ d . t for each face direction d
+    # (the friction rows only for sticking contacts).
+    a = np.column_stack([c[:, 0] - settings.f0, *_face_rows(c, faces, k_mu)])
+    b = np.column_stack([d[:, 0], *_face_rows(d, faces, k_mu)])
+    use = np.repeat(active[:, None], a.shape[1], axis=1)
+    for k in sliding:
+        use[k, 1:] = False
+    crossing = use & (b < 0)
+    if not crossing.any():
+        return 1.0
+    bounds = np.maximum(a[crossing], 0.0) / -b[crossing]
+    return float(min(1.0, bounds.min()))
+
+
+def _face_rows(c: FloatArray, faces: FloatArray, k_mu: float) -> list[FloatArray]:
+    """``k mu c_n -+ d . c_t`` per contact for each face direction d (``>= 0``: inside)."""
+    normal, along = c[:, 0], c[:, 1:] @ faces.T
+    return [k_mu * normal + sign * along[:, f] for f in range(len(faces)) for sign in (-1, 1)]
+
+
+def damped_pinv_blocks(J: FloatArray, damping: float) -> FloatArray:
+    """The diagonal blocks of ``J+ = J^T (J J^T + damping I)^-1`` (eq. 32), ``(k, 3, 3)``.
+
+    J is block diagonal, one 3 x 3 block per finger (eq. 35's ``diag(J_1 ... J_k)``), so J+
+    is too; the blocks are inverted together in one batched call (damped near singular
+    fingers).
+
+    Args:
+        J: ``(3 k, 3 k)`` block-diagonal fingertip Jacobian [m/rad].
+        damping: damping of the inverse [m^2]; 0 gives the exact inverse of each block.
+    """
+    k = len(J) // 3
+    fingers = np.arange(k)
+    blocks = J.reshape(k, 3, k, 3)[fingers, :, fingers, :]
+    blocks_t = blocks.transpose(0, 2, 1)
+    result: FloatArray = blocks_t @ np.linalg.inv(blocks @ blocks_t + damping * np.eye(3))
+    return result
+
+
+def apply_blocks(blocks: FloatArray, x: FloatArray) -> FloatArray:
+    """``blockdiag(blocks) @ x`` for ``(k, 3, 3)`` blocks and ``(3 k,)`` x."""
+    result: FloatArray = np.einsum("kij,kj->ki", blocks, x.reshape(-1, 3)).reshape(-1)
+    return result
+
+
+def finger_inertia_torques(
+    M: FloatArray,
+    J_pinv_blocks: FloatArray,
+    W: FloatArray,
+    dW: FloatArray,
+    dJ: FloatArray,
+    qvel: FloatArray,
+    a_d: FloatArray,
+    v: FloatArray,
+    touching: BoolArray,
+) -> FloatArray:
+    """``M J+ (W^T a_d + W'^T v - J' theta')``: eqs. (32), (39), (45) with ``v_int = 0``.
+
+    The joint torques that give the fingers the accelerations keeping the contact points
+    moving with the object (the second half of eq. 39's ``M* a_d`` and eq. 45's
+    ``M J+ {...}``); the rows of fingers that do not touch are left out.
+
+    Args:
+        M: ``(n, n)`` joint-space inertia [kg m^2].
+        J_pinv_blocks: ``(k, 3, 3)`` blocks of ``J+`` (:func:`damped_pinv_blocks`) [rad/m].
+        W: ``(6, 3 k)`` wrench matrix.
+        dW: ``(6, 3 k)`` its rate ``W'``.
+        dJ: ``(3 k, n)`` the Jacobian's rate ``J'`` [m/(rad s)].
+        qvel: ``(n,)`` joint velocities ``theta'`` [rad/s].
+        a_d: ``(6,)`` desired object acceleration [m/s^2, rad/s^2].
+        v: ``(6,)`` object twist ``[v; omega]`` [m/s, rad/s].
+        touching: ``(3 k,)`` rows of touching fingers.
+
+    Returns:
+        ``(n,)`` joint torques [N m].
+    """
+    contact_acc = W.T @ a_d + dW.T @ v - dJ @ qvel
+    contact_acc[~touching] = 0.0
+    result: FloatArray = M @ apply_blocks(J_pinv_blocks, contact_acc)
+    return result
+
+
+def damping_feedforward_torques(
+    damping: FloatArray,
+    J_pinv_blocks: FloatArray,
+    W: FloatArray,
+    v_ref: FloatArray,
+    touching: BoolArray,
+) -> FloatArray:
+    """The joints' damping along the reference motion, ``D J+ W^T v_d`` (beyond the paper).
+
+    Fingers that follow the object drag on it through their joints' damping; this cancels
+    that drag along the *reference* twist, never the measured one (docs/controller.md).
+
+    Args:
+        damping: ``(n,)`` joint damping coefficients [N m s/rad].
+        J_pinv_blocks: ``(k, 3, 3)`` blocks of ``J+`` [rad/m].
+        W: ``(6, 3 k)`` wrench matrix.
+        v_ref: ``(6,)`` reference twist ``[v_d; omega_d]`` [m/s, rad/s].
+        touching: ``(3 k,)`` rows of touching fingers.
+
+    Returns:
+        ``(n,)`` joint torques [N m].
+    """
+    qvel_ref = apply_blocks(J_pinv_blocks, np.where(touching, W.T @ v_ref, 0.0))
+    result: FloatArray = damping * qvel_ref
+    return result
+
+
+def joint_torques(
+    J: FloatArray,
+    f: FloatArray,
+    H: FloatArray,
+    finger_inertia: FloatArray | None = None,
+    damping_feedforward: FloatArray | None = None,
+) -> FloatArray:
+    """Eq. (45): ``tau = J^T f + H + M J+ {...}`` (+ the damping feed-forward).
+
+    Args:
+        J: ``(3 k, n)`` fingertip Jacobian [m/rad].
+        f: ``(3 k,)`` contact forces to command, ``c_p + c_h_cmd`` plus servo forces [N].
+        H: ``(n,)`` bias torques of eq. (35) [N m].
+        finger_inertia: ``(n,)`` :func:`finger_inertia_torques` [N m], ``None``: left out.
+        damping_feedforward: ``(n,)`` :func:`damping_feedforward_torques` [N m], ``None``:
+            left out.
+
+    Returns:
+        ``(n,)`` joint torques [N m].
+    """
+    tau: FloatArray = J.T @ f + H
+    if finger_inertia is not None:
+        tau += finger_inertia
+    if damping_feedforward is not None:
+        tau += damping_feedforward
+    return tau

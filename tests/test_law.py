@@ -1,0 +1,329 @@
+"""The terms of Theorem 1 (ias_gym.baselines.law) on synthetic grasps; one check of the adapter.
+
+A synthetic grasp: four point contacts with friction on a cylinder along x (normals into the
+cylinder, t1 along its axis), W from :func:`ias_gym.grasp.contacts.wrench_matrix`, a random
+block-diagonal fingertip Jacobian J (one well-conditioned 3 x 3 block per finger) and a random
+symmetric positive definite joint inertia M. Each test states the equation it checks and
+computes the expected value another way than the law does.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import ias_gym  # noqa: F401  (registers the envs)
+from ias_gym.baselines import law
+from ias_gym.baselines.grip_transform_control import GripTransformController
+from ias_gym.envs.pen_hand_env import PenHandEnv
+from ias_gym.grasp.contacts import cross3, wrench_matrix
+from ias_gym.grasp.grip_transform import GraspRankError, pseudo_inverse
+from ias_gym.grasp.internal_forces import InternalForceSettings, friction_cone_residual
+
+K = 4  # fingers
+SEEDS = st.integers(0, 2**31 - 1)
+
+
+class Motion:
+    """A plain object state / reference (what the env's PenState and PenReference provide)."""
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        axis = rng.normal(size=3)
+        self.position = rng.normal(scale=0.01, size=3)
+        self.velocity = rng.normal(scale=0.1, size=3)
+        self.acceleration = rng.normal(size=3)
+        self.axis = axis / np.linalg.norm(axis)
+        self.omega = rng.normal(size=3)
+        self.alpha = rng.normal(size=3)
+
+
+def cylinder_grasp(rng: np.random.Generator) -> np.ndarray:
+    """W (6 x 12) of four contacts at random places on a cylinder along x."""
+    radius = rng.uniform(0.003, 0.02)
+    x = rng.uniform(-0.05, 0.05, size=K)
+    theta = rng.uniform(0, 2 * np.pi, size=K)
+    radial = np.column_stack([np.zeros(K), np.cos(theta), np.sin(theta)])
+    points = np.column_stack([x, np.zeros(K), np.zeros(K)]) + radius * radial
+    normal = -radial  # the finger pushes into the cylinder
+    t1 = np.tile([1.0, 0.0, 0.0], (K, 1))
+    t2 = np.cross(t1, normal)
+    frames = np.stack([normal, t1, t2], axis=1)
+    return wrench_matrix(points, frames)
+
+
+def block_jacobian(rng: np.random.Generator) -> np.ndarray:
+    """A 12 x 12 block-diagonal J whose 3 x 3 blocks have condition numbers below 100."""
+    J = np.zeros((3 * K, 3 * K))
+    for k in range(K):
+        while True:
+            block = rng.normal(scale=0.03, size=(3, 3))
+            if np.linalg.cond(block) < 100:
+                break
+        J[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] = block
+    return J
+
+
+def spd(rng: np.random.Generator, n: int, scale: float) -> np.ndarray:
+    a = rng.normal(scale=scale, size=(n, n))
+    return a @ a.T + scale**2 * np.eye(n)
+
+
+# ---------------------------------------------------------------- eqs. (41), (43)
+@settings(max_examples=60, deadline=None)
+@given(seed=SEEDS)
+def test_object_acceleration_is_pd_with_feedforward_and_leaves_roll_free(seed: int) -> None:
+    """Eqs. (41), (43): a_d = r''_d - Kv e_v - Kp e_p; the axis error turns the axis toward
+    the reference's; spinning about the object's own axis changes nothing."""
+    rng = np.random.default_rng(seed)
+    gains = {"kp": 400.0, "kv": 40.0, "kp_rot": 300.0, "kv_rot": 30.0}
+    ref, state = Motion(rng), Motion(rng)
+    a_d = law.object_acceleration(state, ref, **gains)
+
+    expected = (
+        ref.acceleration
+        - gains["kp"] * (state.position - ref.position)
+        - gains["kv"] * (state.velocity - ref.velocity)
+    )
+    np.testing.assert_allclose(a_d[:3], expected, rtol=1e-12, atol=1e-12)
+
+    # Roll free: the part of omega along the axis is not fed back.
+    state_spun = Motion(np.random.default_rng(0))
+    state_spun.__dict__.update(state.__dict__)
+    state_spun.omega = state.omega + rng.normal(scale=10.0) * state.axis
+    spun = law.object_acceleration(state_spun, ref, **gains)
+    np.testing.assert_allclose(spun, a_d, rtol=1e-9, atol=1e-9)
+
+    # With the twist on the reference, only the axis error acts; it turns the axis toward
+    # the reference's axis (d axis/dt = alpha x axis has a positive component along it).
+    state_still = Motion(np.random.default_rng(0))
+    state_still.__dict__.update(state.__dict__)
+    state_still.omega = ref.omega - (ref.omega @ state.axis) * state.axis
+    ref.omega = state_still.omega
+    alpha_error = law.object_acceleration(state_still, ref, **gains)[3:] - ref.alpha
+    np.testing.assert_allclose(
+        alpha_error, gains["kp_rot"] * np.cross(state.axis, ref.axis), rtol=1e-9, atol=1e-9
+    )
+    if abs(state.axis @ ref.axis) < 0.99:
+        assert np.cross(alpha_error, state.axis) @ ref.axis > 0
+
+
+# ---------------------------------------------------------------- eq. (33)
+@settings(max_examples=60, deadline=None)
+@given(seed=SEEDS)
+def test_object_wrench_inverts_newton_euler(seed: int) -> None:
+    """Eq. (33) plus the weight: Newton-Euler under the returned wrench and gravity gives a_d."""
+    rng = np.random.default_rng(seed)
+    mass = rng.uniform(0.001, 1.0)
+    inertia = spd(rng, 3, 1e-3)
+    omega, a_d = rng.normal(size=3) * 5, rng.normal(size=6)
+    gravity = rng.normal(size=3) * 10
+    w = law.object_wrench(mass, inertia, omega, a_d, gravity)
+    # Forward dynamics, written independently: m a = f + m g; I alpha + omega x I omega = n.
+    acc = (w[:3] + mass * gravity) / mass
+    alpha = np.linalg.solve(inertia, w[3:] - np.cross(omega, inertia @ omega))
+    np.testing.assert_allclose(acc, a_d[:3], rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(alpha, a_d[3:], rtol=1e-7, atol=1e-7)
+
+
+def test_object_wrench_holds_a_still_pen_against_paper_gravity() -> None:
+    """At rest in the paper frame (y up) the contacts carry the weight, m g, upward."""
+    w = law.object_wrench(0.02, np.eye(3) * 1e-6, np.zeros(3), np.zeros(6), np.array([0, -9.81, 0]))
+    np.testing.assert_array_equal(w, [0.0, 0.02 * 9.81, 0.0, 0.0, 0.0, 0.0])
+
+
+# ---------------------------------------------------------------- eq. (44)
+@settings(max_examples=60, deadline=None)
+@given(seed=SEEDS, delta=st.floats(1.0, 100.0), dt=st.floats(1e-4, 0.02))
+def test_internal_force_step_is_one_euler_step_of_eq_44(seed: int, delta: float, dt: float) -> None:
+    """With W' = 0 the error shrinks by (1 - delta dt); with W' it follows
+    e_f' = -(delta I + W+ W') e_f for one step."""
+    rng = np.random.default_rng(seed)
+    W = cylinder_grasp(rng)
+    W_pinv = pseudo_inverse(W, least_squares_if_singular=True)
+    e_f = law.internal_part(rng.normal(size=3 * K), W, W_pinv)
+    np.testing.assert_allclose(W @ e_f, 0.0, atol=1e-9)  # an internal-force error
+
+    still = law.internal_force_step(e_f, W_pinv, np.zeros_like(W), delta, dt)
+    np.testing.assert_allclose(still, (1.0 - delta * dt) * e_f, rtol=1e-12, atol=1e-15)
+
+    dW = rng.normal(size=W.shape)
+    rate = -(delta * np.eye(3 * K) + W_pinv @ dW)  # the matrix of eq. (44)
+    moving = law.internal_force_step(e_f, W_pinv, dW, delta, dt)
+    np.testing.assert_allclose(moving, e_f + dt * rate @ e_f, rtol=1e-10, atol=1e-12)
+
+
+# ---------------------------------------------------------------- the cone limiter
+def _feasible(
+    c: np.ndarray, active: np.ndarray, sliding: set[int], s: InternalForceSettings, tol: float
+) -> bool:
+    """The internal-force problem's constraints, checked through the solver's own residual."""
+    per = c.reshape(-1, 3)
+    for k in np.flatnonzero(active):
+        if per[k, 0] < s.f0 - tol:
+            return False
+        if k not in sliding and friction_cone_residual(per[k], s.mu_sticking, s.cone)[0] > tol:
+            return False
+    return True
+
+
+@settings(max_examples=150, deadline=None)
+@given(seed=SEEDS, cone=st.sampled_from(["box", "polygon"]))
+def test_cone_limiter_keeps_every_constraint_and_is_maximal(seed: int, cone: str) -> None:
+    """The returned fraction keeps c_ref + lam step feasible; lam + 1e-6 is not; lam = 1
+    whenever the whole step is feasible. Inactive contacts (arbitrary values) and the
+    friction of sliding contacts do not count."""
+    rng = np.random.default_rng(seed)
+    s = InternalForceSettings(mu=0.25, f0=0.2, margin=0.4, cone=cone)  # type: ignore[arg-type]
+    active = rng.random(K) < 0.8
+    sliding = {int(k) for k in np.flatnonzero(rng.random(K) < 0.3)}
+    normal = s.f0 + rng.uniform(0.0, 2.0, size=K)
+    # A tangential force strictly inside the cone's inscribed circle (the polygon's is
+    # cos(pi/8) mu c_n, the box's mu c_n), for every contact ...
+    radius = (0.92 if cone == "polygon" else 1.0) * s.mu_sticking * normal
+    angle = rng.uniform(0, 2 * np.pi, size=K)
+    tangential = (rng.uniform(0, 0.999, size=K) * radius)[:, None] * np.column_stack(
+        [np.cos(angle), np.sin(angle)]
+    )
+    c_ref = np.column_stack([normal, tangential])
+    # ... but sliding contacts may be anywhere on their cone and inactive ones anything.
+    for k in sliding:
+        c_ref[k, 1:] = rng.normal(size=2) * normal[k]
+    c_ref[~active] = rng.normal(size=(int((~active).sum()), 3)) * 5
+    c_ref = c_ref.reshape(-1)
+    assert _feasible(c_ref, active, sliding, s, tol=0.0)
+
+    step = rng.normal(size=3 * K) * 10 ** rng.uniform(-3, 1)
+    lam = law.largest_step_inside_cones(c_ref, step, active, sliding, s)
+    assert 0.0 <= lam <= 1.0
+    assert _feasible(c_ref + lam * step, active, sliding, s, tol=1e-9)
+    if _feasible(c_ref + step, active, sliding, s, tol=0.0):
+        assert lam == 1.0
+    else:
+        assert lam < 1.0
+        assert not _feasible(c_ref + min(1.0, lam + 1e-6) * step, active, sliding, s, tol=0.0)
+
+
+def test_cone_limiter_ignores_inactive_and_sliding_friction() -> None:
+    """A step that would push an inactive contact anywhere, or a sliding one out of its
+    cone, is taken whole; the same step on a sticking contact is cut at its cone."""
+    s = InternalForceSettings(mu=0.25, f0=0.2, margin=0.0, cone="box")
+    c_ref = np.tile([1.0, 0.0, 0.0], K)
+    step = np.zeros(3 * K)
+    step[1] = 1.0  # contact 0's t1 by 1 N: its box |c_t1| <= 0.25 N is crossed at 0.25
+    everyone = np.ones(K, dtype=bool)
+    assert law.largest_step_inside_cones(c_ref, step, everyone, set(), s) == pytest.approx(0.25)
+    assert law.largest_step_inside_cones(c_ref, step, everyone, {0}, s) == 1.0
+    idle = everyone.copy()
+    idle[0] = False
+    assert law.largest_step_inside_cones(c_ref, step, idle, set(), s) == 1.0
+    step[0] = -2.0  # the normal force of a sliding contact still has its bound f0
+    assert law.largest_step_inside_cones(c_ref, step, everyone, {0}, s) == pytest.approx(0.4)
+
+
+# ---------------------------------------------------------------- eq. (45)
+@settings(max_examples=60, deadline=None)
+@given(seed=SEEDS)
+def test_joint_torques_reproduce_the_commanded_forces_through_J_transpose(seed: int) -> None:
+    """Eq. (45) with the M-terms off: tau - H = J^T f, so f is recovered from the torques;
+    the M-terms add on top unchanged."""
+    rng = np.random.default_rng(seed)
+    J = block_jacobian(rng)
+    f, H = rng.normal(size=3 * K), rng.normal(size=3 * K) * 0.01
+    tau = law.joint_torques(J, f, H)
+    np.testing.assert_allclose(np.linalg.solve(J.T, tau - H), f, rtol=1e-8, atol=1e-8)
+    inertia, feedforward = rng.normal(size=3 * K), rng.normal(size=3 * K)
+    full = law.joint_torques(J, f, H, inertia, feedforward)
+    np.testing.assert_allclose(full - inertia - feedforward, tau, rtol=1e-12, atol=1e-14)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=SEEDS)
+def test_finger_inertia_gives_the_contact_accelerations_of_the_object(seed: int) -> None:
+    """Eqs. (32), (39), (45): the joint accelerations M^-1 tau of the finger-inertia term move
+    each touching contact with W^T a_d + W'^T v - J' theta'; idle fingers get none."""
+    rng = np.random.default_rng(seed)
+    W, J, dJ = cylinder_grasp(rng), block_jacobian(rng), block_jacobian(rng) * 10
+    dW = rng.normal(size=W.shape)
+    M = spd(rng, 3 * K, 0.01)
+    qvel, a_d, v = rng.normal(size=3 * K), rng.normal(size=6), rng.normal(size=6)
+    active = rng.random(K) < 0.7
+    touching = np.repeat(active, 3)
+    J_pinv = law.damped_pinv_blocks(J, 0.0)
+    tau = law.finger_inertia_torques(M, J_pinv, W, dW, dJ, qvel, a_d, v, touching)
+
+    qacc = np.linalg.solve(M, tau)
+    wanted = W.T @ a_d + dW.T @ v - dJ @ qvel
+    np.testing.assert_allclose((J @ qacc)[touching], wanted[touching], rtol=1e-7, atol=1e-7)
+    np.testing.assert_allclose(qacc[~touching], 0.0, atol=1e-9)
+
+
+def test_damped_pinv_blocks_invert_each_finger() -> None:
+    """Undamped, blockdiag(J+) is J's inverse; damped, it is eq. (32)'s full-matrix
+    ``J^T (J J^T + lambda I)^-1`` of the block-diagonal J."""
+    rng = np.random.default_rng(5)
+    J = block_jacobian(rng)
+    x = rng.normal(size=3 * K)
+    np.testing.assert_allclose(J @ law.apply_blocks(law.damped_pinv_blocks(J, 0.0), x), x, 1e-9)
+    damped = law.apply_blocks(law.damped_pinv_blocks(J, 1e-5), x)
+    full = J.T @ np.linalg.solve(J @ J.T + 1e-5 * np.eye(3 * K), x)
+    np.testing.assert_allclose(damped, full, rtol=1e-9, atol=1e-9)
+    assert np.abs(J @ damped - x).max() > 1e-6  # the damping did act
+
+
+# ---------------------------------------------------------------- helpers and layering
+def test_right_inverse_falls_back_to_least_squares_only_when_asked() -> None:
+    """The controller's W+ (a finger may be missing: zero columns) is np.linalg.pinv where
+    W W^T is singular; the grip transform's own W+ still refuses rank < 6."""
+    rng = np.random.default_rng(2)
+    W = cylinder_grasp(rng)
+    np.testing.assert_allclose(pseudo_inverse(W, least_squares_if_singular=True), pseudo_inverse(W))
+    lost = W.copy()
+    lost[:, 3:] = 0.0  # one finger left: rank 3
+    np.testing.assert_allclose(
+        pseudo_inverse(lost, least_squares_if_singular=True), np.linalg.pinv(lost), atol=1e-12
+    )
+    with pytest.raises(GraspRankError, match="rank W = 3"):
+        pseudo_inverse(lost)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=SEEDS)
+def test_cross3_is_the_cross_product(seed: int) -> None:
+    a, b = np.random.default_rng(seed).normal(size=(2, 3))
+    np.testing.assert_allclose(cross3(a, b), np.cross(a, b), rtol=1e-12, atol=1e-15)
+
+
+def test_the_law_imports_only_numpy_and_the_grasp_layer() -> None:
+    """law.py sits below glove/sim/envs: it may not import them (nor mujoco)."""
+    source = Path(law.__file__).read_text(encoding="utf-8")
+    imported = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            imported |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            imported.add(node.module)
+    allowed = ("numpy", "ias_gym.grasp", "ias_gym.errors", "typing", "collections", "__future__")
+    assert imported and all(m.split(".")[0] in allowed or m.startswith(allowed) for m in imported)
+    assert not any(m.startswith(("ias_gym.sim", "ias_gym.envs", "mujoco")) for m in imported)
+
+
+def test_the_adapter_weighs_the_pen_with_the_model_gravity() -> None:
+    """GripTransformController passes the model's gravity (MuJoCo's -z is the paper's -y) to
+    eq. (33): on a model with weaker gravity the contacts carry less weight."""
+    env = gym.make("IAS-PenSlide-v0")
+    env.reset(seed=0)
+    u = env.unwrapped
+    assert isinstance(u, PenHandEnv)
+    mass = u.physics.pen_mass_nominal
+    wrench = GripTransformController().object_wrench(u, np.zeros(6))
+    assert wrench[1] == pytest.approx(mass * 9.81, rel=1e-12)
+    u.model.opt.gravity[:] = [0.0, 0.0, -4.0]
+    wrench = GripTransformController().object_wrench(u, np.zeros(6))
+    np.testing.assert_allclose(wrench[:3], [0.0, mass * 4.0, 0.0], rtol=1e-12, atol=1e-15)
+    env.close()
