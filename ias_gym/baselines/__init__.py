@@ -3,7 +3,7 @@
 This package spans two layers (see the README's layout section), so its ``__init__``
 imports nothing: ``import ias_gym.baselines.law`` must not drag the envs in.
 
-- :mod:`~ias_gym.baselines.law` (when present): the law as pure functions (numpy only);
+- :mod:`~ias_gym.baselines.law`: the law as pure functions (numpy only);
 - :mod:`~ias_gym.baselines.grip_transform_control`: :class:`GripTransformController`,
   :class:`ControllerGains` (the law on a pen env);
 - :mod:`~ias_gym.baselines.expert`: :class:`ExpertPolicy` (SB3 ``predict`` interface);
