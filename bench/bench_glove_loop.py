@@ -40,14 +40,16 @@ import time
 import can
 import numpy as np
 
-from ias_gym.envs.glove_grasp import FromPreShape, GloveGraspEnv, pen_operator
+from ias_gym.envs.glove_grasp import GloveGraspEnv
 from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, GloveReading
 from ias_gym.glove.hand import PersonParams
+from ias_gym.glove.operator import FromPreShape
 from ias_gym.glove.sensor_model import sensor_readings
 from ias_gym.hardware import CanGlove, GloveEmulator, LoopClock, bus_load
 from ias_gym.hardware.bench import run_glove_bench
 from ias_gym.hardware.loop import LoopStats, loop_stats, realtime_priority
 from ias_gym.hardware.protocol import encode_torque
+from ias_gym.sim.glove_scene import scene_operator
 
 GOAL_P99_RATIO = 1.15
 GOAL_OVERRUN_RATIO = 1.5
@@ -79,7 +81,7 @@ class FixedGlove(GloveDevice):
 def world_loop(rate_hz: float, seconds: float) -> LoopStats:
     """The env step of the host loop, paced by a LoopClock, without bus or threads."""
     person = PersonParams.sample("p1")  # the emulator's default wearer, holding the pinch
-    psi = sensor_readings(FromPreShape(pen_operator(person))(1.0), person)
+    psi = sensor_readings(FromPreShape(scene_operator(person))(1.0), person)
     period = 1.0 / rate_hz
     env = GloveGraspEnv(
         control_dt=period, duration=seconds + 1.0, glove_factory=lambda seed: FixedGlove(psi)

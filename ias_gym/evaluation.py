@@ -1,22 +1,35 @@
-"""Evaluating a policy on an ``IAS-*`` environment: success rate, return, task errors, video."""
+"""Evaluating a policy on an ``IAS-*`` environment: success rate, return, task errors, video.
+
+Policies are loaded by :func:`ias_gym.baselines.policies.load_policy` (re-exported here with
+its errors, :data:`TELEOP` and :data:`Policy`, for the callers that import them from here).
+"""
 
 from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import imageio.v2 as imageio
 import numpy as np
+from tqdm import tqdm
 
 import ias_gym  # noqa: F401  (registers the ids)
+from ias_gym.baselines.policies import (  # re-exported: the loader's home is the policy layer
+    TELEOP,
+    MissingDependencyError,
+    Policy,
+    PolicyNotFoundError,
+    load_policy,
+    stateful,
+)
 from ias_gym.errors import IasGymError, InputError
 from ias_gym.outputs import atomic_output, check_output_file
 
-Policy = Callable[[np.ndarray], np.ndarray]
 #: Frame rate of evaluation videos [1/s]; the env's frames are thinned to it.
 VIDEO_FPS = 25
 #: File name suffixes of evaluation videos (ffmpeg picks the container by it).
@@ -36,14 +49,6 @@ METRIC_UNITS: Mapping[str, tuple[str, str, float]] = {
 
 class UnknownEnvError(InputError, LookupError):
     """An env id that gymnasium does not know (the message lists the ``IAS-*`` ids)."""
-
-
-class PolicyNotFoundError(InputError, FileNotFoundError):
-    """A policy spec that is neither a known name nor an existing file."""
-
-
-class MissingDependencyError(IasGymError, ImportError):
-    """An optional dependency is not installed (the message says which extra to install)."""
 
 
 def make_env(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
@@ -112,81 +117,6 @@ class EvaluationResult:
         return out
 
 
-#: Policy spec of glove envs: zero action, the glove alone drives the hand.
-TELEOP = "teleop"
-
-
-def load_policy(
-    spec: str, env: gym.Env[Any, Any], seed: int | None = None, *, trust_pickle: bool = False
-) -> Policy:
-    """A callable ``obs -> action`` for ``expert`` (pen tasks), ``teleop`` (glove envs: zero
-    action, pure teleoperation), ``random`` or a saved SB3 model's path.
-
-    A model file is loaded without running code from it (:func:`ias_gym.safe_sb3.
-    load_sb3_policy`), and must have been saved for ``env``'s spaces.
-
-    Args:
-        spec: ``"expert"``, ``"teleop"``, ``"random"`` or the path of an SB3 ``.zip``.
-        env: the env the policy acts in.
-        seed: seeds the ``random`` policy's action sampling.
-        trust_pickle: load a model with SB3's own ``load``, which unpickles the file (runs
-            code from it): only for files you trust.
-
-    Raises:
-        InputError: ``teleop`` on an env without a glove (or without a Box action space),
-            or ``expert`` on a glove env (it has none: the person wearing the glove is the
-            demonstrator).
-        PolicyNotFoundError: ``spec`` is neither a known name nor an existing file.
-        PolicyFileError: the file is not a usable model for ``env``;
-            :class:`~ias_gym.safe_sb3.UntrustedPickleError` if it needs unpickling.
-        MissingDependencyError: a model path was given but stable-baselines3 is not
-            installed.
-    """
-    from ias_gym.envs.glove_grasp import GloveGraspEnv
-
-    glove = isinstance(env.unwrapped, GloveGraspEnv)
-    name = env.spec.id if env.spec is not None else type(env.unwrapped).__name__
-    if spec == TELEOP:
-        if not glove:
-            raise InputError(
-                f"policy {TELEOP!r} (zero action: the glove drives the hand) needs a glove "
-                f"env such as IAS-GloveGrasp-v0, not {name}; use expert, random or a model"
-            )
-        space = env.action_space
-        if not isinstance(space, gym.spaces.Box):
-            raise InputError(f"{TELEOP!r} needs a Box action space, got {space}")
-        zero = np.zeros(space.shape, dtype=space.dtype)
-        return lambda obs: zero.copy()
-    if spec == "expert":
-        if glove:
-            raise InputError(
-                f"{name} has no expert: a glove session is demonstrated by the person wearing "
-                f"the glove; use --policy {TELEOP} (zero action, pure teleoperation), random, "
-                "or a saved SB3 model acting on top of the glove"
-            )
-        from ias_gym.baselines.expert import ExpertPolicy
-
-        expert = ExpertPolicy(env)
-        return lambda obs: expert.predict(obs)[0]
-    if spec == "random":
-        env.action_space.seed(seed)
-        return lambda obs: env.action_space.sample()
-    path = Path(spec)
-    if not path.is_file():
-        raise PolicyNotFoundError(
-            f"policy {spec!r} is not 'expert', 'teleop', 'random' or an existing SB3 model file"
-        )
-    try:
-        import stable_baselines3  # noqa: F401
-    except ImportError:
-        raise MissingDependencyError(
-            "loading a saved model needs stable-baselines3: pip install 'ias-gym[train]'"
-        ) from None
-    from ias_gym.safe_sb3 import load_sb3_policy
-
-    return load_sb3_policy(path, env, trust_pickle=trust_pickle)
-
-
 def evaluate(
     env_id: str,
     policy: str = "expert",
@@ -244,12 +174,10 @@ def evaluate(
     stride = max(1, round(fps / VIDEO_FPS))  # render only the frames the video keeps
     episode_iter: Any = range(episodes)
     if progress:
-        from tqdm import tqdm
-
         episode_iter = tqdm(episode_iter, desc=f"{env_id} / {policy}", unit="episode")
     for episode in episode_iter:
         frames: list[np.ndarray] | None = [] if (video is not None and episode == 0) else None
-        if policy == "expert":
+        if stateful(policy):
             act = load_policy(policy, env, seed)  # a fresh controller per episode
         options = dict(reset_options) if reset_options is not None else None
         obs, info = env.reset(seed=seed + episode, options=options)
@@ -300,8 +228,6 @@ def write_video(
     Raises:
         OutputExistsError: ``path`` exists and ``overwrite`` is false.
     """
-    import imageio.v2 as imageio
-
     path = Path(path)
     with atomic_output(path, overwrite=overwrite) as tmp:
         writer: Any = imageio.get_writer(tmp, fps=fps, macro_block_size=8)
@@ -309,3 +235,21 @@ def write_video(
             for frame in frames:
                 writer.append_data(frame)
     return path
+
+
+__all__ = [
+    "METRIC_UNITS",
+    "TELEOP",
+    "VIDEO_FPS",
+    "VIDEO_SUFFIXES",
+    "EvaluationResult",
+    "MissingDependencyError",
+    "Policy",
+    "PolicyNotFoundError",
+    "UnknownEnvError",
+    "evaluate",
+    "load_policy",
+    "make_env",
+    "report",
+    "write_video",
+]

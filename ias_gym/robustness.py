@@ -2,7 +2,7 @@
 
 Each class is a set of env kwargs of the pen tasks (:mod:`ias_gym.envs.disturbances`), so a
 class is also just ``gym.make(env_id, **DISTURBANCES[name])``. :func:`run_robustness` evaluates
-a policy (any that :func:`ias_gym.evaluation.load_policy` takes: ``expert``, ``random``, a
+a policy (any that :func:`ias_gym.baselines.policies.load_policy` takes: ``expert``, ``random``, a
 saved model) on the same seeds in every class; ``ias-gym robustness`` prints the table. Why the
 classes and their sizes: docs/robustness.md.
 """

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from ias_gym.cli.glove import add_glove_commands
 from ias_gym.errors import InputError
 from ias_gym.glove import (
     ACTUATED_JOINTS,
@@ -31,7 +32,6 @@ from ias_gym.glove import (
     ProfileError,
     ReachPinchLift,
     SimulatedGlove,
-    add_glove_commands,
     evaluate,
     fingertip_gap,
     fit_linear,

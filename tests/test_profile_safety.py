@@ -11,12 +11,12 @@ from typing import Any
 import numpy as np
 import pytest
 
+from ias_gym.cli.glove import add_glove_commands
 from ias_gym.errors import InputError
 from ias_gym.glove import (
     PersonParams,
     Profile,
     ProfileError,
-    add_glove_commands,
     evaluate,
     fit_linear,
     load_profile,

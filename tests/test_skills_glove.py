@@ -11,26 +11,28 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from ias_gym.cli.skills import add_skills_commands
 from ias_gym.envs.glove_grasp import GloveGraspEnv
 from ias_gym.errors import InputError
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.grasp.contacts import wrench_matrix
 from ias_gym.sim.glove_contacts import FingerContacts, GlovePenPhysics, squeeze_null_vector
-from ias_gym.sim.glove_scene import INDEX_GEOMS, THUMB_GEOMS, load_glove_scene
+from ias_gym.sim.glove_scene import (
+    FINGER_ABOVE,
+    FINGER_GEOMS,
+    FINGER_TIPS,
+    INDEX_GEOMS,
+    THUMB_GEOMS,
+    load_glove_scene,
+)
 from ias_gym.sim.pen_hand import mj_to_paper
 from ias_gym.skills import (
     SkillDB,
     SkillModel,
-    add_skills_commands,
     glove_session_source,
     record_skills,
 )
-from ias_gym.skills.glove_session import (
-    GLOVE_ABOVE,
-    GLOVE_FINGERS,
-    GLOVE_TIPS,
-    GloveSkillModelRecorder,
-)
+from ias_gym.skills.glove_session import GloveSkillModelRecorder
 
 ENV_ID = "IAS-GloveGrasp-v0"
 STEPS = 400  # 4 s of 10 ms steps
@@ -188,9 +190,9 @@ def test_sampler_matches_mujoco_at_every_step() -> None:
     recorder = GloveSkillModelRecorder()
     env.reset(seed=2)
     recorder.sample(unwrapped)
-    fingers = dict(zip(GLOVE_FINGERS, (INDEX_GEOMS, THUMB_GEOMS), strict=True))
+    fingers = dict(zip(FINGER_GEOMS, (INDEX_GEOMS, THUMB_GEOMS), strict=True))
     physics = GlovePenPhysics(
-        unwrapped.model, unwrapped.data, fingers, GLOVE_TIPS, above=GLOVE_ABOVE
+        unwrapped.model, unwrapped.data, fingers, FINGER_TIPS, above=FINGER_ABOVE
     )
     d, body = unwrapped.data, physics.pen_body_id
     inertia = unwrapped.model.body_inertia[body]

@@ -1,7 +1,13 @@
-"""The paper's control law (Theorem 1, eq. 45) as controller, expert policy and action wrapper."""
+"""The paper's control law (Theorem 1, eq. 45) and the policies built on it.
 
-from ias_gym.baselines.action_wrapper import GripTransformAction
-from ias_gym.baselines.expert import ExpertPolicy
-from ias_gym.baselines.grip_transform_control import ControllerGains, GripTransformController
+This package spans two layers (see the README's layout section), so its ``__init__``
+imports nothing: ``import ias_gym.baselines.law`` must not drag the envs in.
 
-__all__ = ["ControllerGains", "ExpertPolicy", "GripTransformAction", "GripTransformController"]
+- :mod:`~ias_gym.baselines.law`: the law as pure functions (numpy only);
+- :mod:`~ias_gym.baselines.grip_transform_control`: :class:`GripTransformController`,
+  :class:`ControllerGains` (the law on a pen env);
+- :mod:`~ias_gym.baselines.expert`: :class:`ExpertPolicy` (SB3 ``predict`` interface);
+- :mod:`~ias_gym.baselines.action_wrapper`: :class:`GripTransformAction`;
+- :mod:`~ias_gym.baselines.policies`: the policy loader (``expert``, ``teleop``,
+  ``random``, a saved model).
+"""

@@ -15,9 +15,11 @@
 - :mod:`~ias_gym.glove.operator`: the scripted pen pinch of the glove world
   (:func:`~ias_gym.glove.operator.pen_operator`, :class:`~ias_gym.glove.operator.FromPreShape`).
 - :mod:`~ias_gym.glove.profile_cache`: the simulated persons' calibrations, cached as profiles.
-- :mod:`~ias_gym.glove.commands`: ``ias-gym calibrate``.
 - :mod:`~ias_gym.glove.ids`: :func:`check_id`, the one rule for person and glove ids
   (they name files).
+
+``ias-gym calibrate`` lives in :mod:`ias_gym.cli.glove` (this package never imports the
+command line).
 """
 
 from __future__ import annotations
@@ -37,7 +39,6 @@ from ias_gym.glove.calibration import (
     evaluate,
     fit_linear,
 )
-from ias_gym.glove.commands import add_glove_commands
 from ias_gym.glove.device import (
     ACTUATED_JOINTS,
     GloveDevice,
@@ -109,7 +110,6 @@ __all__ = [
     "ReachPinchLiftTimings",
     "SimulatedGlove",
     "TrainingReport",
-    "add_glove_commands",
     "calibrate_person",
     "check_id",
     "evaluate",

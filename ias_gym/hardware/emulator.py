@@ -152,10 +152,11 @@ class GloveEmulator:
         self.interface, self.channel = interface, channel
         self.person = person if person is not None else PersonParams.sample("p1")
         if operator is None:
-            from ias_gym.envs.glove_grasp import FromPreShape, pen_operator
+            from ias_gym.glove.operator import FromPreShape
+            from ias_gym.sim.glove_scene import scene_operator
 
             def operator(p: PersonParams) -> Callable[[float], NDArray[np.float64]]:
-                return FromPreShape(pen_operator(p))
+                return FromPreShape(scene_operator(p))
 
         #: Θ(t) [rad] of the wearer; a pure function of t, built once (building the pen
         #: pinch solves the person's inverse kinematics: ~0.1 s the glove must not go quiet).

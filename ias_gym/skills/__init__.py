@@ -6,11 +6,14 @@
 - :func:`record_skills` rolls out a policy on a pen task, or records glove sessions of
   ``IAS-GloveGrasp-v0`` (policy ``teleop``), and stores every episode.
 - :func:`export_minari` writes the demonstrations of a task as a Minari dataset (no jax).
-- :func:`add_skills_commands` adds ``ias-gym skills record|list|show|export|check|delete|
-  migrate``; :func:`check_database` verifies every skill's checksums.
+- :func:`check_database` verifies every skill's checksums.
+
+The ``ias-gym skills ...`` commands live in :mod:`ias_gym.cli.skills` (this package never
+imports the command line).
 """
 
-from ias_gym.skills.commands import add_skills_commands, check_database
+from ias_gym.baselines.policies import policy_source
+from ias_gym.skills.check import check_database
 from ias_gym.skills.db import (
     SCHEMA_VERSION,
     SkillDB,
@@ -27,7 +30,6 @@ from ias_gym.skills.minari_export import export_minari
 from ias_gym.skills.record import (
     SkillModelRecorder,
     SkillSampler,
-    policy_source,
     record_episode,
     record_skills,
     skill_model_recorder,
@@ -47,7 +49,6 @@ __all__ = [
     "SkillNotFoundError",
     "SkillSampler",
     "SkillSummary",
-    "add_skills_commands",
     "array_checksum",
     "check_database",
     "export_minari",

@@ -92,6 +92,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym import __version__
 from ias_gym.errors import IasGymError
 from ias_gym.skills.skill import (
     DEMO_ARRAYS,
@@ -437,8 +438,6 @@ class SkillDB:
         rows += [("info", key, value) for key, value in sorted(demo.infos.items())]
         rows += [("model", name, getattr(model, name)) for name in MODEL_ARRAYS]
         encoded = [(part, name, *_encode(value)) for part, name, value in rows]
-        from ias_gym import __version__
-
         first = np.ascontiguousarray(demo.observations[0], dtype="<f8").ravel()
         record = (
             skill.name,

@@ -23,7 +23,7 @@ carries the fingers' net force exactly and their moment to about 2e-3 N m (see
 :mod:`ias_gym.sim.glove_contacts`).
 
 The env has no expert: a glove session is teleoperation (the ``teleop`` policy of
-:func:`ias_gym.evaluation.load_policy`, zero action). Provenance: the person is the env's
+:func:`ias_gym.baselines.policies.load_policy`, zero action). Provenance: the person is the env's
 (``env.unwrapped.person.person_id``) and the source names the glove
 (:func:`glove_session_source`).
 """
@@ -34,19 +34,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ias_gym.evaluation import TELEOP
-from ias_gym.sim.glove_contacts import squeeze_null_vector
-from ias_gym.sim.glove_scene import FINGER_ABOVE, FINGER_GEOMS, FINGER_TIPS
+from ias_gym.baselines.policies import TELEOP
 from ias_gym.skills.skill import SkillModelSamples
 
 if TYPE_CHECKING:
     from ias_gym.envs.glove_grasp import GloveGraspEnv
-
-#: The fingers of the glove env's skill model, in column order, their tip sites, and which
-#: comes down on the pen from above in the pinch (the scene's, :mod:`ias_gym.sim.glove_scene`).
-GLOVE_FINGERS = tuple(FINGER_GEOMS)
-GLOVE_TIPS = FINGER_TIPS
-GLOVE_ABOVE = FINGER_ABOVE
 
 
 def glove_session_source(source: str, glove_id: str) -> str:
@@ -80,6 +72,10 @@ class GloveSkillModelRecorder(SkillModelSamples):
         Raises:
             RuntimeError: the env has not been reset.
         """
+        # MuJoCo scene code: imported on first use, so that importing the skills package
+        # (the database) does not load MuJoCo.
+        from ias_gym.sim.glove_contacts import squeeze_null_vector
+
         if env.contact_pass is None:
             raise RuntimeError("sample the glove env after reset() or step()")
         p = env.physics

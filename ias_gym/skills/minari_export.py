@@ -27,6 +27,8 @@ from typing import Any
 
 import gymnasium as gym
 
+import ias_gym
+from ias_gym.glove.ids import check_id
 from ias_gym.skills.db import SkillDB
 
 #: The install hint of a missing Minari.
@@ -77,12 +79,10 @@ def export_minari(
         SkillDBError: the database is missing, empty or not one, or a skill's arrays do
             not match their checksums (nothing is left of the dataset then).
     """
+    # minari is the optional [datasets] extra: imported only when exporting
     minari = _import_minari()
     from minari.data_collector.episode_buffer import EpisodeBuffer
     from minari.storage import get_dataset_path
-
-    import ias_gym
-    from ias_gym.glove.ids import check_id
 
     with SkillDB(db_path, readonly=True) as db:
         summaries = db.list_skills(task=task, success=True if success_only else None)

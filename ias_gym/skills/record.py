@@ -24,11 +24,13 @@ from typing import TYPE_CHECKING, Any, Protocol
 import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
+from tqdm import tqdm
 
-from ias_gym.evaluation import TELEOP, load_policy
+from ias_gym.baselines.policies import load_policy, policy_source, stateful
+from ias_gym.glove.ids import check_id
 from ias_gym.grasp.grip_transform import GraspRankError, GripTransform
 from ias_gym.skills.db import SkillDB
-from ias_gym.skills.glove_session import glove_session_source
+from ias_gym.skills.glove_session import GloveSkillModelRecorder, glove_session_source
 from ias_gym.skills.skill import Demonstration, Skill, SkillModel, SkillModelSamples
 
 if TYPE_CHECKING:
@@ -116,9 +118,10 @@ def skill_model_recorder(env: gym.Env[Any, Any]) -> SkillSampler:
     Raises:
         TypeError: neither a pen-hand env nor a glove env (no physics to read a model from).
     """
+    # MuJoCo envs: imported when a rollout needs them, so that importing the skills package
+    # (the database) does not load MuJoCo
     from ias_gym.envs.glove_grasp import GloveGraspEnv
     from ias_gym.envs.pen_hand_env import PenHandEnv
-    from ias_gym.skills.glove_session import GloveSkillModelRecorder
 
     if isinstance(env, GloveGraspEnv):  # IAS-GloveGrasp-v0 and the envs built on it
         return GloveSkillModelRecorder()
@@ -128,14 +131,6 @@ def skill_model_recorder(env: gym.Env[Any, Any]) -> SkillSampler:
         "skills are recorded from IAS pen environments (IAS-PenSlide-v0, IAS-PenRotate-v0) "
         f"and glove environments (IAS-GloveGrasp-v0), got {type(env).__name__}"
     )
-
-
-def policy_source(policy_spec: str) -> str:
-    """Provenance string of a policy spec: ``expert``, ``random``, ``teleop`` or
-    ``policy:<abs path>`` (a glove session's is refined by :func:`record_episode`)."""
-    if policy_spec in ("expert", "random", TELEOP):
-        return policy_spec
-    return f"policy:{Path(policy_spec).resolve()}"
 
 
 def record_episode(
@@ -160,7 +155,7 @@ def record_episode(
             unwrapped one).
         policy: ``obs -> action``; a stateful expert must be fresh for this episode.
         seed: reset seed.
-        source: provenance (see :func:`policy_source`).
+        source: provenance (see :func:`~ias_gym.baselines.policies.policy_source`).
         name: skill name; default ``"<task> <source> seed <seed>"`` (glove sessions:
             ``"<task> <source> <person> seed <seed>"``).
         person_id: who demonstrated it, if a person did (glove env: default and must be
@@ -171,7 +166,7 @@ def record_episode(
         TypeError: neither a pen-hand nor a glove env (no physics to read the model from).
         ValueError: ``person_id`` is not the glove env's person.
     """
-    from ias_gym.envs.glove_grasp import GloveGraspEnv
+    from ias_gym.envs.glove_grasp import GloveGraspEnv  # as in skill_model_recorder
 
     unwrapped = env.unwrapped
     recorder = skill_model_recorder(unwrapped)
@@ -271,13 +266,9 @@ def record_skills(
         InputError: ``person_id`` or ``env_kwargs["person_id"]`` is not a valid id
             (:func:`~ias_gym.glove.ids.check_id`), checked before the database is opened.
         ValueError: ``expert`` on a glove env, ``teleop`` on a pen env
-            (:func:`~ias_gym.evaluation.load_policy`), a person other than the glove env's
+            (:func:`~ias_gym.baselines.policies.load_policy`), a person other than the glove env's
             (:func:`record_episode`).
     """
-    from tqdm import tqdm
-
-    from ias_gym.glove.ids import check_id
-
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     kwargs = dict(env_kwargs or {})
@@ -299,7 +290,7 @@ def record_skills(
             )
             successes = 0
             for episode in bar:
-                if policy_spec == "expert":
+                if stateful(policy_spec):
                     # a fresh controller per episode
                     act = load_policy(policy_spec, env, seed)
                 skill = record_episode(

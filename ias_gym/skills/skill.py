@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym.glove.ids import check_id
+
 if TYPE_CHECKING:
     from ias_gym.sim.pen_hand import FreePenPhysics
 
@@ -384,8 +386,7 @@ class Skill:
             if not isinstance(value, str) or not value.strip():
                 raise ValueError(f"skill {name} must be a non-empty string, got {value!r}")
         if self.person_id is not None:
-            from ias_gym.glove.ids import check_id  # person ids name profile files
-
+            # person ids name profile files
             check_id(self.person_id, "skill person_id")
         if self.seed is not None and not isinstance(self.seed, (int, np.integer)):
             raise ValueError(f"seed must be an int or None, got {self.seed!r}")
@@ -394,8 +395,6 @@ class Skill:
         except (TypeError, ValueError) as exc:
             raise ValueError(f"env_kwargs must be JSON-serialisable: {exc}") from exc
         if "person_id" in self.env_kwargs:  # re-creating the env would name files with it
-            from ias_gym.glove.ids import check_id
-
             check_id(self.env_kwargs["person_id"], "skill env_kwargs person_id")
         self.demonstration.validate()
         self.model.validate(samples=self.demonstration.length + 1)

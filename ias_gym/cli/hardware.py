@@ -2,7 +2,8 @@
 
 Numbers are checked when the arguments are parsed (argparse prints the usage and one line,
 exit 2); what only running can tell (an interface this machine cannot open, a silent glove)
-is raised as the package's own errors, which ``ias-gym`` prints as one line.
+is raised as the package's own errors, which ``ias-gym`` prints as one line. The hardware
+modules (python-can, the glove env) are imported when a command runs, so ``--help`` stays fast.
 """
 
 from __future__ import annotations

@@ -16,11 +16,12 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from ias_gym.cli.args import env_kwargs_argument, parse_env_kwargs
 from ias_gym.errors import IasGymError, InputError
 
 #: Exit code of ``skills check`` when a skill is corrupt.
@@ -46,7 +47,6 @@ def _as_package_errors() -> Iterator[None]:
 
 
 def _record(args: argparse.Namespace) -> int:
-    from ias_gym.cli import parse_env_kwargs
     from ias_gym.skills.record import record_skills
 
     with _as_package_errors():
@@ -157,44 +157,14 @@ def _export(args: argparse.Namespace) -> int:
     return 0
 
 
-def check_database(path: str | Path, report: Callable[[int, str | None], None]) -> int:
-    """Verify every skill of the database at ``path`` (read-only): SQLite's integrity
-    check, then every array of every skill against its checksum
-    (:meth:`~ias_gym.skills.db.SkillDB.check_skill`).
-
-    Args:
-        path: the database file.
-        report: called per skill with its id and ``None`` (fine) or the problem found.
-
-    Returns:
-        The number of skills with a problem.
-
-    Raises:
-        SkillDBError: the file is missing, empty, not a skill database, or damaged beyond
-            single skills (``PRAGMA integrity_check`` fails; the message has its findings).
-    """
-    from ias_gym.skills.db import SkillDB, SkillDBError
-
-    bad = 0
-    with SkillDB(path, readonly=True) as db:
-        db.integrity_check()
-        for skill_id in db.ids():
-            try:
-                db.check_skill(skill_id)
-            except SkillDBError as exc:
-                bad += 1
-                report(skill_id, str(exc))
-            else:
-                report(skill_id, None)
-    return bad
-
-
 def _check(args: argparse.Namespace) -> int:
     def report(skill_id: int, problem: str | None) -> None:
         if args.json:
             print(json.dumps({"id": skill_id, "ok": problem is None, "error": problem}))
         else:
             print(f"skill {skill_id}: {'OK' if problem is None else problem}", flush=True)
+
+    from ias_gym.skills.check import check_database
 
     bad = check_database(args.db, report)
     if not args.json:
@@ -238,8 +208,6 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
     Returns:
         The ``skills`` parser.
     """
-    from ias_gym.cli import env_kwargs_argument
-
     skills = subparsers.add_parser(
         "skills",
         help="the skill database: record, list, show, export, check and delete skills",
