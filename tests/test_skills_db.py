@@ -426,7 +426,6 @@ def test_sigkill_while_writing_never_leaves_a_broken_skill(tmp_path: Path) -> No
     expected = synthetic_skill(k=0, T=100, obs_dim=55)
     rng = np.random.default_rng(1234)
     counts = []
-    start = time.perf_counter()
     # The writer imports the ias_gym under test (not another installed copy).
     package_root = str(Path(__import__("ias_gym").__file__).resolve().parents[1])
     env = {**os.environ, "PYTHONPATH": package_root}
@@ -461,4 +460,3 @@ def test_sigkill_while_writing_never_leaves_a_broken_skill(tmp_path: Path) -> No
         counts.append(len(summaries))
     assert counts[-1] > KILLS  # the writers did write, and committed skills survived
     assert counts == sorted(counts)
-    assert time.perf_counter() - start < 30
