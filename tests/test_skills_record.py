@@ -214,3 +214,35 @@ def test_cli_help(command: list[str], capsys: pytest.CaptureFixture[str]) -> Non
         _parser().parse_args(["skills", *command, "--help"])
     assert done.value.code == 0
     assert "usage: ias-gym skills" in capsys.readouterr().out
+
+
+class _StartFrom(gym.Wrapper):  # type: ignore[type-arg]
+    """Resets from given options (a perturbed start) whatever the caller passes."""
+
+    def __init__(self, env: gym.Env, options: dict | None) -> None:  # type: ignore[type-arg]
+        super().__init__(env)
+        self._options = options
+
+    def reset(self, **kwargs):  # type: ignore[no-untyped-def]
+        return self.env.reset(seed=kwargs.get("seed"), options=self._options)
+
+
+def test_recorded_expert_holds_the_pen_from_nearby_starts() -> None:
+    """The recorded expert's skill model (success, four fingers touching, the fingers carrying
+    the pen's weight, the pen within 5 mm) holds from seed 3 and starts 1e-9 from it."""
+    from ias_gym.baselines.policies import load_policy
+    from ias_gym.skills.record import record_episode
+    from tests.closed_loop import perturbed_starts
+
+    env = gym.make(ENV_ID, **ENV_KWARGS)
+    weight = env.unwrapped.physics.pen_mass() * 9.81  # type: ignore[attr-defined]
+    for options in perturbed_starts(env, seed=3):
+        wrapped = _StartFrom(env, options)
+        policy = load_policy("expert", wrapped)  # a fresh controller for each episode
+        skill = record_episode(wrapped, policy, seed=3, source="expert")
+        model = skill.model
+        assert skill.is_success
+        assert model.touching.all(axis=1).mean() >= 0.9
+        settled = model.time >= 0.05
+        np.testing.assert_allclose(model.f_ext[settled, 1], weight, rtol=0.05)
+        assert np.abs(model.pen_position).max() < 0.005
