@@ -1,6 +1,8 @@
 """Evaluating a policy on an ``IAS-*`` environment: success rate, return, task errors, video.
 
-Policies are loaded by :func:`ias_gym.baselines.policies.load_policy` (re-exported here with
+:func:`evaluate` takes a policy object with SB3's ``predict`` (as SB3's ``evaluate_policy``
+does); :func:`evaluate_spec` is its convenience from strings (env id, policy spec). Policies
+are loaded by :func:`ias_gym.baselines.policies.load_policy` (re-exported here with
 its errors, :data:`TELEOP` and :data:`Policy`, for the callers that import them from here).
 """
 
@@ -25,7 +27,6 @@ from ias_gym.baselines.policies import (  # re-exported: the loader's home is th
     Policy,
     PolicyNotFoundError,
     load_policy,
-    stateful,
 )
 from ias_gym.errors import IasGymError, InputError
 from ias_gym.outputs import atomic_output, check_output_file
@@ -118,6 +119,94 @@ class EvaluationResult:
 
 
 def evaluate(
+    env: gym.Env[Any, Any],
+    policy: Policy,
+    episodes: int = 10,
+    seed: int = 0,
+    *,
+    name: str | None = None,
+    video: Path | None = None,
+    progress: bool = False,
+    overwrite: bool = False,
+    reset_options: Mapping[str, Any] | None = None,
+) -> EvaluationResult:
+    """Run ``policy`` for ``episodes`` episodes (seeds ``seed, seed+1, ...``) and collect the
+    outcomes, as SB3's ``evaluate_policy`` does with any object that has ``predict``.
+
+    Each episode's first ``predict`` gets ``episode_start=True`` (a stateful policy, such
+    as the expert's controller, starts afresh) and ``state=None``; later steps pass the
+    state the previous call returned. Actions are deterministic.
+
+    Args:
+        env: the env ``policy`` was loaded for (not closed here).
+        policy: an object with SB3's ``predict`` (:class:`~ias_gym.baselines.policies.Policy`;
+            :func:`load_policy` makes one from a command-line spec).
+        episodes: number of episodes (>= 1).
+        seed: seed of the first episode (>= 0).
+        name: the policy's name in the result (default: its class name).
+        video: if given, an MP4 of the first episode is written there; ``env`` must have
+            been made with ``render_mode="rgb_array"`` (see :func:`evaluate_spec`).
+        progress: show a progress bar over episodes.
+        overwrite: replace an existing ``video`` file.
+        reset_options: ``options`` of every episode's ``env.reset`` (``None``: the seed's
+            own start). For the pen tasks ``{"qpos": ..., "qvel": ...}`` starts from that
+            exact MuJoCo state ([m, rad], [m/s, rad/s]), the same one in every episode, so
+            pass it with ``episodes=1``: e.g. a start perturbed by 1e-9 to check that a
+            closed-loop result is not a knife edge of this machine's arithmetic.
+
+    Raises:
+        InputError: bad ``episodes``/``seed``, an unusable ``video`` path, or a ``video``
+            asked of an env that does not render ``rgb_array``.
+        OutputExistsError: ``video`` exists and ``overwrite`` is false.
+    """
+    _check_run(episodes, seed)
+    if video is not None:  # before any work: a bad path must not cost an episode
+        video = check_output_file(video, overwrite=overwrite, suffixes=VIDEO_SUFFIXES, what="video")
+        if env.render_mode != "rgb_array":
+            raise InputError(
+                f"a video needs the env made with render_mode='rgb_array', got {env.render_mode!r}"
+            )
+    env_id = env.spec.id if env.spec is not None else type(env.unwrapped).__name__
+    name = name or type(policy).__name__
+    result = EvaluationResult(env_id=env_id, policy=name)
+    fps = float(env.metadata.get("render_fps", 50))
+    stride = max(1, round(fps / VIDEO_FPS))  # render only the frames the video keeps
+    episode_iter: Any = range(episodes)
+    if progress:
+        episode_iter = tqdm(episode_iter, desc=f"{env_id} / {name}", unit="episode")
+    for episode in episode_iter:
+        frames: list[np.ndarray] | None = [] if (video is not None and episode == 0) else None
+        options = dict(reset_options) if reset_options is not None else None
+        obs, info = env.reset(seed=seed + episode, options=options)
+        total, length, done = 0.0, 0, False
+        state: Any = None
+        while not done:
+            if frames is not None and length % stride == 0:
+                frames.append(env.render())  # type: ignore[arg-type]
+            action, state = policy.predict(
+                obs, state=state, episode_start=length == 0, deterministic=True
+            )
+            obs, reward, terminated, truncated, info = env.step(action)
+            total += float(reward)
+            length += 1
+            done = terminated or truncated
+        result.successes.append(bool(info["is_success"]))
+        result.returns.append(total)
+        result.lengths.append(length)
+        result.metrics.append(env.unwrapped.episode_metrics(info))  # type: ignore[attr-defined]
+        if frames is not None and video is not None:
+            write_video(video, frames, fps=fps / stride, overwrite=overwrite)
+    return result
+
+
+def _check_run(episodes: int, seed: int) -> None:
+    if episodes < 1:
+        raise InputError(f"episodes must be >= 1, got {episodes}")
+    if seed < 0:
+        raise InputError(f"seed must be >= 0 (numpy seeds are non-negative), got {seed}")
+
+
+def evaluate_spec(
     env_id: str,
     policy: str = "expert",
     episodes: int = 10,
@@ -130,14 +219,15 @@ def evaluate(
     trust_pickle: bool = False,
     reset_options: Mapping[str, Any] | None = None,
 ) -> EvaluationResult:
-    """Run ``episodes`` episodes (seeds ``seed, seed+1, ...``) and collect the outcomes.
+    """:func:`evaluate` from strings, for the command line and tests: make the env, load the
+    policy spec (:func:`load_policy`, seeded with ``seed``), evaluate, close the env.
 
     Args:
         env_id: a registered id, e.g. ``"IAS-PenSlide-v0"``.
         policy: ``"expert"``, ``"teleop"``, ``"random"`` or a path to a saved SB3 model
-            (:func:`load_policy`).
+            (:func:`load_policy`); also the policy's name in the result.
         episodes: number of episodes (>= 1).
-        seed: seed of the first episode (>= 0).
+        seed: seed of the first episode (>= 0) and of the ``random`` policy's sampling.
         video: if given, an MP4 of the first episode is written there (needs ``MUJOCO_GL``
             set for headless rendering, e.g. ``egl``). Checked before the env is built:
             its directory must exist and be writable.
@@ -145,11 +235,7 @@ def evaluate(
         env_kwargs: configuration overrides passed to ``gym.make``.
         overwrite: replace an existing ``video`` file.
         trust_pickle: load a model file with SB3's own ``load`` (runs code from the file).
-        reset_options: ``options`` of every episode's ``env.reset`` (``None``: the seed's
-            own start). For the pen tasks ``{"qpos": ..., "qvel": ...}`` starts from that
-            exact MuJoCo state ([m, rad], [m/s, rad/s]), the same one in every episode, so
-            pass it with ``episodes=1``: e.g. a start perturbed by 1e-9 to check that a
-            closed-loop result is not a knife edge of this machine's arithmetic.
+        reset_options: as for :func:`evaluate`.
 
     Raises:
         InputError: bad ``episodes``/``seed``, unusable ``video`` path, unknown env id or
@@ -157,46 +243,29 @@ def evaluate(
             :func:`make_env`, :func:`load_policy`).
         OutputExistsError: ``video`` exists and ``overwrite`` is false.
     """
-    if episodes < 1:
-        raise InputError(f"episodes must be >= 1, got {episodes}")
-    if seed < 0:
-        raise InputError(f"seed must be >= 0 (numpy seeds are non-negative), got {seed}")
-    if video is not None:  # before any work: a bad path must not cost an episode
+    _check_run(episodes, seed)
+    if video is not None:  # before the env is built: a bad path must not cost its build
         video = check_output_file(video, overwrite=overwrite, suffixes=VIDEO_SUFFIXES, what="video")
     kwargs = dict(env_kwargs or {})
     if video is not None:
         os.environ.setdefault("MUJOCO_GL", "egl")
         kwargs["render_mode"] = "rgb_array"
     env = make_env(env_id, **kwargs)
-    act = load_policy(policy, env, seed, trust_pickle=trust_pickle)
-    result = EvaluationResult(env_id=env_id, policy=policy)
-    fps = float(env.metadata.get("render_fps", 50))
-    stride = max(1, round(fps / VIDEO_FPS))  # render only the frames the video keeps
-    episode_iter: Any = range(episodes)
-    if progress:
-        episode_iter = tqdm(episode_iter, desc=f"{env_id} / {policy}", unit="episode")
-    for episode in episode_iter:
-        frames: list[np.ndarray] | None = [] if (video is not None and episode == 0) else None
-        if stateful(policy):
-            act = load_policy(policy, env, seed)  # a fresh controller per episode
-        options = dict(reset_options) if reset_options is not None else None
-        obs, info = env.reset(seed=seed + episode, options=options)
-        total, length, done = 0.0, 0, False
-        while not done:
-            if frames is not None and length % stride == 0:
-                frames.append(env.render())  # type: ignore[arg-type]
-            obs, reward, terminated, truncated, info = env.step(act(obs))
-            total += float(reward)
-            length += 1
-            done = terminated or truncated
-        result.successes.append(bool(info["is_success"]))
-        result.returns.append(total)
-        result.lengths.append(length)
-        result.metrics.append(env.unwrapped.episode_metrics(info))  # type: ignore[attr-defined]
-        if frames is not None and video is not None:
-            write_video(video, frames, fps=fps / stride, overwrite=overwrite)
-    env.close()
-    return result
+    try:
+        act = load_policy(policy, env, seed, trust_pickle=trust_pickle)
+        return evaluate(
+            env,
+            act,
+            episodes,
+            seed,
+            name=policy,
+            video=video,
+            progress=progress,
+            overwrite=overwrite,
+            reset_options=reset_options,
+        )
+    finally:
+        env.close()
 
 
 def report(env_id: str, policy: str, episodes: int, seed: int, what: str = "policy") -> None:
@@ -205,7 +274,7 @@ def report(env_id: str, policy: str, episodes: int, seed: int, what: str = "poli
     What the ``train/`` scripts print after training, and the command to evaluate further.
     """
     if episodes >= 1:
-        summary = evaluate(env_id, policy, episodes, seed=seed, progress=True).summary()
+        summary = evaluate_spec(env_id, policy, episodes, seed=seed, progress=True).summary()
         print(
             f"{what} on {env_id}: success {summary['success_rate']:.0%} over {episodes} "
             f"episodes, mean return {summary['mean_return']:.1f}"
@@ -248,6 +317,7 @@ __all__ = [
     "PolicyNotFoundError",
     "UnknownEnvError",
     "evaluate",
+    "evaluate_spec",
     "load_policy",
     "make_env",
     "report",

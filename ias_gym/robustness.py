@@ -2,8 +2,9 @@
 
 Each class is a set of env kwargs of the pen tasks (:mod:`ias_gym.envs.disturbances`), so a
 class is also just ``gym.make(env_id, **DISTURBANCES[name])``. :func:`run_robustness` evaluates
-a policy (any that :func:`ias_gym.baselines.policies.load_policy` takes: ``expert``, ``random``, a
-saved model) on the same seeds in every class; ``ias-gym robustness`` prints the table. Why the
+a policy (an object with SB3's ``predict``, loaded for each class's env by a function the
+caller gives, e.g. one calling :func:`ias_gym.baselines.policies.load_policy`) on the same
+seeds in every class; ``ias-gym robustness`` prints the table. Why the
 classes and their sizes: docs/robustness.md.
 """
 
@@ -13,8 +14,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from ias_gym.baselines.policies import PolicyFactory
 from ias_gym.errors import InputError
-from ias_gym.evaluation import evaluate
+from ias_gym.evaluation import evaluate, make_env
 
 #: The classes: name -> env kwargs. A person does not know mu or the pen's mass either.
 DISTURBANCES: dict[str, dict[str, Any]] = {
@@ -79,46 +81,52 @@ def check_classes(names: Sequence[str] | None) -> list[str]:
 
 def run_robustness(
     env_id: str,
-    policy: str = "expert",
+    load: PolicyFactory,
     episodes: int = 100,
     seed: int = 0,
     classes: Sequence[str] | None = None,
     env_kwargs: dict[str, Any] | None = None,
     progress: bool = False,
-    trust_pickle: bool = False,
+    *,
+    name: str | None = None,
 ) -> list[RobustnessRow]:
-    """Evaluate ``policy`` in each disturbance class on seeds ``seed .. seed + episodes - 1``.
+    """Evaluate a policy in each disturbance class on seeds ``seed .. seed + episodes - 1``.
+
+    Each class is its own env, so the policy is given as ``load``: a function that loads
+    it for an env, called once per class (e.g. ``lambda env: load_policy("expert", env)``,
+    :func:`ias_gym.baselines.policies.load_policy`).
 
     Args:
         env_id: a pen task, e.g. ``"IAS-PenRotate-v0"``.
-        policy: ``"expert"``, ``"random"`` or a saved model's path (see ``load_policy``).
+        load: ``env -> policy`` (an object with SB3's ``predict``) for each class's env.
         episodes: episodes per class (>= 1).
         seed: seed of the first episode (>= 0); every class runs the same seeds.
         classes: names of :data:`DISTURBANCES` (``None``: all of them).
         env_kwargs: further env kwargs for every class (a class's own win).
         progress: a progress bar per class.
-        trust_pickle: load a model file with SB3's own load (runs code from it).
+        name: the policy's name in the progress bar.
 
     Returns:
         One row per class, in the order asked.
 
     Raises:
-        InputError: an unknown class, env id, env kwarg or policy (from ``evaluate``).
+        InputError: an unknown class, env id or env kwarg (:func:`~ias_gym.evaluation.
+            make_env`), bad ``episodes``/``seed``, or what ``load`` raises.
     """
     rows = []
-    for name in check_classes(classes):
-        kwargs = {**(env_kwargs or {}), **DISTURBANCES[name]}
-        result = evaluate(
-            env_id,
-            policy,
-            episodes=episodes,
-            seed=seed,
-            progress=progress,
-            env_kwargs=kwargs,
-            trust_pickle=trust_pickle,
-        )
+    for disturbance in check_classes(classes):
+        kwargs = {**(env_kwargs or {}), **DISTURBANCES[disturbance]}
+        env = make_env(env_id, **kwargs)
+        try:
+            result = evaluate(
+                env, load(env), episodes=episodes, seed=seed, name=name, progress=progress
+            )
+        finally:
+            env.close()
         rate = float(sum(result.successes)) / len(result.successes)
-        rows.append(RobustnessRow(name, rate, len(result.successes), DISTURBANCES[name]))
+        rows.append(
+            RobustnessRow(disturbance, rate, len(result.successes), DISTURBANCES[disturbance])
+        )
     return rows
 
 

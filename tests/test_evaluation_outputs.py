@@ -18,7 +18,7 @@ import pytest
 import ias_gym.figures.wrench_intensities as wrench
 from ias_gym.cli import main
 from ias_gym.errors import InputError
-from ias_gym.evaluation import evaluate, write_video
+from ias_gym.evaluation import evaluate_spec, write_video
 from ias_gym.outputs import OutputExistsError
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -53,7 +53,7 @@ def test_unwritable_video_path_fails_before_the_env_is_built(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     with pytest.raises(InputError, match="cannot write into /proc"):
-        evaluate("IAS-PenRotate-v0", "random", episodes=1, video=Path("/proc/x.mp4"))
+        evaluate_spec("IAS-PenRotate-v0", "random", episodes=1, video=Path("/proc/x.mp4"))
     line = _error_line([*EVALUATE, "--video", "/proc/x.mp4"], capsys)
     assert "video /proc/x.mp4" in line
     missing = tmp_path / "no" / "such" / "dir" / "x.mp4"

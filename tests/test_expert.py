@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from ias_gym.cli import main
-from ias_gym.evaluation import EvaluationResult, evaluate
+from ias_gym.evaluation import EvaluationResult, evaluate_spec
 from tests.closed_loop import perturbed_starts
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -31,14 +31,14 @@ def _expert_from_nearby_starts(env_id: str, seed: int = 100) -> tuple[Evaluation
     """
     env = gym.make(env_id)
     return tuple(
-        evaluate(env_id, "expert", episodes=1, seed=seed, reset_options=options)
+        evaluate_spec(env_id, "expert", episodes=1, seed=seed, reset_options=options)
         for options in perturbed_starts(env, seed)
     )
 
 
 @pytest.mark.parametrize("env_id", ["IAS-PenSlide-v0", "IAS-PenRotate-v0"])
 def test_expert_succeeds_and_random_fails(env_id: str) -> None:
-    random = evaluate(env_id, "random", episodes=3, seed=100)
+    random = evaluate_spec(env_id, "random", episodes=3, seed=100)
     assert not any(random.successes)
     for start, expert in enumerate(_expert_from_nearby_starts(env_id)):
         assert expert.successes == [True], (start, expert.summary())
@@ -64,7 +64,9 @@ def test_evaluate_starts_its_episodes_from_reset_options() -> None:
 
     def run(seed: int, options: dict[str, np.ndarray] | None = None) -> EvaluationResult:
         env_id = "IAS-PenRotate-v0"
-        return evaluate(env_id, seed=seed, episodes=1, env_kwargs=kwargs, reset_options=options)
+        return evaluate_spec(
+            env_id, seed=seed, episodes=1, env_kwargs=kwargs, reset_options=options
+        )
 
     own, moved = run(5), run(5, start_6)
     assert moved.returns == run(6).returns and moved.metrics == run(6).metrics
@@ -97,4 +99,4 @@ def test_evaluate_cli_json_and_video(tmp_path: Path, capsys: pytest.CaptureFixtu
 
 def test_unknown_policy_is_a_clear_error() -> None:
     with pytest.raises(FileNotFoundError, match="not 'expert', 'teleop', 'random'"):
-        evaluate("IAS-PenSlide-v0", "no/such/model.zip", episodes=1)
+        evaluate_spec("IAS-PenSlide-v0", "no/such/model.zip", episodes=1)

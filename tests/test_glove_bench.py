@@ -120,12 +120,12 @@ def test_a_bus_this_machine_cannot_open_is_one_input_error(command: str) -> None
 
 def test_the_hardware_env_says_when_its_bus_cannot_be_opened() -> None:
     """``ias-gym evaluate --env IAS-GloveHardware-v0 --env-kwargs '{"interface": ...}'``."""
-    from ias_gym.evaluation import evaluate
+    from ias_gym.evaluation import evaluate_spec
 
     with pytest.raises(InputError, match="unknown CAN interface 'bogus'"):
-        evaluate("IAS-GloveHardware-v0", "teleop", 1, env_kwargs={"interface": "bogus"})
+        evaluate_spec("IAS-GloveHardware-v0", "teleop", 1, env_kwargs={"interface": "bogus"})
     with pytest.raises(InputError, match="cannot open CAN interface 'socketcan'"):
-        evaluate(
+        evaluate_spec(
             "IAS-GloveHardware-v0",
             "teleop",
             1,

@@ -177,15 +177,15 @@ def test_pickling_is_refused_with_a_clear_message() -> None:
 
 
 def test_evaluate_runs_the_glove_env_by_teleoperation() -> None:
-    from ias_gym.evaluation import evaluate
+    from ias_gym.evaluation import evaluate_spec
 
-    result = evaluate("IAS-GloveGrasp-v0", "teleop", episodes=1)
+    result = evaluate_spec("IAS-GloveGrasp-v0", "teleop", episodes=1)
     summary = result.summary()
     assert summary["success_rate"] == 1.0 and summary["pen_height_max_mm"] >= 30.0
     with pytest.raises(ValueError, match="has no expert"):
-        evaluate("IAS-GloveGrasp-v0", "expert", episodes=1)
+        evaluate_spec("IAS-GloveGrasp-v0", "expert", episodes=1)
     with pytest.raises(ValueError, match="needs a glove env"):
-        evaluate("IAS-PenSlide-v0", "teleop", episodes=1)
+        evaluate_spec("IAS-PenSlide-v0", "teleop", episodes=1)
 
 
 def _absurd_calibration(calibration: Calibration) -> Calibration:

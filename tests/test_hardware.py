@@ -242,11 +242,11 @@ def test_hardware_env_passes_the_gymnasium_checker(channel: str) -> None:
 
 def test_a_can_glove_session_is_recorded_as_a_skill(channel: str, tmp_path: Path) -> None:
     from ias_gym.skills import SkillDB
-    from ias_gym.skills.record import record_skills
+    from ias_gym.skills.record import record_skills_spec
 
     db = tmp_path / "skills.db"
     with GloveEmulator(channel=channel, rate_hz=500):
-        (skill_id,) = record_skills(
+        (skill_id,) = record_skills_spec(
             "IAS-GloveHardware-v0",
             "teleop",
             1,

@@ -38,7 +38,8 @@ from ias_gym.learning.demonstrations import (  # noqa: E402
 from ias_gym.learning.finetune import KeepBestPolicy, fine_tune, make_vec_env  # noqa: E402
 from ias_gym.learning.normalisation import ObservationNormalizer, policy_kwargs  # noqa: E402
 from ias_gym.safe_sb3 import load_sb3_policy, read_model_json  # noqa: E402
-from ias_gym.skills import SkillDB, record_skills  # noqa: E402
+from ias_gym.skills import SkillDB  # noqa: E402
+from ias_gym.skills.record import record_skills_spec  # noqa: E402
 from tests.closed_loop import perturbed_starts  # noqa: E402
 
 ENV_ID = "IAS-PenRotate-v0"
@@ -62,7 +63,7 @@ def demo_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Two clean and two noise-injected expert demonstrations of 30 steps each."""
     path = tmp_path_factory.mktemp("learning") / "skills.db"
     kwargs = ENV_KWARGS
-    record_skills(ENV_ID, "expert", 2, path, seed=0, progress=False, env_kwargs=kwargs)
+    record_skills_spec(ENV_ID, "expert", 2, path, seed=0, progress=False, env_kwargs=kwargs)
     record_noisy_expert(ENV_ID, 2, path, noise=0.001, seed=10, progress=False, env_kwargs=kwargs)
     return path
 
@@ -162,7 +163,10 @@ def test_behaviour_cloning_fits_saves_and_loads(demo_db: Path, tmp_path: Path) -
     act = load_policy(str(path), env)  # what `ias-gym evaluate --policy PATH` uses
     expected = predicted_actions(model, demos.observations[:5])
     np.testing.assert_allclose(
-        np.stack([act(o) for o in demos.observations[:5]]), expected, rtol=1e-5, atol=1e-7
+        np.stack([act.predict(o)[0] for o in demos.observations[:5]]),
+        expected,
+        rtol=1e-5,
+        atol=1e-7,
     )
     # Same seed, same data: the same weights (deterministic on CPU).
     again = behaviour_clone(env, *demos, epochs=EPOCHS, batch_size=32, progress=False)
@@ -301,4 +305,4 @@ def test_bc_script_end_to_end(demo_db: Path, tmp_path: Path) -> None:
     )
     assert result.returncode == 0, result.stderr
     assert str(out) in result.stdout
-    assert isinstance(load_policy(str(out), _env())(np.zeros(55)), np.ndarray)
+    assert isinstance(load_policy(str(out), _env()).predict(np.zeros(55))[0], np.ndarray)

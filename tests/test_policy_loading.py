@@ -169,7 +169,7 @@ def test_safe_load_acts_as_sb3_load_without_unpickling(
     monkeypatch.setattr(cloudpickle, "loads", no_unpickling)
     monkeypatch.setattr(pickle, "loads", no_unpickling)
     act = load_policy(str(path), _env())  # what `ias-gym evaluate --policy FILE` uses
-    actions = np.stack([act(o) for o in _observations()])
+    actions = np.stack([act.predict(o)[0] for o in _observations()])
     np.testing.assert_array_equal(actions, expected)
     assert np.ptp(actions) > 0.01  # not a constant (e.g. clipped or untrained) policy
     assert load_sb3_policy(path, _env()).algorithm == algorithm
@@ -234,7 +234,7 @@ def test_payloads_in_fields_acting_does_not_need_never_run(
     act = load_policy(str(path), _env())
     genuine = load_policy(str(models["ppo"]), _env())
     for obs in _observations(4):
-        np.testing.assert_array_equal(act(obs), genuine(obs))
+        np.testing.assert_array_equal(act.predict(obs)[0], genuine.predict(obs)[0])
     assert not marker.exists()
 
 
@@ -272,7 +272,7 @@ def test_trust_pickle_is_sb3s_own_load(models: dict[str, Path], tmp_path: Path) 
     with pytest.raises(UntrustedPickleError, match="TinyExtractor"):
         load_policy(str(models["custom"]), _env())
     act = load_policy(str(models["custom"]), _env(), trust_pickle=True)
-    assert act(_observations(2)[0]).shape == (12,)
+    assert act.predict(_observations(2)[0])[0].shape == (12,)
 
     marker = tmp_path / "ran"
 

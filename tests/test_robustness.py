@@ -9,6 +9,7 @@ import pytest
 
 import ias_gym  # noqa: F401
 from ias_gym.baselines.expert import ExpertPolicy
+from ias_gym.baselines.policies import load_policy
 from ias_gym.cli import main
 from ias_gym.robustness import DISTURBANCES, run_robustness
 from tests.closed_loop import perturbed_starts
@@ -36,7 +37,12 @@ def test_unknown_class_is_one_line_exit_2(capsys: pytest.CaptureFixture[str]) ->
 
 def test_run_robustness_counts_episodes() -> None:
     rows = run_robustness(
-        "IAS-PenRotate-v0", "expert", episodes=1, seed=3, classes=["mass_x1.3"], env_kwargs=SHORT
+        "IAS-PenRotate-v0",
+        lambda env: load_policy("expert", env),
+        episodes=1,
+        seed=3,
+        classes=["mass_x1.3"],
+        env_kwargs=SHORT,
     )
     assert rows[0].disturbance == "mass_x1.3" and rows[0].episodes == 1
     assert rows[0].success_rate == 1.0

@@ -30,9 +30,9 @@ from ias_gym.skills import (
     SkillDB,
     SkillModel,
     glove_session_source,
-    record_skills,
 )
 from ias_gym.skills.glove_session import GloveSkillModelRecorder
+from ias_gym.skills.record import record_skills_spec
 
 ENV_ID = "IAS-GloveGrasp-v0"
 STEPS = 400  # 4 s of 10 ms steps
@@ -46,7 +46,7 @@ PEN_MASS = float(_SCENE.body("pen").mass[0])
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[int]]:
     path = tmp_path_factory.mktemp("glove") / "skills.db"
-    ids = record_skills(ENV_ID, "teleop", len(SEEDS), path, seed=SEEDS[0], progress=False)
+    ids = record_skills_spec(ENV_ID, "teleop", len(SEEDS), path, seed=SEEDS[0], progress=False)
     return path, ids
 
 

@@ -16,8 +16,8 @@ from ias_gym.errors import IasGymError, InputError
 from ias_gym.skills import (
     SkillDB,
     export_minari,
-    record_skills,
 )
+from ias_gym.skills.record import record_skills_spec
 
 ENV_ID = "IAS-PenRotate-v0"
 DURATION = 0.3  # [s] = 30 steps of 10 ms
@@ -29,7 +29,9 @@ ENV_KWARGS = {"duration": DURATION, "settle_time": 0.2}
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[int]]:
     path = tmp_path_factory.mktemp("skills") / "skills.db"
-    ids = record_skills(ENV_ID, "expert", 2, path, seed=3, progress=False, env_kwargs=ENV_KWARGS)
+    ids = record_skills_spec(
+        ENV_ID, "expert", 2, path, seed=3, progress=False, env_kwargs=ENV_KWARGS
+    )
     return path, ids
 
 

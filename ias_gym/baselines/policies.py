@@ -1,28 +1,131 @@
-"""The policy loader: a policy spec (a string of the command line) -> ``obs -> action``.
+"""The policy loader: a policy spec (a string of the command line) -> a policy object.
 
-The one place that dispatches on policy names: ``expert`` (the grip-transform controller
-of the pen tasks, :class:`~ias_gym.baselines.expert.ExpertPolicy`), ``teleop`` (glove
-envs: zero action, the glove alone drives the hand), ``random``, or the path of a saved
-SB3 model (loaded without running code from it, :mod:`ias_gym.safe_sb3`).
-:mod:`ias_gym.evaluation` and :mod:`ias_gym.skills.record` (layers above this one) take the
-loaded callable; :func:`stateful` says when to load a fresh one per episode and
-:func:`policy_source` what a recorded skill stores as its provenance.
+A policy is any object with Stable-Baselines3's ``predict(obs, state=None,
+episode_start=None, deterministic=True) -> (action, state)`` (:class:`Policy`), as SB3's
+``evaluate_policy`` takes: the loops of :mod:`ias_gym.evaluation` and
+:mod:`ias_gym.skills.record` (layers above this one) take such objects and pass
+``episode_start=True`` on the first step of each episode, which resets a stateful one (the
+expert's controller).
+
+:func:`load_policy` is the one place that dispatches on policy names: ``expert`` (the
+grip-transform controller of the pen tasks, :class:`~ias_gym.baselines.expert.ExpertPolicy`),
+``teleop`` (glove envs: zero action, the glove alone drives the hand, :class:`ZeroPolicy`),
+``random`` (:class:`RandomPolicy`), or the path of a saved SB3 model (loaded without running
+code from it, :mod:`ias_gym.safe_sb3`, :class:`ModelPolicy`). :func:`policy_source` says
+what a recorded skill stores as its provenance.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import gymnasium as gym
 import numpy as np
 
 from ias_gym.errors import IasGymError, InputError
-from ias_gym.safe_sb3 import load_sb3_policy
+from ias_gym.safe_sb3 import LoadedPolicy, load_sb3_policy
 
-#: A loaded policy: observation -> action.
-Policy = Callable[[np.ndarray], np.ndarray]
+
+class Policy(Protocol):
+    """Stable-Baselines3's policy interface: what the evaluation and recording loops call."""
+
+    def predict(
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[Any, Any]:
+        """The action for ``observation`` and the policy's next ``state``.
+
+        Args:
+            observation: the env's observation.
+            state: the state the previous call returned (``None`` at an episode's start).
+            episode_start: true on the first step of an episode (a stateful policy resets).
+            deterministic: act deterministically (SB3: the mode of the distribution).
+        """
+        ...
+
+
+#: Loads a policy for an env (the env's spaces, the expert's physics): e.g.
+#: ``lambda env: load_policy("expert", env)``; for loops that build one env per setting.
+PolicyFactory = Callable[[gym.Env[Any, Any]], Policy]
+
+
+@dataclass
+class ZeroPolicy:
+    """The zero action every step (glove envs: the glove alone drives the hand).
+
+    Args:
+        space: the env's Box action space.
+    """
+
+    space: gym.spaces.Box
+
+    def predict(
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
+        """A fresh zero array of the space's shape and dtype (SB3's signature)."""
+        return np.zeros(self.space.shape, dtype=self.space.dtype), state
+
+
+class RandomPolicy:
+    """Uniform random actions sampled from the env's action space.
+
+    The space is seeded once, here: the episodes that follow draw one continuing stream
+    (what ``ias-gym evaluate --policy random --seed S`` has always done).
+
+    Args:
+        space: the env's action space (seeded in place).
+        seed: seed of the action sampling (``None``: unseeded).
+    """
+
+    def __init__(self, space: gym.Space[Any], seed: int | None = None) -> None:
+        self.space = space
+        space.seed(seed)
+
+    def predict(
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[Any, Any]:
+        """A sample of the action space (SB3's signature; ``deterministic`` is ignored)."""
+        return self.space.sample(), state
+
+
+@dataclass(frozen=True)
+class ModelPolicy:
+    """A saved SB3 model's policy (:func:`ias_gym.safe_sb3.load_sb3_policy`).
+
+    Attributes:
+        loaded: the loaded policy (its ``algorithm`` and the SB3 ``policy`` module).
+    """
+
+    loaded: LoadedPolicy
+
+    def predict(
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
+        """The SB3 policy's ``predict`` (its recurrent state passed through)."""
+        action, state = self.loaded.policy.predict(
+            observation, state=state, episode_start=episode_start, deterministic=deterministic
+        )
+        return np.asarray(action), state
+
+
 #: The policy names :func:`load_policy` knows (anything else is a model file's path).
 EXPERT = "expert"
 RANDOM = "random"
@@ -43,8 +146,8 @@ TELEOP = "teleop"
 def load_policy(
     spec: str, env: gym.Env[Any, Any], seed: int | None = None, *, trust_pickle: bool = False
 ) -> Policy:
-    """A callable ``obs -> action`` for ``expert`` (pen tasks), ``teleop`` (glove envs: zero
-    action, pure teleoperation), ``random`` or a saved SB3 model's path.
+    """The policy object (:class:`Policy`) for ``expert`` (pen tasks), ``teleop`` (glove envs:
+    zero action, pure teleoperation), ``random`` or a saved SB3 model's path.
 
     A model file is loaded without running code from it (:func:`ias_gym.safe_sb3.
     load_sb3_policy`), and must have been saved for ``env``'s spaces.
@@ -82,8 +185,7 @@ def load_policy(
         space = env.action_space
         if not isinstance(space, gym.spaces.Box):
             raise InputError(f"{TELEOP!r} needs a Box action space, got {space}")
-        zero = np.zeros(space.shape, dtype=space.dtype)
-        return lambda obs: zero.copy()
+        return ZeroPolicy(space)
     if spec == EXPERT:
         if glove:
             raise InputError(
@@ -91,11 +193,9 @@ def load_policy(
                 f"the glove; use --policy {TELEOP} (zero action, pure teleoperation), random, "
                 "or a saved SB3 model acting on top of the glove"
             )
-        expert = ExpertPolicy(env)
-        return lambda obs: expert.predict(obs)[0]
+        return ExpertPolicy(env)
     if spec == RANDOM:
-        env.action_space.seed(seed)
-        return lambda obs: env.action_space.sample()
+        return RandomPolicy(env.action_space, seed)
     path = Path(spec)
     if not path.is_file():
         raise PolicyNotFoundError(
@@ -107,17 +207,7 @@ def load_policy(
         raise MissingDependencyError(
             "loading a saved model needs stable-baselines3: pip install 'ias-gym[train]'"
         ) from None
-    return load_sb3_policy(path, env, trust_pickle=trust_pickle)
-
-
-def stateful(spec: str) -> bool:
-    """Whether the policy ``spec`` keeps state across steps (the expert's controller), so
-    that each episode needs a freshly loaded one.
-
-    Args:
-        spec: a policy spec as for :func:`load_policy`.
-    """
-    return spec == EXPERT
+    return ModelPolicy(load_sb3_policy(path, env, trust_pickle=trust_pickle))
 
 
 def policy_source(policy_spec: str) -> str:

@@ -22,9 +22,9 @@ from ias_gym.cli.args import (
 
 
 def _evaluate(args: argparse.Namespace) -> int:
-    from ias_gym.evaluation import evaluate
+    from ias_gym.evaluation import evaluate_spec
 
-    result = evaluate(
+    result = evaluate_spec(
         args.env,
         policy=args.policy,
         episodes=args.episodes,

@@ -20,18 +20,23 @@ from ias_gym.cli.args import (
 
 
 def _robustness(args: argparse.Namespace) -> int:
+    from ias_gym.baselines.policies import Policy, load_policy
     from ias_gym.robustness import check_classes, run_robustness, summary_row
 
     classes = check_classes(None if args.classes is None else args.classes.split(","))
+
+    def load(env: Any) -> Policy:  # the spec is resolved here, once per class's env
+        return load_policy(args.policy, env, args.seed, trust_pickle=args.trust_pickle)
+
     rows = run_robustness(
         args.env,
-        policy=args.policy,
+        load,
         episodes=args.episodes,
         seed=args.seed,
         classes=classes,
         env_kwargs=parse_env_kwargs(args.env_kwargs),
         progress=not args.json,
-        trust_pickle=args.trust_pickle,
+        name=args.policy,
     )
     last = summary_row(rows)
     if args.json:

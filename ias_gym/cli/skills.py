@@ -47,11 +47,11 @@ def _as_package_errors() -> Iterator[None]:
 
 
 def _record(args: argparse.Namespace) -> int:
-    from ias_gym.skills.record import record_skills
+    from ias_gym.skills.record import record_skills_spec
 
     with _as_package_errors():
         env_kwargs = parse_env_kwargs(args.env_kwargs)
-        ids = record_skills(
+        ids = record_skills_spec(
             args.env,
             args.policy,
             args.episodes,

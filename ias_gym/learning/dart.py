@@ -20,6 +20,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ias_gym.baselines.expert import ExpertPolicy
 from ias_gym.skills.record import record_skills
 
 
@@ -88,14 +89,18 @@ def record_noisy_expert(
     Returns:
         The new skills' ids.
     """
-    return record_skills(
-        env_id,
-        "expert",
-        episodes,
-        db_path,
-        seed,
-        progress,
-        env_kwargs=env_kwargs,
-        wrapper=lambda env: GaussianActionNoise(env, noise),
-        source="expert" if noise == 0 else f"expert+noise:{noise:g}",
-    )
+    kwargs = dict(env_kwargs or {})
+    env = GaussianActionNoise(gym.make(env_id, **kwargs), noise)
+    try:
+        return record_skills(
+            env,
+            ExpertPolicy(env),  # acts in the noisy env: it reads the perturbed state
+            episodes,
+            db_path,
+            seed,
+            progress,
+            source="expert" if noise == 0 else f"expert+noise:{noise:g}",
+            env_kwargs=kwargs,
+        )
+    finally:
+        env.close()

@@ -17,7 +17,7 @@ pinch, whose one internal force is the squeeze). A glove session is recorded wit
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
-from ias_gym.baselines.policies import load_policy, policy_source, stateful
+from ias_gym.baselines.policies import Policy, load_policy, policy_source
 from ias_gym.glove.ids import check_id
 from ias_gym.grasp.grip_transform import GraspRankError, GripTransform
 from ias_gym.skills.db import SkillDB
@@ -35,8 +35,6 @@ from ias_gym.skills.skill import Demonstration, Skill, SkillModel, SkillModelSam
 
 if TYPE_CHECKING:
     from ias_gym.envs.pen_hand_env import PenHandEnv
-
-Policy = Callable[[NDArray[Any]], Any]
 
 
 class SkillSampler(Protocol):
@@ -153,7 +151,8 @@ def record_episode(
     Args:
         env: an ``IAS-Pen*`` or glove env (wrappers allowed; the skill model reads the
             unwrapped one).
-        policy: ``obs -> action``; a stateful expert must be fresh for this episode.
+        policy: an object with SB3's ``predict``; its first call gets
+            ``episode_start=True`` (a stateful one, the expert, starts afresh).
         seed: reset seed.
         source: provenance (see :func:`~ias_gym.baselines.policies.policy_source`).
         name: skill name; default ``"<task> <source> seed <seed>"`` (glove sessions:
@@ -192,8 +191,10 @@ def record_episode(
     truncations: list[bool] = []
     done = False
     action_dtype = env.action_space.dtype or np.float32
+    state: Any = None
     while not done:
-        action = np.asarray(policy(obs), dtype=action_dtype)
+        raw, state = policy.predict(obs, state=state, episode_start=not actions, deterministic=True)
+        action = np.asarray(raw, dtype=action_dtype)
         obs, reward, terminated, truncated, info = env.step(action)
         recorder.sample(unwrapped)
         observations.append(obs)
@@ -226,6 +227,77 @@ def record_episode(
 
 
 def record_skills(
+    env: gym.Env[Any, Any],
+    policy: Policy,
+    episodes: int,
+    db_path: str | Path,
+    seed: int = 0,
+    progress: bool = True,
+    *,
+    source: str,
+    env_kwargs: Mapping[str, Any] | None = None,
+    person_id: str | None = None,
+) -> list[int]:
+    """Roll out ``policy`` in ``env`` for ``episodes`` episodes and store each as a skill.
+
+    Every episode is stored (successful or not, with ``is_success`` in its row) as soon as
+    it ends, each in its own transaction: an interrupted run keeps the finished episodes.
+    Episode ``i`` is reset with seed ``seed + i`` and starts the policy afresh
+    (``episode_start=True``), as :func:`ias_gym.evaluation.evaluate` does.
+
+    Args:
+        env: an ``IAS-Pen*`` or glove env, possibly wrapped (e.g. action noise: the stored
+            action is the policy's, before the wrapper); not closed here.
+        policy: an object with SB3's ``predict``, loaded for ``env``
+            (:func:`~ias_gym.baselines.policies.load_policy`).
+        episodes: number of episodes (>= 1).
+        db_path: the skill database file (created if missing).
+        seed: seed of the first episode.
+        progress: show a tqdm progress bar (on stderr).
+        source: provenance to store (:func:`~ias_gym.baselines.policies.policy_source`).
+        env_kwargs: the keyword arguments ``env`` was made with (stored with each skill).
+        person_id: stored as the skills' person id (glove envs: the env's person).
+
+    Returns:
+        The new skills' ids, in episode order.
+
+    Raises:
+        InputError: ``person_id`` or ``env_kwargs["person_id"]`` is not a valid id
+            (:func:`~ias_gym.glove.ids.check_id`), checked before the database is opened.
+        ValueError: ``episodes`` < 1, a person other than the glove env's
+            (:func:`record_episode`).
+    """
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    kwargs = dict(env_kwargs or {})
+    # Person ids name profile files: refuse a hostile one before anything is created.
+    if person_id is not None:
+        check_id(person_id, "person_id")
+    if "person_id" in kwargs:
+        check_id(kwargs["person_id"], "env kwargs person_id")
+    env_id = env.spec.id if env.spec is not None else type(env.unwrapped).__name__
+    ids: list[int] = []
+    with SkillDB(db_path) as db:  # opened first: a bad path fails before any rollout
+        bar = tqdm(
+            range(episodes), desc=f"{env_id} / {source}", unit="episode", disable=not progress
+        )
+        successes = 0
+        for episode in bar:
+            skill = record_episode(
+                env,
+                policy,
+                seed=seed + episode,
+                source=source,
+                person_id=person_id,
+                env_kwargs=kwargs,
+            )
+            ids.append(db.add(skill))
+            successes += skill.is_success
+            bar.set_postfix(success=f"{successes}/{episode + 1}", refresh=False)
+    return ids
+
+
+def record_skills_spec(
     env_id: str,
     policy_spec: str,
     episodes: int,
@@ -235,15 +307,9 @@ def record_skills(
     *,
     env_kwargs: Mapping[str, Any] | None = None,
     person_id: str | None = None,
-    wrapper: Callable[[gym.Env[Any, Any]], gym.Env[Any, Any]] | None = None,
-    source: str | None = None,
 ) -> list[int]:
-    """Roll out ``policy_spec`` for ``episodes`` episodes and store each as a skill.
-
-    Every episode is stored (successful or not, with ``is_success`` in its row) as soon as
-    it ends, each in its own transaction: an interrupted run keeps the finished episodes.
-    Episode ``i`` is reset with seed ``seed + i``; the expert is re-created per episode, as
-    :func:`ias_gym.evaluation.evaluate` does.
+    """:func:`record_skills` from strings, for the command line and tests: make the env,
+    load ``policy_spec`` for it (seeded with ``seed``), record, close the env.
 
     Args:
         env_id: a registered id, e.g. ``"IAS-PenRotate-v0"`` or ``"IAS-GloveGrasp-v0"``.
@@ -255,19 +321,16 @@ def record_skills(
         progress: show a tqdm progress bar (on stderr).
         env_kwargs: configuration overrides for ``gym.make`` (e.g. ``{"duration": 0.5}``).
         person_id: stored as the skills' person id (glove envs: the env's person).
-        wrapper: wraps the env the policy acts in (e.g. action noise); the stored action is
-            the policy's, before the wrapper.
-        source: provenance to store (default: from ``policy_spec``).
 
     Returns:
         The new skills' ids, in episode order.
 
     Raises:
-        InputError: ``person_id`` or ``env_kwargs["person_id"]`` is not a valid id
-            (:func:`~ias_gym.glove.ids.check_id`), checked before the database is opened.
-        ValueError: ``expert`` on a glove env, ``teleop`` on a pen env
-            (:func:`~ias_gym.baselines.policies.load_policy`), a person other than the glove env's
-            (:func:`record_episode`).
+        InputError: ``person_id`` or ``env_kwargs["person_id"]`` is not a valid id,
+            checked before the env is made.
+        ValueError: ``episodes`` < 1, ``expert`` on a glove env, ``teleop`` on a pen env
+            (:func:`~ias_gym.baselines.policies.load_policy`), a person other than the glove
+            env's (:func:`record_episode`).
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
@@ -277,33 +340,18 @@ def record_skills(
         check_id(person_id, "person_id")
     if "person_id" in kwargs:
         check_id(kwargs["person_id"], "env kwargs person_id")
-    source = source or policy_source(policy_spec)
-    ids: list[int] = []
-    with SkillDB(db_path) as db:  # opened first: a bad path fails before any rollout
-        env = gym.make(env_id, **kwargs)
-        if wrapper is not None:
-            env = wrapper(env)
-        try:
-            act = load_policy(policy_spec, env, seed)
-            bar = tqdm(
-                range(episodes), desc=f"{env_id} / {source}", unit="episode", disable=not progress
-            )
-            successes = 0
-            for episode in bar:
-                if stateful(policy_spec):
-                    # a fresh controller per episode
-                    act = load_policy(policy_spec, env, seed)
-                skill = record_episode(
-                    env,
-                    act,
-                    seed=seed + episode,
-                    source=source,
-                    person_id=person_id,
-                    env_kwargs=kwargs,
-                )
-                ids.append(db.add(skill))
-                successes += skill.is_success
-                bar.set_postfix(success=f"{successes}/{episode + 1}", refresh=False)
-        finally:
-            env.close()
-    return ids
+    env = gym.make(env_id, **kwargs)
+    try:
+        return record_skills(
+            env,
+            load_policy(policy_spec, env, seed),
+            episodes,
+            db_path,
+            seed,
+            progress,
+            source=policy_source(policy_spec),
+            env_kwargs=kwargs,
+            person_id=person_id,
+        )
+    finally:
+        env.close()
