@@ -44,6 +44,11 @@ def test_figure_wrench_intensities_writes_a_consistent_csv(
             assert c[3 * k + 1] * (-1 if k < 2 else 1) == pytest.approx(
                 params.mu * c[3 * k], abs=1e-6
             )
+    # The last row (t = 4 s) is the end of phase 4, not the static grasp after it: finger 4
+    # still slides (c_11 = mu c_10 outward) and nothing jumps from the row before.
+    last = table[-1, 1:]
+    assert last[10] == pytest.approx(params.mu * last[9], abs=1e-6)
+    np.testing.assert_allclose(last, table[-2, 1:], atol=1e-3)
     # docs/NOTES.md reference: the sum of the normal forces is 1.4 N throughout.
     np.testing.assert_allclose(table[:, 1::3].sum(axis=1), 1.4, atol=1e-6)
 

@@ -18,9 +18,27 @@ PNG_NAME = "wrench_intensities.png"
 def wrench_intensity_table(
     params: PenSkillParams = PenSkillParams(), cone: Cone = "box", samples: int = 401
 ) -> np.ndarray:
-    """``(samples, 13)`` array: t [s] over [t_0, t_4], then c_1..c_12 [N] (paper numbering)."""
+    """``(samples, 13)`` array: t [s] over [t_0, t_4], then c_1..c_12 [N] (paper numbering).
+
+    The schedule is defined on [t_0, t_4): at t_4 itself no finger slides any more and the
+    intensities jump to those of a static grasp, which is not part of the skill. So the
+    last row, labelled t_4, holds the left limit there: the intensities at the last
+    floating-point time before t_4 (the end of phase 4).
+
+    Args:
+        params: the sliding skill's parameters.
+        cone: friction cone of the internal-force problem (``"box"`` or ``"exact"``).
+        samples: number of rows (>= 2), evenly spaced from t_0 to t_4 [s].
+
+    Raises:
+        ValueError: ``samples`` < 2.
+    """
+    if samples < 2:
+        raise ValueError(f"samples must be >= 2 (t_0 and t_4), got {samples}")
     t = np.linspace(params.phase_times[0], params.duration, samples)
-    return np.column_stack([t, wrench_intensities(t, params, cone=cone)])
+    at = t.copy()
+    at[-1] = np.nextafter(params.duration, -np.inf)  # the left limit: phase 4 still on
+    return np.column_stack([t, wrench_intensities(at, params, cone=cone)])
 
 
 def write_wrench_intensity_figure(
@@ -56,7 +74,7 @@ def write_wrench_intensity_figure(
     csv_path = write_csv_atomic(out_dir / CSV_NAME, header, table, overwrite=overwrite)
 
     t, c = table[:, 0], table[:, 1:]
-    fig, axes = plt.subplots(N_FINGERS, 1, sharex=True, figsize=(7, 8), constrained_layout=True)
+    fig, axes = plt.subplots(N_FINGERS, 1, sharex=True, figsize=(8.5, 8), constrained_layout=True)
     labels = ("normal", "along pen (x)", "lateral (z)")
     for k, ax in enumerate(axes):
         for j, label in enumerate(labels):
@@ -66,9 +84,10 @@ def write_wrench_intensity_figure(
             ax.axvline(boundary, color="0.7", lw=0.8, ls="--")
         ax.axvspan(params.phase_times[k], params.phase_times[k + 1], color="C3", alpha=0.06)
         ax.set_ylabel(f"finger {k + 1} [N]")
-        ax.legend(loc="upper right", fontsize=7, ncol=3)
+        # outside the axes: inside, they hid the 0.1 N normal traces of fingers 1 and 4
+        ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7, frameon=False)
         ax.grid(alpha=0.3)
-    axes[-1].set_xlabel("t [s]  (shaded: this finger slides)")
+    axes[-1].set_xlabel("t [s]  (shaded: this finger slides; the schedule ends at t = 4 s)")
     fig.suptitle(
         f"Wrench intensities of the sliding skill (paper Fig. 8)\n{cone} cone, "
         f"mu = {params.mu}, f0 = {params.f0} N, mg = {params.weight} N",
