@@ -37,6 +37,11 @@ Solvers (times per solve of the 4-finger pen, ``bench/bench_internal_forces.py``
   ``settings.cone``.
 
 Units are SI: forces [N], moments [N m].
+
+Where the code lives (this module re-exports the public names):
+:mod:`~ias_gym.grasp.internal_forces_problem` the settings, result, checks and constraint
+rows; :mod:`~ias_gym.grasp.internal_forces_reference` the LP and SOCP;
+:mod:`~ias_gym.grasp.internal_forces_daqp` the control-loop solver.
 """
 
 from ias_gym.grasp.internal_forces_daqp import InternalForceSolver

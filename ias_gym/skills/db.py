@@ -71,6 +71,12 @@ changed)::
     arrays(id INTEGER PRIMARY KEY, skill_id -> skills(id) ON DELETE CASCADE,
            part ('demo' | 'info' | 'model'), name, dtype, shape (JSON), data BLOB,
            checksum (version 2), UNIQUE(skill_id, part, name))
+
+Where the code lives: this module opens, migrates and writes (:class:`SkillDB`);
+:mod:`~ias_gym.skills.db_queries` the reads (``SkillDB``'s mixin),
+:mod:`~ias_gym.skills.db_arrays` the array bytes with their checksums,
+:mod:`~ias_gym.skills.db_schema` the schema version and the migrations,
+:mod:`~ias_gym.skills.db_sqlite` the errors and the SQLite plumbing.
 """
 
 from __future__ import annotations
