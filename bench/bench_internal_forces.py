@@ -24,10 +24,10 @@ from ias_gym.grasp.contacts import wrench_matrix
 from ias_gym.grasp.internal_forces import (
     InternalForceSettings,
     InternalForceSolver,
-    _friction_rows,
     solve_lp,
     solve_socp,
 )
+from ias_gym.grasp.internal_forces_problem import _friction_rows
 
 RADIUS = 0.01  # pen radius r [m]
 WEIGHT = 1.0  # m g [N]

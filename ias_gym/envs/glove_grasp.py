@@ -98,41 +98,14 @@ REWARD_TERMS = ("lift", "pinch", "effort")
 class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     """The glove-driven human hand pinches the pen and lifts it (``IAS-GloveGrasp-v0``).
 
+    ## Description
     Every step reads the glove (Ψ [rad]), calibrates it (Θ = f(Ψ) [rad]), low-passes it
     (``filter_tau``) and sets the hand's position targets to Θ + ``action_scale`` x action,
-    clipped to the joint ranges. With zero
-    action the env is pure teleoperation; the default glove is the simulated person
-    ``person_id`` running the pen pinch (:func:`~ias_gym.glove.operator.pen_operator`, a
+    clipped to the joint ranges. With zero action the env is pure teleoperation; the
+    default glove is the simulated person ``person_id`` running the pen pinch
+    (:func:`~ias_gym.glove.operator.pen_operator`, a
     :class:`~ias_gym.glove.device.ReachPinchLift`) from its pre-shape (:class:`FromPreShape`):
     close the pinch (0.7 s), hold (0.5 s), lift by extending the wrist (1 s), hold.
-
-    Action:
-        ``Box(-1, 1, (10,))``: offsets of the 10 joint targets in the order of
-        :data:`~ias_gym.glove.hand.JOINT_NAMES`, times ``action_scale`` [rad]. Values outside
-        [-1, 1] are clipped; NaN or inf raise ``ValueError``.
-
-    Observation (``(39,)`` float64):
-        hand joint angles (10) [rad] and velocities (10) [rad/s] (JOINT_NAMES order), pen
-        centre relative to its start (3) [m], pen orientation quaternion (4), pen linear (3)
-        [m/s] and angular (3) [rad/s] velocity (world frame), force-display torques on
-        :data:`~ias_gym.glove.device.ACTUATED_JOINTS` (5) [N m], episode time (1) [s].
-
-    Reward:
-        sum of ``lift = lift_weight * clip(dz / lift_height, 0, 1)`` (dz: pen height gain [m]),
-        ``pinch = contact_weight`` while both index and thumb touch the pen (else 0), and
-        ``effort = -effort_weight * mean(action^2)``; each is in ``info["reward_<name>"]``.
-
-    Termination:
-        terminated when the pen falls ``drop_height`` below its start or leaves
-        ``max_distance`` of it; truncated at ``duration`` (also by the registered
-        ``max_episode_steps``), when the glove reports a fault (``info["fault"]`` says
-        which, e.g. a CAN watchdog trip, or :data:`NONFINITE_THETA_FAULT` when the
-        calibration turns readings into NaN or inf, whose targets never reach MuJoCo: the
-        last finite ones are kept; ``""`` otherwise), or when the simulation diverges
-        (``info["sim_unstable"]``: MuJoCo raised a warning, e.g. a huge acceleration, or
-        the state is not finite; the state is then put back to the start, not
-        terminated). ``info["is_success"]``: pen >= ``lift_height`` above its start and
-        touching neither the support nor the floor.
 
     Force display: the contact forces of the pen on the index and thumb geoms, f [N], give
     ``tau = J^T f`` [N m] on the actuated joints (MuJoCo Jacobians at the contact points; the
@@ -142,14 +115,57 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     (:attr:`contact_pass`, read by
     :class:`~ias_gym.skills.glove_session.GloveSkillModelRecorder`).
 
+    ## Action Space
+    ``Box(-1, 1, (10,))``: offsets of the 10 joint targets in the order of
+    :data:`~ias_gym.glove.hand.JOINT_NAMES`, times ``action_scale`` [rad]. Values outside
+    [-1, 1] are clipped; NaN or inf raise ``ValueError``.
+
+    ## Observation Space
+    ``(39,)`` float64: hand joint angles (10) [rad] and velocities (10) [rad/s] (JOINT_NAMES
+    order), pen centre relative to its start (3) [m], pen orientation quaternion (4), pen
+    linear (3) [m/s] and angular (3) [rad/s] velocity (world frame), force-display torques on
+    :data:`~ias_gym.glove.device.ACTUATED_JOINTS` (5) [N m], episode time (1) [s].
+
+    ## Rewards
+    The sum of ``lift = lift_weight * clip(dz / lift_height, 0, 1)`` (dz: pen height gain
+    [m]), ``pinch = contact_weight`` while both index and thumb touch the pen (else 0), and
+    ``effort = -effort_weight * mean(action^2)``; each is in ``info["reward_<name>"]``.
+
+    ## Starting State
+    Every reset opens the glove anew (``glove_factory`` with a seed drawn from the env's
+    ``np_random``) and reads it once: the hand starts at rest at the calibrated Θ of that
+    reading (clipped to the joint ranges), the pen at rest at its start on the support, and
+    the force display of that state is written to the glove.
+
+    ## Episode End
+    Terminated when the pen falls ``drop_height`` below its start or leaves
+    ``max_distance`` of it; truncated at ``duration`` (also by the registered
+    ``max_episode_steps``), when the glove reports a fault (``info["fault"]`` says which,
+    e.g. a CAN watchdog trip, or :data:`NONFINITE_THETA_FAULT` when the calibration turns
+    readings into NaN or inf, whose targets never reach MuJoCo: the last finite ones are
+    kept; ``""`` otherwise), or when the simulation diverges (``info["sim_unstable"]``:
+    MuJoCo raised a warning, e.g. a huge acceleration, or the state is not finite; the
+    state is then put back to the start, not terminated). ``info["is_success"]``: pen >=
+    ``lift_height`` above its start and touching neither the support nor the floor.
+
+    ## Arguments
+    ``render_mode`` (``None`` or ``"rgb_array"``), ``person``, ``calibration`` and
+    ``glove_factory`` (see :meth:`__init__`), and the fields of :class:`GloveGraspConfig`
+    (defaults in brackets): ``person_id`` [``"p1"``]: the simulated person wearing the
+    glove; ``control_dt`` [0.01 s]: one step = one glove read, a multiple of 1 ms;
+    ``duration`` [4.0 s]; ``action_scale`` [0.2 rad]: joint offset of a full action;
+    ``filter_tau`` [0.05 s, 0: off]: the low-pass on Θ; ``lift_height`` [0.03 m]: success;
+    ``drop_height`` [0.05 m] and ``max_distance`` [0.15 m]: termination; ``lift_weight``
+    [1.0], ``contact_weight`` [0.5], ``effort_weight`` [0.1]: reward weights [-].
+
+    ## Version History
+    - v0: first version.
+
     Attributes:
         model, data: the compiled scene of the person's hand and its state.
         physics: :class:`~ias_gym.sim.glove_contacts.GlovePenPhysics` of the scene (index,
             thumb).
         contact_pass: the pen's contacts of the last ``reset`` or ``step`` (``None`` before).
-
-    Version history:
-        v0: first version.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 100}  # noqa: RUF012

@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
-import sys
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -24,11 +22,11 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from ias_gym.envs.disturbances import DisturbanceSettings, DisturbanceState, SensorNoise
+from ias_gym.envs.pen_hand_types import FloatArray, PenHandConfig, PenReference, PenState
+from ias_gym.envs.window import check_window_possible
 from ias_gym.errors import InputError
 from ias_gym.sim.grasp_pose import place_grasp
 from ias_gym.sim.pen_hand import FINGERS, PenHandPhysics, load_pen_hand_model
-
-FloatArray = NDArray[np.float64]
 
 #: The paper's contact layout along the pen, ``[-phi1, -phi2, +phi3, +phi4]`` at t = 0 [m].
 NOMINAL_CONTACT_X = np.array([-0.03, -0.02, 0.02, 0.03])
@@ -37,133 +35,6 @@ POSITION_SCALE = 0.005  # [m]
 ANGLE_SCALE = math.radians(5.0)  # [rad]
 #: MuJoCo world -> paper frame: paper (x, y, z) = MuJoCo (x, z, -y).
 _TO_PAPER_INDEX = np.array([0, 2, 1])  # and negate the last
-
-
-@dataclasses.dataclass(frozen=True)
-class PenReference:
-    """What the task wants of the pen and the fingers at one instant (paper frame, SI).
-
-    The desired object trajectory of eqs. (25)-(28) with its derivatives; the pen's roll
-    about its own axis is free, so the orientation is given by the axis direction.
-
-    Attributes:
-        position, velocity, acceleration: pen centre r_d [m], its derivatives.
-        axis: unit direction of the pen's axis.
-        omega, alpha: angular velocity [rad/s] and acceleration [rad/s^2].
-        sliding: {finger index: unit sliding direction in (t_x, t_z)} (docs/NOTES.md, eq. 20).
-        contact_x: scheduled contact positions along the pen [m], ``None``: hold them.
-        contact_vx: their rates [m/s].
-    """
-
-    position: FloatArray
-    velocity: FloatArray
-    acceleration: FloatArray
-    axis: FloatArray
-    omega: FloatArray
-    alpha: FloatArray
-    sliding: dict[int, FloatArray]
-    contact_x: FloatArray | None = None
-    contact_vx: FloatArray | None = None
-
-
-class PenState:
-    """The measurements one env step uses (paper frame, SI units).
-
-    Attributes:
-        vector: ``(24,)`` the observation block: pen position relative to its nominal
-            centre [m] (3), unit axis (3), velocity [m/s] (3), angular velocity [rad/s] (3),
-            net force of each fingertip on the pen [N] (4 x 3).
-        touching: ``(4,)`` bool, fingertip touches the pen.
-        tip_x: ``(4,)`` each fingertip's position along the pen's axis from its centre [m].
-        position_error: ``|position|`` [m].
-        tilt: angle between the pen's axis and its nominal direction (paper x) [rad].
-    """
-
-    __slots__ = ("position_error", "tilt", "tip_x", "touching", "vector")
-
-    def __init__(self, vector: FloatArray, touching: NDArray[np.bool_], tip_x: FloatArray) -> None:
-        self.vector = vector
-        self.touching = touching
-        self.tip_x = tip_x
-        x, y, z, ax = vector[:4].tolist()
-        self.position_error = math.sqrt(x * x + y * y + z * z)
-        self.tilt = math.acos(min(1.0, abs(ax)))
-
-    @property
-    def position(self) -> FloatArray:
-        """Pen centre relative to its nominal position [m]."""
-        return self.vector[0:3]
-
-    @property
-    def axis(self) -> FloatArray:
-        """Unit vector along the pen's axis (independent of its roll)."""
-        return self.vector[3:6]
-
-    @property
-    def velocity(self) -> FloatArray:
-        """Pen centre velocity [m/s]."""
-        return self.vector[6:9]
-
-    @property
-    def omega(self) -> FloatArray:
-        """Pen angular velocity [rad/s]."""
-        return self.vector[9:12]
-
-    @property
-    def tip_force(self) -> FloatArray:
-        """``(4, 3)`` net force of each fingertip on the pen [N]."""
-        return self.vector[12:24].reshape(4, 3)
-
-
-@dataclasses.dataclass(frozen=True)
-class PenHandConfig:
-    """Settings shared by the pen tasks (units in the comments)."""
-
-    control_dt: float = 0.01  # one env step [s]; a multiple of the 1 ms physics step
-    duration: float = 4.0  # episode length [s] (the registered max_episode_steps matches)
-    min_grasp_force: float = 0.2  # minimum normal force a controller should keep [N]
-    pen_position_noise: float = 0.001  # reset: uniform +- per axis [m]
-    contact_noise: float = 0.001  # reset: uniform +- per contact along the pen [m]
-    penetration: float = 3e-4  # reset: tip-pen overlap [m]
-    drop_distance: float = 0.02  # pen centre this far from nominal = dropped [m]
-    max_contact_gap: float = 0.02  # longest a tip may lose the pen in a success [s]
-    max_position_error: float = 0.005  # success: pen centre error throughout [m]
-    effort_weight: float = 0.01  # weight of the effort penalty [-]
-    contact_weight: float = 0.5  # weight of the contact-kept term [-]
-    render_width: int = 480  # [px]
-    render_height: int = 360  # [px]
-    camera: str = "front"  # camera for rgb_array / depth_array: front, side, perspective
-    # Disturbances (ias_gym.envs.disturbances; the robustness suite). Defaults: none.
-    friction_scale: float = 1.0  # the pen's friction coefficient x this [-]
-    mass_scale: float = 1.0  # the pen's mass and inertia x this [-]
-    push_force: float = 0.0  # a push on the pen at a random time and direction [N]
-    push_duration: float = 0.05  # how long the push lasts [s]
-    force_noise: float = 0.0  # sigma of the measured contact forces' noise [N]
-    joint_angle_noise: float = 0.0  # sigma of the measured joint angles' noise [rad]
-    joint_velocity_noise: float = 0.0  # sigma of the measured joint velocities' noise [rad/s]
-    action_noise: float = 0.0  # sigma of the noise on the normalised action [-]
-    action_delay: int = 0  # control steps between an action and its effect [-]
-    internal_force_step: float = 0.0  # internal-force reference steps of +- this [N]
-
-    def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, float) and not math.isfinite(value):
-                raise ValueError(f"{f.name} must be finite, got {value}")
-        for name in ("control_dt", "duration", "max_contact_gap", "max_position_error"):
-            if getattr(self, name) <= 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        for name in ("min_grasp_force", "pen_position_noise", "contact_noise", "penetration"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
-        if self.drop_distance <= self.max_position_error:
-            raise ValueError(
-                f"drop_distance ({self.drop_distance} m) must exceed max_position_error "
-                f"({self.max_position_error} m)"
-            )
-        if self.render_width < 1 or self.render_height < 1:
-            raise ValueError("render_width and render_height must be >= 1 [px]")
-        DisturbanceSettings.from_config(self).validate()
 
 
 class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
@@ -572,28 +443,3 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             setattr(self, key, value)
         self._np_random = state["np_random"]
         self._measure()
-
-
-def check_window_possible() -> None:
-    """Raise if ``render_mode="human"`` cannot open a window here.
-
-    MuJoCo's GLFW viewer does not raise without a display: it fails an assertion and aborts
-    the interpreter (SIGABRT), so the check comes before the viewer is created.
-
-    Raises:
-        InputError: ``MUJOCO_GL`` is ``egl`` or ``osmesa`` (off-screen only), or on Linux
-            neither ``DISPLAY`` nor ``WAYLAND_DISPLAY`` is set.
-    """
-    backend = os.environ.get("MUJOCO_GL", "").strip().lower()
-    if backend in ("egl", "osmesa"):
-        reason = f"MUJOCO_GL={backend} renders off-screen only"
-    elif sys.platform.startswith("linux") and not (
-        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-    ):
-        reason = "there is no display (neither DISPLAY nor WAYLAND_DISPLAY is set)"
-    else:
-        return
-    raise InputError(
-        f'render_mode="human" opens a window, but {reason}; use render_mode="rgb_array" '
-        "(frames as arrays, e.g. for a video) or run with a display"
-    )

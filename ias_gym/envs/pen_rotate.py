@@ -59,11 +59,16 @@ class PenRotateConfig(PenHandConfig):
 class PenRotateEnv(PenHandEnv):
     """Track a sinusoidal tilt of the pen about the paper's z-axis with its centre at rest.
 
-    ## Action
+    ## Description
+    ``IAS-PenRotate-v0``: four fingers hold a pen and tilt it about the paper's z-axis
+    along the target ``A sin(w t)`` (``amplitude``, ``frequency``) while its centre stays
+    at rest.
+
+    ## Action Space
     ``Box(-1, 1, (12,))``: joint torques of fingers 1-4 (abd, mcp, pip), normalised by the
     motors' limit (0.5 N m). Values outside [-1, 1] are clipped; NaN/inf raise ValueError.
 
-    ## Observation
+    ## Observation Space
     ``Box(-inf, inf, (55,))``, float64, paper frame, SI: hand joint angles (12) and
     velocities (12); pen centre relative to nominal (3), the pen's axis as a unit vector
     (3), its linear (3) and angular velocity (3); the net force of each fingertip on the
@@ -71,20 +76,54 @@ class PenRotateEnv(PenHandEnv):
     rate about z (3); the pen's rotation error about the vertical y (1); sin and cos of
     w t (2).
 
-    ## Reward
+    ## Rewards
     Sum of named terms, each in ``info["reward_<name>"]``: ``track`` =
     exp(-(e_z^2 + e_y^2) / (0.02 rad)^2) with e_z the tilt error about z and e_y the error
     about the vertical axis, ``position`` = exp(-(|r| / 5 mm)^2), ``contact`` = 0.5 x
     fraction of tips touching, ``effort`` = -0.01 x mean(action^2).
 
-    ## Success and termination
+    ## Starting State
+    A stable grasp, perturbed: the pen centre uniform within +-``pen_position_noise`` per
+    axis of nominal, tilted about z by a tilt error of random sign and size uniform in
+    ``initial_error``, the contacts at [-3, -2, 2, 3] cm along the pen, each uniform within
+    +-``contact_noise``, the tips pressed ``penetration`` into the pen.
+    ``reset(options={"qpos": ..., "qvel": ...})`` starts from that exact MuJoCo state instead.
+
+    ## Episode End
     ``info["is_success"]`` (at the last step): RMS tilt error after the first second < 5 %
     of A, pen centre within 5 mm throughout, no tip off the pen for more than 20 ms, never
     dropped. Terminated when the pen is dropped (centre more than 2 cm from nominal);
     truncated by the time limit (400 steps of 10 ms) or a diverging simulation
     (``info["sim_unstable"]``).
 
-    ## Version history
+    ## Arguments
+    ``gym.make("ID", **kwargs)`` takes ``render_mode`` (``"human"``, ``"rgb_array"``,
+    ``"depth_array"``) and these fields of its config (defaults in brackets):
+
+    - ``control_dt`` [0.01 s]: one env step, a multiple of the 1 ms physics step.
+    - ``min_grasp_force`` [0.2 N]: minimum normal force a controller should keep.
+    - ``pen_position_noise`` [0.001 m], ``contact_noise`` [0.001 m], ``penetration``
+      [3e-4 m]: the reset distribution (see Starting State).
+    - ``drop_distance`` [0.02 m]: pen centre this far from nominal = dropped.
+    - ``max_contact_gap`` [0.02 s], ``max_position_error`` [0.005 m]: success limits.
+    - ``effort_weight`` [0.01], ``contact_weight`` [0.5]: reward weights [-].
+    - ``render_width`` [480 px], ``render_height`` [360 px], ``camera`` [``"front"``;
+      ``"side"``, ``"perspective"``]: the rendered frames.
+    - Disturbances (:mod:`ias_gym.envs.disturbances`; the defaults disturb nothing):
+      ``friction_scale`` [1.0, -] and ``mass_scale`` [1.0, -] scale the pen's friction
+      coefficient and its mass and inertia; ``push_force`` [0 N] pushes the pen for
+      ``push_duration`` [0.05 s] at a random time and direction; ``force_noise`` [0 N],
+      ``joint_angle_noise`` [0 rad] and ``joint_velocity_noise`` [0 rad/s] are the sigmas of
+      the measurement noise; ``action_noise`` [0, -] the sigma of the noise on the
+      normalised action; ``action_delay`` [0 control steps] delays every action;
+      ``internal_force_step`` [0 N] steps the internal-force reference by +- this.
+    - PenRotate's own: ``duration`` [4.0 s]; ``amplitude`` A [0.2 rad, at most 0.35];
+      ``frequency`` w [2.0 rad/s]; ``initial_error`` [(0.03, 0.08) rad]: the range of the
+      reset's tilt error; ``settle_time`` [1.0 s] and ``max_rms_error`` [0.05, fraction of
+      A]: the success test ignores the first ``settle_time``; ``track_weight`` [1.0] and
+      ``position_weight`` [1.0]: reward weights [-].
+
+    ## Version History
     - v0: initial release.
     """
 

@@ -68,11 +68,17 @@ class PenSlideConfig(PenHandConfig):
 class PenSlideEnv(PenHandEnv):
     """The fingers slide outward along the pen in turn while the pen stays still.
 
-    ## Action
+    ## Description
+    The skill example of paper sections 3.2 and 4.2 (``IAS-PenSlide-v0``): four fingers
+    hold a pen; after ``hold_time`` finger i slides 1 cm outward during phase i (eq. 17:
+    l = [3, 2, 2, 3] cm, alpha_i = 1 cm/s, phases of 1 s), fingers 1 and 2 to -x, fingers 3
+    and 4 to +x, while the pen stays still.
+
+    ## Action Space
     ``Box(-1, 1, (12,))``: joint torques of fingers 1-4 (abd, mcp, pip), normalised by the
     motors' limit (0.5 N m). Values outside [-1, 1] are clipped; NaN/inf raise ValueError.
 
-    ## Observation
+    ## Observation Space
     ``Box(-inf, inf, (67,))``, float64, paper frame (x pen axis, y up, z lateral), SI:
     hand joint angles (12) and velocities (12); pen centre relative to nominal (3), the
     pen's axis as a unit vector (3; roll about the axis is irrelevant here and omitted),
@@ -81,20 +87,52 @@ class PenSlideEnv(PenHandEnv):
     along the pen minus its target (4) and the target's rate (4); the phase as one-hot
     (hold, phases 1-4, settle: 6); the targets along the pen (4).
 
-    ## Reward
+    ## Rewards
     The sum of named terms, each copied into ``info["reward_<name>"]``:
     ``track`` = mean_i exp(-(e_i / 3 mm)^2) (e_i: finger i's position along the pen minus
     its scheduled position), ``pose`` = exp(-(|r| / 5 mm)^2 - (tilt / 5 deg)^2),
     ``contact`` = 0.5 x fraction of tips touching, ``effort`` = -0.01 x mean(action^2).
 
-    ## Success and termination
+    ## Starting State
+    A stable grasp, perturbed: the pen centre uniform within +-``pen_position_noise`` per
+    axis of nominal, the contacts at [-3, -2, 2, 3] cm along the pen, each uniform within
+    +-``contact_noise``, the tips pressed ``penetration`` into the pen.
+    ``reset(options={"qpos": ..., "qvel": ...})`` starts from that exact MuJoCo state instead.
+
+    ## Episode End
     ``info["is_success"]`` (at the last step): every finger within 2 mm of its final target,
     pen centre error < 5 mm and tilt < 5 deg throughout, no tip off the pen for more than
     20 ms. Terminated when the pen is dropped (centre more than 2 cm from nominal);
     truncated by the time limit (475 steps of 10 ms) or when the simulation diverges
     (``info["sim_unstable"]``).
 
-    ## Version history
+    ## Arguments
+    ``gym.make("ID", **kwargs)`` takes ``render_mode`` (``"human"``, ``"rgb_array"``,
+    ``"depth_array"``) and these fields of its config (defaults in brackets):
+
+    - ``control_dt`` [0.01 s]: one env step, a multiple of the 1 ms physics step.
+    - ``min_grasp_force`` [0.2 N]: minimum normal force a controller should keep.
+    - ``pen_position_noise`` [0.001 m], ``contact_noise`` [0.001 m], ``penetration``
+      [3e-4 m]: the reset distribution (see Starting State).
+    - ``drop_distance`` [0.02 m]: pen centre this far from nominal = dropped.
+    - ``max_contact_gap`` [0.02 s], ``max_position_error`` [0.005 m]: success limits.
+    - ``effort_weight`` [0.01], ``contact_weight`` [0.5]: reward weights [-].
+    - ``render_width`` [480 px], ``render_height`` [360 px], ``camera`` [``"front"``;
+      ``"side"``, ``"perspective"``]: the rendered frames.
+    - Disturbances (:mod:`ias_gym.envs.disturbances`; the defaults disturb nothing):
+      ``friction_scale`` [1.0, -] and ``mass_scale`` [1.0, -] scale the pen's friction
+      coefficient and its mass and inertia; ``push_force`` [0 N] pushes the pen for
+      ``push_duration`` [0.05 s] at a random time and direction; ``force_noise`` [0 N],
+      ``joint_angle_noise`` [0 rad] and ``joint_velocity_noise`` [0 rad/s] are the sigmas of
+      the measurement noise; ``action_noise`` [0, -] the sigma of the noise on the
+      normalised action; ``action_delay`` [0 control steps] delays every action;
+      ``internal_force_step`` [0 N] steps the internal-force reference by +- this.
+    - PenSlide's own: ``hold_time`` [0.25 s] before phase 1; ``duration`` [4.75 s]: hold +
+      4 s of sliding + 0.5 s settling; ``target_tolerance`` [0.002 m] and ``max_tilt``
+      [5 deg, in rad]: success limits; ``track_weight`` [1.0] and ``pose_weight`` [1.0]:
+      reward weights [-].
+
+    ## Version History
     - v0: initial release.
     """
 

@@ -34,11 +34,42 @@ class GloveHardwareEnv(GloveGraspEnv):
     """The glove-driven pinch-and-lift of IAS-GloveGrasp-v0 with a CAN glove
     (``IAS-GloveHardware-v0``).
 
-    Observation, action, reward, termination: as IAS-GloveGrasp-v0; in addition an episode
-    is truncated when the glove reports a fault (``info["fault"]`` non-empty).
+    ## Description
+    :class:`~ias_gym.envs.glove_grasp.GloveGraspEnv`'s world driven by a real glove on a CAN
+    bus (:class:`~ias_gym.hardware.can_glove.CanGlove`, opened once for the env's
+    lifetime), or by a recorded session played back (``replay``). Live, every ``step``
+    first waits for its deadline (``control_dt`` apart), then reads the newest sample.
 
-    Version history:
-        v0: first version.
+    ## Action Space
+    As IAS-GloveGrasp-v0: ``Box(-1, 1, (10,))`` joint-target offsets.
+
+    ## Observation Space
+    As IAS-GloveGrasp-v0: ``(39,)`` float64.
+
+    ## Rewards
+    As IAS-GloveGrasp-v0: ``lift``, ``pinch`` and ``effort``.
+
+    ## Starting State
+    As IAS-GloveGrasp-v0, from the glove's newest sample; ``reset`` re-enables the glove
+    (clearing a watchdog fault).
+
+    ## Episode End
+    As IAS-GloveGrasp-v0; in addition an episode is truncated when the glove reports a fault
+    (``info["fault"]`` non-empty, e.g. the watchdog: no valid sample for
+    ``watchdog_timeout``).
+
+    ## Arguments
+    ``render_mode``, the fields of :class:`~ias_gym.envs.glove_grasp.GloveGraspConfig` (as
+    IAS-GloveGrasp-v0), and (see :meth:`__init__`): ``interface`` [``"virtual"``],
+    ``channel`` [``"ias-glove"``] and ``bus_kwargs``: the python-can bus; ``profile``: the
+    wearer's calibration profile (JSON); ``fd`` [False]: CAN FD sensor frames;
+    ``watchdog_timeout`` [0.02 s]: the host-side watchdog; ``glove_id``: the glove's id;
+    ``record`` and ``replay``: a python-can session log to write or to play back;
+    ``overwrite`` [False]: let ``record`` replace a file; ``realtime`` [live yes, replay
+    no]: pace steps at ``control_dt`` in wall-clock time.
+
+    ## Version History
+    - v0: first version.
     """
 
     def __init__(

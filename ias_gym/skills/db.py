@@ -71,19 +71,19 @@ changed)::
     arrays(id INTEGER PRIMARY KEY, skill_id -> skills(id) ON DELETE CASCADE,
            part ('demo' | 'info' | 'model'), name, dtype, shape (JSON), data BLOB,
            checksum (version 2), UNIQUE(skill_id, part, name))
+
+Where the code lives: this module opens, migrates and writes (:class:`SkillDB`);
+:mod:`~ias_gym.skills.db_queries` the reads (``SkillDB``'s mixin),
+:mod:`~ias_gym.skills.db_arrays` the array bytes with their checksums,
+:mod:`~ias_gym.skills.db_schema` the schema version and the migrations,
+:mod:`~ias_gym.skills.db_sqlite` the errors and the SQLite plumbing.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import hashlib
 import json
-import math
 import sqlite3
 import time
-import urllib.parse
-from collections.abc import Callable
-from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 from types import TracebackType
@@ -93,126 +93,55 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ias_gym import __version__
-from ias_gym.errors import IasGymError
+from ias_gym.skills.db_arrays import _encode, _initial_observation_checksum, array_checksum
+from ias_gym.skills.db_queries import MAX_LISTED_IDS, SkillQueries, SkillSummary
+from ias_gym.skills.db_schema import (
+    APPLICATION_ID,
+    CHECKSUM_VERSION,
+    MIGRATIONS,
+    SCHEMA_VERSION,
+)
+from ias_gym.skills.db_sqlite import (
+    SkillDBError,
+    SkillNotFoundError,
+    _ErrorTranslation,
+    _readonly_uri,
+    _Transaction,
+)
 from ias_gym.skills.skill import (
     DEMO_ARRAYS,
     MODEL_ARRAYS,
-    SAFE_KINDS,
     Demonstration,
     Skill,
     SkillModel,
-    check_storable_array,
 )
 
-#: The schema version this code writes (``PRAGMA user_version``); 2 added the checksums.
-SCHEMA_VERSION = 2
-#: The first schema version with array checksums.
-CHECKSUM_VERSION = 2
-#: ``PRAGMA application_id`` of a skill database: ASCII "IASS".
-APPLICATION_ID = 0x49415353
+# The names other modules and the tests import from here (the code lives in db_*.py).
+__all__ = [
+    "APPLICATION_ID",
+    "CHECKSUM_VERSION",
+    "DEFAULT_TIMEOUT",
+    "DEMO_ARRAYS",
+    "MAX_LISTED_IDS",
+    "MIGRATIONS",
+    "MODEL_ARRAYS",
+    "SCHEMA_VERSION",
+    "Demonstration",
+    "Skill",
+    "SkillDB",
+    "SkillDBError",
+    "SkillModel",
+    "SkillNotFoundError",
+    "SkillSummary",
+    "array_checksum",
+]
+
 #: Seconds a connection waits for another process's write lock before failing.
 DEFAULT_TIMEOUT = 30.0
-#: An unknown id's error lists the ids there are up to this many (else their range).
-MAX_LISTED_IDS = 20
-
-#: Columns of ``skills`` that make up a :class:`SkillSummary` (in its field order).
-_SUMMARY_COLUMNS = (
-    "id, name, task, source, person_id, created, package_version, seed, env_kwargs, "
-    "is_success, episode_return, length, duration"
-)
-
-
-class SkillDBError(IasGymError):
-    """The skill database cannot be used: not a skill database, corrupt, newer, or locked."""
-
-
-class SkillNotFoundError(SkillDBError):
-    """No skill with the requested id."""
-
-
-def array_checksum(dtype: str, shape: str, data: bytes) -> str:
-    """``"sha256:<hex>"`` of a stored array: its dtype string, shape JSON and raw bytes.
-
-    The dtype and shape are hashed too (NUL-separated), so a changed byte order or shape
-    is caught like a changed number.
-    """
-    digest = hashlib.sha256()
-    digest.update(dtype.encode())
-    digest.update(b"\0")
-    digest.update(shape.encode())
-    digest.update(b"\0")
-    digest.update(data)
-    return "sha256:" + digest.hexdigest()
-
-
-def _initial_observation_checksum(data: bytes) -> str:
-    return array_checksum("<f8", json.dumps([len(data) // 8]), data)
-
-
-@dataclass(frozen=True)
-class SkillSummary:
-    """A skill's row without its arrays (what :meth:`SkillDB.list_skills` returns).
-
-    Attributes:
-        episode_return: undiscounted return of the demonstration.
-        length: number of steps.
-        duration: time spanned by the skill model [s].
-        (the others as in :class:`Skill`)
-    """
-
-    id: int
-    name: str
-    task: str
-    source: str
-    person_id: str | None
-    created: str
-    package_version: str
-    seed: int | None
-    env_kwargs: dict[str, Any]
-    is_success: bool
-    episode_return: float
-    length: int
-    duration: float
-
-    @classmethod
-    def _from_row(cls, row: tuple[Any, ...], path: Path) -> SkillSummary:
-        (id_, name, task, source, person, created, version, seed, kwargs) = row[:9]
-        success, ret, length, duration = row[9:13]
-        try:
-            env_kwargs = json.loads(kwargs)
-            if not isinstance(env_kwargs, dict):
-                raise TypeError(f"a {type(env_kwargs).__name__}, not an object")
-            return cls(
-                id=int(id_),
-                name=name,
-                task=task,
-                source=source,
-                person_id=person,
-                created=created,
-                package_version=version,
-                seed=seed,
-                env_kwargs=env_kwargs,
-                is_success=bool(success),
-                episode_return=float(ret),
-                length=int(length),
-                duration=float(duration),
-            )
-        except (TypeError, ValueError) as exc:  # a damaged row: one error type, its id
-            raise SkillDBError(
-                f"skill {id_} in {path} is corrupt: its row does not parse ({exc}); restore "
-                f"a backup, or delete the skill with `ias-gym skills delete --db {path} "
-                f"--id {id_}`"
-            ) from None
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict of every field (``return`` is the key of ``episode_return``)."""
-        out = dataclasses.asdict(self)
-        out["return"] = out.pop("episode_return")
-        return out
 
 
 # ---------------------------------------------------------------------------- the database
-class SkillDB:
+class SkillDB(SkillQueries):
     """An embedded SQLite skill database in one file.
 
     Use it as a context manager (``with SkillDB(path) as db: ...``) or call :meth:`close`.
@@ -493,419 +422,3 @@ class SkillDB:
                 raise self._not_found(skill_id)
             self.conn.execute("DELETE FROM skills WHERE id = ?", (int(skill_id),))
         return str(row[0])
-
-    # ------------------------------------------------------------------ reads
-    def _check_writable(self) -> None:
-        if self.readonly:
-            raise SkillDBError(f"skill database {self.path} is open read-only; open it with "
-                               "SkillDB(path) to write")  # fmt: skip
-
-    def _not_found(self, skill_id: int) -> SkillNotFoundError:
-        ids = [int(r[0]) for r in self.conn.execute("SELECT id FROM skills ORDER BY id")]
-        if not ids:
-            have = "it holds no skills"
-        elif len(ids) <= MAX_LISTED_IDS:
-            have = f"its ids are {', '.join(map(str, ids))}"
-        else:
-            have = f"it holds {len(ids)} skills with ids {ids[0]}-{ids[-1]}"
-        return SkillNotFoundError(f"no skill with id {skill_id} in {self.path}; {have}")
-
-    def list_skills(
-        self, task: str | None = None, success: bool | None = None
-    ) -> list[SkillSummary]:
-        """The stored skills, by id.
-
-        Args:
-            task: only skills of this env id.
-            success: only successful (``True``) or failed (``False``) ones; ``None``: all.
-        """
-        query = f"SELECT {_SUMMARY_COLUMNS} FROM skills"
-        where, params = _filters(task, success)
-        with self._errors("read"):
-            rows = self.conn.execute(f"{query}{where} ORDER BY id", params).fetchall()
-        return [SkillSummary._from_row(r, self.path) for r in rows]
-
-    def ids(self) -> list[int]:
-        """The stored skills' ids, ascending (reads no other column: works on damaged rows)."""
-        with self._errors("read"):
-            return [int(r[0]) for r in self.conn.execute("SELECT id FROM skills ORDER BY id")]
-
-    def tasks(self) -> list[str]:
-        """The distinct task ids, sorted."""
-        with self._errors("read"):
-            return [r[0] for r in self.conn.execute("SELECT DISTINCT task FROM skills ORDER BY 1")]
-
-    def __len__(self) -> int:
-        with self._errors("read"):
-            return int(self.conn.execute("SELECT count(*) FROM skills").fetchone()[0])
-
-    def summary(self, skill_id: int) -> SkillSummary:
-        """One skill's row without its arrays.
-
-        Raises:
-            SkillNotFoundError: no skill has this id.
-        """
-        with self._errors("read"):
-            row = self.conn.execute(
-                f"SELECT {_SUMMARY_COLUMNS} FROM skills WHERE id = ?", (int(skill_id),)
-            ).fetchone()
-            if row is None:
-                raise self._not_found(skill_id)
-        return SkillSummary._from_row(row, self.path)
-
-    def get(self, skill_id: int) -> Skill:
-        """Load a skill with its demonstration and model (arrays bit-identical, dtypes kept).
-
-        Every array's checksum is verified before it is used.
-
-        Raises:
-            SkillNotFoundError: no skill has this id.
-            SkillDBError: the stored arrays are incomplete, inconsistent or do not match
-                their checksums (the message names the skill and the array), or the file
-                predates checksums and was opened read-only (the message says how to
-                migrate it).
-        """
-        checksum = "checksum" if self._checksums else "NULL"
-        with self._errors("read"), self._transaction("DEFERRED"):  # one consistent snapshot
-            row = self.conn.execute(
-                f"SELECT {_SUMMARY_COLUMNS} FROM skills WHERE id = ?", (int(skill_id),)
-            ).fetchone()
-            if row is None:
-                raise self._not_found(skill_id)
-            arrays = self.conn.execute(
-                f"SELECT part, name, dtype, shape, data, {checksum} FROM arrays WHERE skill_id = ?",
-                (int(skill_id),),
-            ).fetchall()
-        summary = SkillSummary._from_row(row, self.path)
-        parts: dict[str, dict[str, NDArray[Any]]] = {"demo": {}, "info": {}, "model": {}}
-        for part, name, dtype, shape, data, digest in arrays:
-            what = f"{part}/{name}"
-            self._verify(skill_id, what, dtype, shape, data, digest)
-            parts[part][name] = _decode(self.path, skill_id, what, dtype, shape, data)
-        for part, names in (("demo", DEMO_ARRAYS), ("model", MODEL_ARRAYS)):
-            missing = sorted(set(names) - set(parts[part]))
-            if missing:
-                raise SkillDBError(
-                    f"skill {skill_id} in {self.path} is incomplete (missing {part} arrays "
-                    f"{missing}); {self._delete_hint(skill_id)}"
-                )
-        skill = Skill(
-            name=summary.name,
-            task=summary.task,
-            source=summary.source,
-            demonstration=Demonstration(**parts["demo"], infos=parts["info"]),
-            model=SkillModel(**parts["model"]),
-            is_success=summary.is_success,
-            seed=summary.seed,
-            person_id=summary.person_id,
-            env_kwargs=summary.env_kwargs,
-            id=summary.id,
-            created=summary.created,
-            package_version=summary.package_version,
-        )
-        if skill.length != summary.length:
-            raise SkillDBError(
-                f"skill {skill_id} in {self.path} is inconsistent: {skill.length} actions "
-                f"stored, {summary.length} recorded; {self._delete_hint(skill_id)}"
-            )
-        return skill
-
-    def _delete_hint(self, skill_id: int) -> str:
-        return (
-            f"restore a backup, or delete the skill with `ias-gym skills delete --db "
-            f"{self.path} --id {skill_id}`"
-        )
-
-    def _verify(
-        self, skill_id: int, what: str, dtype: str, shape: str, data: bytes, digest: str | None
-    ) -> None:
-        """Raise SkillDBError unless the array's bytes match its stored checksum."""
-        if digest is None:
-            if not self._checksums:
-                raise SkillDBError(
-                    f"{self.path} has schema version {self.schema_version}, written before "
-                    "arrays had checksums, and was opened read-only; add them once with "
-                    f"`ias-gym skills migrate --db {self.path}` (any open for writing does)"
-                )
-            raise SkillDBError(
-                f"skill {skill_id} in {self.path} is corrupt: array {what} has no checksum; "
-                f"{self._delete_hint(skill_id)}"
-            )
-        try:
-            actual = array_checksum(dtype, shape, data)
-        except (AttributeError, TypeError):  # not text / bytes: a damaged row
-            actual = None
-        if actual != digest:
-            raise SkillDBError(
-                f"skill {skill_id} in {self.path} is corrupt: array {what} does not match its "
-                f"checksum (its stored bytes changed since it was written); "
-                f"{self._delete_hint(skill_id)}"
-            )
-
-    def check_skill(self, skill_id: int) -> None:
-        """Verify one skill completely without returning it: every array against its
-        checksum, complete and consistent (:meth:`get`), its first-observation copy (the
-        nearest-state index) against its checksum and the demonstration, and the skill's
-        fields (:meth:`Skill.validate`).
-
-        Raises:
-            SkillNotFoundError: no skill has this id.
-            SkillDBError: the first problem found (naming the skill and the array).
-        """
-        skill = self.get(skill_id)
-        checksum = "initial_observation_checksum" if self._checksums else "NULL"
-        with self._errors("read"):
-            first, digest = self.conn.execute(
-                f"SELECT initial_observation, {checksum} FROM skills WHERE id = ?",
-                (int(skill_id),),
-            ).fetchone()
-        shape = json.dumps([len(first) // 8])
-        self._verify(skill_id, "initial_observation", "<f8", shape, first, digest)
-        expected = np.ascontiguousarray(skill.demonstration.observations[0], dtype="<f8")
-        if first != expected.ravel().tobytes():
-            raise SkillDBError(
-                f"skill {skill_id} in {self.path} is inconsistent: initial_observation differs "
-                f"from the first stored observation; {self._delete_hint(skill_id)}"
-            )
-        try:
-            skill.validate()
-        except ValueError as exc:
-            raise SkillDBError(
-                f"skill {skill_id} in {self.path} is invalid: {exc}; {self._delete_hint(skill_id)}"
-            ) from None
-
-    def nearest_initial_state(
-        self, observation: Any, task: str | None = None, k: int = 1
-    ) -> list[tuple[SkillSummary, float]]:
-        """The skills whose demonstration starts closest to ``observation``.
-
-        Distance is Euclidean between ``observation`` and each demonstration's first
-        observation (flattened); skills whose observations have another size are skipped.
-
-        Args:
-            observation: an observation of the task's env.
-            task: only skills of this env id.
-            k: how many to return.
-
-        Returns:
-            Up to ``k`` pairs ``(summary, distance)``, nearest first; empty if none match.
-
-        Raises:
-            ValueError: ``observation`` is not finite, or ``k < 1``.
-            SkillDBError: a candidate's stored first observation does not match its
-                checksum (naming the skill).
-        """
-        obs = np.asarray(observation, dtype=np.float64).ravel()
-        if not np.all(np.isfinite(obs)):
-            raise ValueError("observation contains NaN or inf")
-        if k < 1:
-            raise ValueError(f"k must be >= 1, got {k}")
-        where, params = _filters(task, None)
-        where += (" AND " if where else " WHERE ") + "observation_dim = ?"
-        checksum = "initial_observation_checksum" if self._checksums else "NULL"
-        with self._errors("read"):
-            rows = self.conn.execute(
-                f"SELECT {_SUMMARY_COLUMNS}, initial_observation, {checksum} FROM skills"
-                f"{where} ORDER BY id",
-                (*params, obs.size),
-            ).fetchall()
-        if not rows:
-            return []
-        shape = json.dumps([obs.size])
-        for r in rows:
-            self._verify(int(r[0]), "initial_observation", "<f8", shape, r[-2], r[-1])
-        starts = np.stack([np.frombuffer(r[-2], dtype="<f8") for r in rows])
-        distance = np.linalg.norm(starts - obs, axis=1)
-        order = np.argsort(distance, kind="stable")[:k]
-        return [
-            (SkillSummary._from_row(rows[i][:-2], self.path), float(distance[i])) for i in order
-        ]
-
-    def integrity_check(self) -> None:
-        """Run SQLite's full ``PRAGMA integrity_check``.
-
-        Raises:
-            SkillDBError: the file is damaged (the message has SQLite's findings).
-        """
-        with self._errors("check"):
-            result = [r[0] for r in self.conn.execute("PRAGMA integrity_check")]
-        if result != ["ok"]:
-            raise SkillDBError(
-                f"{self.path} is corrupt ({'; '.join(result[:5])}); restore it from a backup "
-                "or delete it"
-            )
-
-
-# ---------------------------------------------------------------------------- migrations
-def _migrate_0_to_1(conn: sqlite3.Connection) -> None:
-    """Version 0 is an empty (new) file: create the version-1 schema."""
-    conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
-    conn.execute(
-        """CREATE TABLE skills (
-            id INTEGER PRIMARY KEY AUTOINCREMENT,
-            name TEXT NOT NULL,
-            task TEXT NOT NULL,
-            source TEXT NOT NULL,
-            person_id TEXT,
-            created TEXT NOT NULL,
-            package_version TEXT NOT NULL,
-            seed INTEGER,
-            env_kwargs TEXT NOT NULL DEFAULT '{}',
-            is_success INTEGER NOT NULL CHECK (is_success IN (0, 1)),
-            episode_return REAL NOT NULL,
-            length INTEGER NOT NULL CHECK (length >= 1),
-            duration REAL NOT NULL,
-            observation_dim INTEGER NOT NULL,
-            initial_observation BLOB NOT NULL
-        )"""
-    )
-    conn.execute("CREATE INDEX skills_by_task ON skills (task, is_success)")
-    conn.execute(
-        """CREATE TABLE arrays (
-            id INTEGER PRIMARY KEY,
-            skill_id INTEGER NOT NULL REFERENCES skills (id) ON DELETE CASCADE,
-            part TEXT NOT NULL CHECK (part IN ('demo', 'info', 'model')),
-            name TEXT NOT NULL,
-            dtype TEXT NOT NULL,
-            shape TEXT NOT NULL,
-            data BLOB NOT NULL,
-            UNIQUE (skill_id, part, name)
-        )"""
-    )
-
-
-def _migrate_1_to_2(conn: sqlite3.Connection) -> None:
-    """Version 2 adds a checksum to every array and to each skill's first observation.
-
-    The rows there are get theirs from their bytes as they are now (one row at a time, so
-    a large file is not held in memory).
-    """
-    conn.execute("ALTER TABLE arrays ADD COLUMN checksum TEXT")
-    conn.execute("ALTER TABLE skills ADD COLUMN initial_observation_checksum TEXT")
-    for (row_id,) in conn.execute("SELECT id FROM arrays ORDER BY id").fetchall():
-        dtype, shape, data = conn.execute(
-            "SELECT dtype, shape, data FROM arrays WHERE id = ?", (row_id,)
-        ).fetchone()
-        conn.execute(
-            "UPDATE arrays SET checksum = ? WHERE id = ?",
-            (array_checksum(dtype, shape, data), row_id),
-        )
-    for (row_id,) in conn.execute("SELECT id FROM skills ORDER BY id").fetchall():
-        (first,) = conn.execute(
-            "SELECT initial_observation FROM skills WHERE id = ?", (row_id,)
-        ).fetchone()
-        conn.execute(
-            "UPDATE skills SET initial_observation_checksum = ? WHERE id = ?",
-            (_initial_observation_checksum(first), row_id),
-        )
-
-
-#: ``MIGRATIONS[v]`` turns a version-``v`` database into version ``v + 1`` (inside a
-#: transaction that also sets ``user_version``).
-MIGRATIONS: dict[int, Callable[[sqlite3.Connection], None]] = {
-    0: _migrate_0_to_1,
-    1: _migrate_1_to_2,
-}
-
-
-# ---------------------------------------------------------------------------- helpers
-class _Transaction:
-    """``BEGIN ... COMMIT``, rolled back on any exception (KeyboardInterrupt included)."""
-
-    def __init__(self, conn: sqlite3.Connection, mode: str) -> None:
-        self.conn, self.mode = conn, mode
-
-    def __enter__(self) -> None:
-        self.conn.execute(f"BEGIN {self.mode}")
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        if exc_type is None:
-            self.conn.execute("COMMIT")
-        elif self.conn.in_transaction:
-            self.conn.execute("ROLLBACK")
-
-
-class _ErrorTranslation:
-    """Turns ``sqlite3`` errors into :class:`SkillDBError` naming the file and a remedy."""
-
-    def __init__(self, path: Path, action: str) -> None:
-        self.path, self.action = path, action
-
-    def __enter__(self) -> None:
-        return None
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        if exc is None or not isinstance(exc, sqlite3.Error):
-            return
-        code = getattr(exc, "sqlite_errorname", "")
-        text = str(exc)
-        if code in ("SQLITE_NOTADB", "SQLITE_CORRUPT") or (
-            not isinstance(exc, sqlite3.OperationalError)
-            and isinstance(exc, sqlite3.DatabaseError)
-            and ("not a database" in text or "malformed" in text)
-        ):
-            raise SkillDBError(
-                f"{self.path} is not a skill database or is corrupt ({text}); restore it "
-                "from a backup or delete it to start a new one"
-            ) from exc
-        if "locked" in text or "busy" in text:
-            raise SkillDBError(
-                f"cannot {self.action} {self.path}: {text} (another process holds the write "
-                "lock); retry, or raise SkillDB(timeout=...)"
-            ) from exc
-        raise SkillDBError(f"cannot {self.action} skill database {self.path}: {text}") from exc
-
-
-def _readonly_uri(path: Path) -> str:
-    """SQLite's read-only URI of ``path`` (percent-encoded: ``?`` and ``#`` are data)."""
-    return f"file:{urllib.parse.quote(str(path.absolute()))}?mode=ro"
-
-
-def _encode(value: NDArray[Any]) -> tuple[str, str, bytes, str]:
-    """``(dtype, shape, bytes, checksum)`` of an array: C order, byte order kept in the
-    dtype string."""
-    check_storable_array("array", value)
-    data = np.ascontiguousarray(value)
-    dtype, shape, raw = data.dtype.str, json.dumps(list(data.shape)), data.tobytes()
-    return dtype, shape, raw, array_checksum(dtype, shape, raw)
-
-
-def _decode(
-    path: Path, skill_id: int, what: str, dtype: str, shape: str, data: bytes
-) -> NDArray[Any]:
-    try:
-        dt = np.dtype(dtype)
-        dims = tuple(int(d) for d in json.loads(shape))
-    except (TypeError, ValueError) as exc:
-        raise SkillDBError(f"skill {skill_id} in {path}: {what} has a bad dtype/shape") from exc
-    if dt.kind not in SAFE_KINDS:
-        raise SkillDBError(f"skill {skill_id} in {path}: {what} has unsafe dtype {dtype!r}")
-    expected = dt.itemsize * math.prod(dims)
-    if len(data) != expected:
-        raise SkillDBError(
-            f"skill {skill_id} in {path} is corrupt: {what} holds {len(data)} bytes, "
-            f"{dtype}{list(dims)} needs {expected}; delete the skill or restore a backup"
-        )
-    return np.frombuffer(data, dtype=dt).reshape(dims).copy()
-
-
-def _filters(task: str | None, success: bool | None) -> tuple[str, tuple[Any, ...]]:
-    clauses: list[str] = []
-    params: list[Any] = []
-    if task is not None:
-        clauses.append("task = ?")
-        params.append(task)
-    if success is not None:
-        clauses.append("is_success = ?")
-        params.append(int(success))
-    return ((" WHERE " + " AND ".join(clauses)) if clauses else ""), tuple(params)
