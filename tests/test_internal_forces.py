@@ -1,3 +1,4 @@
+# Over 450 lines: every test here runs the same problem through all three solvers (LP, SOCP, DAQP).
 """The internal-force optimisation of eqs. (19)-(24): pen reference, constraints, solvers."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# Over 450 lines: the database's behaviour as one unit (schema, writes, reads, crashes, migration).
 """The skill database: round trip, queries, migration, corruption, bad input, SIGKILL safety."""
 
 from __future__ import annotations
