@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import itertools
 import logging
 from collections.abc import Iterator
@@ -25,3 +26,22 @@ def no_python_can_warnings(caplog: pytest.LogCaptureFixture) -> Iterator[None]:
     records = caplog.get_records("setup") + caplog.get_records("call")
     bad = [r.getMessage() for r in records if r.name.startswith("can")]
     assert not bad, bad
+
+
+@pytest.fixture
+def no_gc_pauses() -> Iterator[None]:
+    """No full garbage collection during a live-bus test.
+
+    Late in the suite the heap is large and a full collection stops the interpreter, emulator
+    thread included, for 50-115 ms (measured with ``gc.callbacks``): longer than the glove's
+    20 ms watchdog, which then trips in a test about the protocol, not about the collector. The
+    hardware env freezes the heap at reset for the same reason (``GloveHardwareEnv.reset``).
+    """
+    gc.collect()
+    gc.freeze()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.enable()
+        gc.unfreeze()

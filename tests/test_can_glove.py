@@ -35,7 +35,7 @@ from ias_gym.hardware.protocol import (
 
 pytestmark = [
     pytest.mark.filterwarnings("error"),
-    pytest.mark.usefixtures("no_python_can_warnings"),
+    pytest.mark.usefixtures("no_python_can_warnings", "no_gc_pauses"),
 ]
 
 

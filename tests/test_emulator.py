@@ -16,7 +16,7 @@ from ias_gym.hardware import (
 
 pytestmark = [
     pytest.mark.filterwarnings("error"),
-    pytest.mark.usefixtures("no_python_can_warnings"),
+    pytest.mark.usefixtures("no_python_can_warnings", "no_gc_pauses"),
 ]
 
 

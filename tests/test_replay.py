@@ -17,7 +17,7 @@ from ias_gym.hardware.protocol import encode_sensors, encode_torque
 
 pytestmark = [
     pytest.mark.filterwarnings("error"),
-    pytest.mark.usefixtures("no_python_can_warnings"),
+    pytest.mark.usefixtures("no_python_can_warnings", "no_gc_pauses"),
 ]
 
 
