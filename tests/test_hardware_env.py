@@ -74,14 +74,21 @@ def test_a_can_glove_session_is_recorded_as_a_skill(channel: str, tmp_path: Path
     from ias_gym.skills.record import record_skills_spec
 
     db = tmp_path / "skills.db"
-    with GloveEmulator(channel=channel, rate_hz=500):
+    # Watchdogs of 0.2 s: this tests the recording, not the 20 ms watchdog
+    # (tests/test_can_glove.py does), and the interpreter can stall longer late in the suite.
+    with GloveEmulator(channel=channel, rate_hz=500, watchdog_timeout=0.2):
         (skill_id,) = record_skills_spec(
             "IAS-GloveHardware-v0",
             "teleop",
             1,
             db,
             progress=False,
-            env_kwargs={"channel": channel, "control_dt": 0.004, "duration": 1.2},
+            env_kwargs={
+                "channel": channel,
+                "control_dt": 0.004,
+                "duration": 1.2,
+                "watchdog_timeout": 0.2,
+            },
         )
     with SkillDB(db) as skills:
         skill = skills.get(skill_id)

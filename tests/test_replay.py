@@ -15,6 +15,10 @@ from ias_gym.errors import InputError
 from ias_gym.hardware import GloveEmulator, ReplayError, ReplayGlove
 from ias_gym.hardware.protocol import encode_sensors, encode_torque
 
+#: Watchdogs of the recording tests [s]: they test record and replay, not the 20 ms watchdog
+#: (tests/test_can_glove.py does), and the interpreter can stall longer late in the suite.
+SLACK = 0.2
+
 pytestmark = [
     pytest.mark.filterwarnings("error"),
     pytest.mark.usefixtures("no_python_can_warnings", "no_gc_pauses"),
@@ -27,8 +31,14 @@ def test_recorded_session_replays_to_identical_observations(
 ) -> None:
     log = tmp_path / f"session{suffix}"
     live: list[np.ndarray] = []
-    with GloveEmulator(channel=channel, rate_hz=500):
-        env = gym.make("IAS-GloveHardware-v0", channel=channel, record=log, control_dt=0.004)
+    with GloveEmulator(channel=channel, rate_hz=500, watchdog_timeout=SLACK):
+        env = gym.make(
+            "IAS-GloveHardware-v0",
+            channel=channel,
+            record=log,
+            control_dt=0.004,
+            watchdog_timeout=SLACK,
+        )
         for seed in (0, 1):  # two episodes in one log
             obs, _ = env.reset(seed=seed)
             live.append(obs)
@@ -69,8 +79,14 @@ def recordings(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     for k, suffix in enumerate((".asc", ".blf", ".log")):
         log = tmp_path_factory.mktemp("rec") / f"session{suffix}"
         channel = f"ias-replay-rec-{k}"
-        with GloveEmulator(channel=channel, rate_hz=500):
-            env = gym.make("IAS-GloveHardware-v0", channel=channel, record=log, control_dt=0.004)
+        with GloveEmulator(channel=channel, rate_hz=500, watchdog_timeout=SLACK):
+            env = gym.make(
+                "IAS-GloveHardware-v0",
+                channel=channel,
+                record=log,
+                control_dt=0.004,
+                watchdog_timeout=SLACK,
+            )
             env.reset(seed=0)
             for _ in range(60):
                 env.step(np.zeros(10, dtype=np.float32))
