@@ -200,8 +200,8 @@ def largest_step_inside_cones(
     k_mu = scale * settings.mu_sticking
     # Rows a + lam b >= 0: n - f0, then k mu n -+ d . t for each face direction d
     # (the friction rows only for sticking contacts).
-    a = np.column_stack([c[:, 0] - settings.f0, *_face_rows(c, faces, k_mu)])
-    b = np.column_stack([d[:, 0], *_face_rows(d, faces, k_mu)])
+    a = _constraint_rows(c, faces, k_mu, settings.f0)
+    b = _constraint_rows(d, faces, k_mu, 0.0)
     use = np.repeat(active[:, None], a.shape[1], axis=1)
     for k in sliding:
         use[k, 1:] = False
@@ -249,10 +249,13 @@ def keep_sliding_friction(
     return result
 
 
-def _face_rows(c: FloatArray, faces: FloatArray, k_mu: float) -> list[FloatArray]:
-    """``k mu c_n -+ d . c_t`` per contact for each face direction d (``>= 0``: inside)."""
-    normal, along = c[:, 0], c[:, 1:] @ faces.T
-    return [k_mu * normal + sign * along[:, f] for f in range(len(faces)) for sign in (-1, 1)]
+def _constraint_rows(c: FloatArray, faces: FloatArray, k_mu: float, f0: float) -> FloatArray:
+    """``(k, 1 + 2 F)`` per contact: ``c_n - f0``, then ``k mu c_n - d . c_t`` and
+    ``k mu c_n + d . c_t`` for the F face directions d (``>= 0``: inside)."""
+    normal, along = c[:, :1], c[:, 1:] @ faces.T
+    friction = k_mu * normal
+    result: FloatArray = np.concatenate([normal - f0, friction - along, friction + along], axis=1)
+    return result
 
 
 def damped_pinv_blocks(J: FloatArray, damping: float) -> FloatArray:
