@@ -107,10 +107,17 @@ def test_fault_injection_never_lets_torque_out_of_range(channel: str) -> None:
         drop=0.05, corrupt=0.01, wrong_length=0.01, garbage=0.01, error_frame=0.01, seed=3
     )
     rate = 500.0
+    # 50 ms watchdogs: the property is the trip's timing and the torque limits under faults; a
+    # 20 ms one also tripped mid-run when the interpreter stalled (1 in 5 fresh-clone runs).
+    timeout = 0.05  # [s]
     watch = spy(channel)
     try:
-        with GloveEmulator(channel=channel, rate_hz=rate, faults=faults) as emu:
-            env = GloveHardwareEnv(channel=channel, control_dt=0.002, duration=10.0)
+        with GloveEmulator(
+            channel=channel, rate_hz=rate, faults=faults, watchdog_timeout=timeout
+        ) as emu:
+            env = GloveHardwareEnv(
+                channel=channel, control_dt=0.002, duration=10.0, watchdog_timeout=timeout
+            )
             try:
                 env.reset(seed=0)
                 rng = np.random.default_rng(0)
