@@ -192,6 +192,21 @@ def test_pen_slide_refuses_the_three_finger_hand() -> None:
         gym.make("IAS-PenSlide-v0", hand="ias3f")
 
 
+def test_why_there_is_no_three_finger_slide() -> None:
+    """The thumb, ias3f's only finger below the pen, cannot slide along a still pen: its
+    kinetic friction mu (m g + n1 + n3) exceeds the top fingers' mu (n1 + n3) for any squeeze
+    (the LP has no solution); a bottom finger of ias4f can, the other one shares the weight."""
+    settings = InternalForceSettings(mu=MU, f0=0.1)
+    along = np.array([1.0, 0.0])  # sliding +x along the pen
+    W3 = grasp_wrench_matrix([-0.03, 0.005, 0.03], [1.0, -1.0, 1.0])
+    with pytest.raises(InfeasibleGraspError):
+        solve_internal_forces(W3, gravity_wrench(1.0), {1: along}, settings)
+    top = solve_internal_forces(W3, gravity_wrench(1.0), {2: along}, settings)  # a top one can
+    assert top.c[6] > 0
+    W4 = grasp_wrench_matrix([-0.03, -0.02, 0.025, 0.03], [1.0, -1.0, -1.0, 1.0])
+    solve_internal_forces(W4, gravity_wrench(1.0), {2: along}, settings)
+
+
 def test_amplitude_limit_is_the_hands_largest_tilt() -> None:
     for name, spec in HANDS.items():
         gym.make("IAS-PenRotate-v0", hand=name, amplitude=spec.max_tilt)
