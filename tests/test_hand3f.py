@@ -268,6 +268,32 @@ def test_expert_reaches_the_registered_largest_tilt_on_ias3f(frequency: float) -
         assert info["rms_tilt_error"] < 0.02 * amplitude, start
 
 
+def test_object_level_actions_follow_the_hand() -> None:
+    """GripTransformAction on ias3f: 6 object accelerations + 3 k - 6 = 3 internal forces; a
+    zero action is the expert's, bit for bit; an internal-force action changes the torques."""
+    from ias_gym.baselines.action_wrapper import GripTransformAction
+
+    def after_20_steps(seed: int = 2) -> GripTransformAction:
+        wrapped = GripTransformAction(gym.make("IAS-PenRotate3F-v0"))
+        wrapped.reset(seed=seed)
+        for _ in range(20):
+            wrapped.step(np.zeros(9))
+        return wrapped
+
+    wrapped = after_20_steps()
+    assert wrapped.action_space.shape == (9,)
+    env = gym.make("IAS-PenRotate3F-v0")
+    expert = ExpertPolicy(env)
+    obs, _ = env.reset(seed=2)
+    for _ in range(20):
+        obs, *_ = env.step(expert.predict(obs)[0])
+    np.testing.assert_array_equal(wrapped.unwrapped.data.qpos, env.unwrapped.data.qpos)
+    squeeze = np.zeros(9)
+    squeeze[6] = 1.0  # along the first internal-force direction (the cones allow all of it)
+    zero_tau = after_20_steps().action(np.zeros(9))
+    assert np.abs(wrapped.action(squeeze) - zero_tau).max() > 1e-3
+
+
 def test_mujoco_names_follow_the_four_finger_scheme() -> None:
     """Every name a tool reads on ias4f exists on ias3f too (per finger)."""
     m = PenHandPhysics.from_assets(hand="ias3f").model
