@@ -157,6 +157,23 @@ def test_ias3f_links_clear_the_tilted_pen() -> None:
         assert clearance > 1e-3, (yaw, clearance)
 
 
+@pytest.mark.parametrize("frequency", [2.0, 12.0])
+def test_ias3f_links_stay_off_the_pen_under_load(frequency: float) -> None:
+    """In closed loop at 0.35 rad no finger link touches the pen at any step. The static check
+    above misses what broke the first design: the thumb's 1.4 N pressed its 5 mm tip 1.6 mm
+    into the soft contact and its distal link onto the pen (394 of 400 steps)."""
+    env = gym.make("IAS-PenRotate3F-v0", amplitude=0.35, frequency=frequency)
+    policy = ExpertPolicy(env)
+    obs, _ = env.reset(seed=0)
+    touching = 0
+    while True:
+        obs, _, terminated, truncated, info = env.step(policy.predict(obs)[0])
+        touching += env.unwrapped.physics.n_link_contacts() > 0
+        if terminated or truncated:
+            break
+    assert info["is_success"] and touching == 0, touching
+
+
 # --- the envs on the hand -----------------------------------------------------------------
 def test_spaces_follow_the_hand() -> None:
     env = gym.make("IAS-PenRotate3F-v0")
