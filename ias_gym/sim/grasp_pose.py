@@ -16,9 +16,6 @@ from ias_gym.sim.pen_hand import PenHandPhysics, paper_to_mj, rpy_to_matrix
 
 FloatArray = np.ndarray
 
-#: Which side of the pen each finger touches (+1 top, -1 bottom), paper order.
-_SIDE = np.array([1.0, -1.0, -1.0, 1.0])
-
 
 def place_grasp(
     physics: PenHandPhysics,
@@ -35,8 +32,10 @@ def place_grasp(
         physics: the pen-hand physics (its data is modified; ``mj_forward`` is run at the end).
         pen_position: pen centre [m], paper frame, relative to the nominal centre.
         pen_rpy: pen roll, pitch, yaw [rad], paper frame (as :meth:`PenHandPhysics.pen_pose`).
-        contact_x: ``(4,)`` signed contact positions along the pen's axis [m] (pen frame;
-            the paper's ``[-phi1, -phi2, +phi3, +phi4]``).
+        contact_x: ``(k,)`` signed contact positions along the pen's axis [m] (pen frame;
+            the paper's ``[-phi1, -phi2, +phi3, +phi4]`` on the four-finger hand). Each tip
+            touches the side of the pen its base is on (``physics.finger_sides``); every
+            finger has three joints (abd, mcp, pip), as on both registered hands.
         penetration: how far each tip sphere overlaps the pen [m].
         iterations: Gauss-Newton iterations of the inverse kinematics.
         tolerance: stop when every tip is this close to its target [m].
@@ -55,8 +54,8 @@ def place_grasp(
 
     tip_radius = m.geom_size[physics._tip_geoms, 0]
     pen_radius = m.geom_size[physics._pen_geom, 0]
-    offset = _SIDE * (pen_radius + tip_radius - penetration)
-    local = np.stack([np.asarray(contact_x, dtype=float), offset, np.zeros(4)], axis=1)
+    offset = physics.finger_sides * (pen_radius + tip_radius - penetration)
+    local = np.stack([np.asarray(contact_x, dtype=float), offset, np.zeros(len(offset))], axis=1)
     targets = physics.origin_mj + paper_to_mj(centre + local @ rot.T)
 
     qadr, dadr = physics.hand_qpos_ids, physics.hand_dof_ids
