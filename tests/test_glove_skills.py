@@ -362,3 +362,22 @@ def test_record_names_the_skill_and_the_person(tmp_path: Path) -> None:
         record_skills_spec(ENV_ID, "teleop", 1, db, progress=False, skill="wave")
     with pytest.raises(InputError, match="--skill is for glove envs"):
         record_skills_spec("IAS-PenRotate-v0", "expert", 1, db, progress=False, skill="tilt_left")
+
+
+def test_cli_skill_option(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--skill``'s help lists the skills; a wrong name is one line naming the valid ones
+    (exit 2, nothing stored)."""
+    from ias_gym.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["skills", "record", "--help"])
+    # argparse wraps the help text: compare without line breaks and indentation
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "--skill NAME" in help_text and ", ".join(SKILLS) in help_text
+    db = tmp_path / "s.db"
+    code = main(["skills", "record", "--env", ENV_ID, "--policy", "teleop", "--skill", "wave",
+                 "--db", str(db), "--no-progress"])  # fmt: skip
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1
+    assert "'wave' is not a glove skill; choose one of " + ", ".join(SKILLS) in err[0]
+    assert not db.exists()
