@@ -11,8 +11,10 @@ aligned with the observations.
 The sampler follows the env's type (:func:`skill_model_recorder`): the pen-hand tasks
 (``IAS-Pen*``, :class:`SkillModelRecorder`) or the glove env ``IAS-GloveGrasp-v0`` and its
 subclasses (:class:`~ias_gym.skills.glove_session.GloveSkillModelRecorder`: a two-finger
-pinch, whose one internal force is the squeeze). A glove session is recorded with the
-``teleop`` policy (zero action); its skills carry the env's person and the glove's id.
+pinch of soft fingers, W 6 x 8, whose two internal forces are the squeeze and the opposed
+torsions). A glove session is recorded with the ``teleop`` policy (zero action); its skills
+carry the env's person and the glove's id, and a glove skill (``skill`` env kwarg,
+:data:`ias_gym.glove.skills.SKILLS`) is named after it.
 """
 
 from __future__ import annotations
