@@ -160,7 +160,8 @@ def record_episode(
         seed: reset seed.
         source: provenance (see :func:`~ias_gym.baselines.policies.policy_source`).
         name: skill name; default ``"<task> <source> seed <seed>"`` (glove sessions:
-            ``"<task> <source> <person> seed <seed>"``).
+            ``"<task> <source> <person> seed <seed>"``; a glove skill: its name, e.g.
+            ``"tilt_left"``).
         person_id: who demonstrated it, if a person did (glove env: default and must be
             the env's person).
         env_kwargs: keyword arguments ``env`` was made with (stored for re-creating it).
