@@ -81,7 +81,7 @@ SKILL_TIMINGS = ReachPinchLiftTimings(rest=0.3, reach=1.3, close=2.0, hold=2.3, 
 #: default's is 2 N): a firmer pinch for manipulating the pen than for lifting it.
 SKILL_PINCH_FORCE = 4.0
 #: Nominal pronation amplitudes [rad] of the see-saws and the tilts (measured above: the pen
-#: tilts by about half the wrist's pronation; 0.3 rad as a sine drops it).
+#: tilts by 0.8-0.9 of the wrist's pronation; 0.3 rad as a sine drops it).
 SEESAW_SLOW_AMPLITUDE = 0.16
 SEESAW_FAST_AMPLITUDE = 0.13
 TILT_AMPLITUDE = 0.18
