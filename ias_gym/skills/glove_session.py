@@ -9,18 +9,20 @@ paper frame and units (see :mod:`ias_gym.sim.glove_contacts`):
 
 - ``touching``: (index, thumb) touch the pen; ``sliding``: all False (a glove session has
   no sliding schedule);
-- ``c`` (eq. 3): per finger the pen's contact force resolved as one point contact with
-  friction [normal, t1, t2] at the finger's centre of pressure (eq. 16's columns), 6 values;
-- ``f_ext = W c`` (eq. 3) with W built by :func:`ias_gym.grasp.contacts.wrench_matrix`;
-- ``f_int = N^T c`` (eq. 10) and ``c_h = N N^T c`` (eq. 7), with N the unit null vector of
-  the rank-5 W of the pinch (:func:`~ias_gym.sim.glove_contacts.squeeze_null_vector`),
-  signed so that squeezing is positive; NaN unless both fingers touch. Two point contacts
-  never make rank W = 6, so the grip transform G of eq. (8) does not exist here, but the
-  internal force of the pinch - the squeeze along the line between the contacts - does.
+- ``c`` (eq. 3): per finger the pen's contact wrench resolved as one soft-finger contact
+  (the pads are MuJoCo condim-4 contacts): [normal, t1, t2] [N] at the finger's point and
+  the torsion about the normal [N m] (eq. 16's columns and ``[0; n]``), 8 values;
+- ``f_ext = W c`` (eq. 3), the fingers' net wrench on the pen, force and moment exactly,
+  with W of :func:`ias_gym.sim.glove_contacts.soft_wrench_matrix` (6 x 8);
+- ``f_int = N^T c`` (eq. 10, two columns) and ``c_h = N N^T c`` (eq. 7): while both
+  fingers touch W has rank 6, so G (eq. 8) exists and null(W) is two-dimensional; N is the
+  named basis of :func:`~ias_gym.sim.glove_contacts.pinch_null_basis`, the squeeze
+  (positive when squeezing) and the opposed torsions; NaN unless both fingers touch.
 
-The pads are soft contacts whose torsion has no column in the hard-finger c (eq. 16): W c
-carries the fingers' net force exactly and their moment to about 2e-3 N m (see
-:mod:`ias_gym.sim.glove_contacts`).
+Skills (:mod:`ias_gym.glove.skills`): an env made with ``skill=NAME`` performs that skill
+after the pinch-lift; a recording stores it with ``Skill.name == NAME`` and
+``env_kwargs["skill"] == NAME``, and its own motion starts at
+:func:`ias_gym.glove.skills.skill_start_time` ``(NAME, person_id)`` [s].
 
 The env has no expert: a glove session is teleoperation (the ``teleop`` policy of
 :func:`ias_gym.baselines.policies.load_policy`, zero action). Provenance: the person is the env's
@@ -36,6 +38,9 @@ import numpy as np
 
 from ias_gym.baselines.policies import TELEOP
 from ias_gym.skills.skill import SkillModelSamples
+
+#: Internal forces of the soft-finger pinch: 8 intensities - rank 6 (eq. 6).
+N_INTERNAL = 2
 
 if TYPE_CHECKING:
     from ias_gym.envs.glove_grasp import GloveGraspEnv
@@ -58,9 +63,10 @@ def glove_session_source(source: str, glove_id: str) -> str:
 class GloveSkillModelRecorder(SkillModelSamples):
     """Samples the skill model of a glove env, one :meth:`sample` per observation.
 
-    Its :meth:`model` is a pinch: ``f_int`` has one column (the squeeze). The contacts are
-    the env's own (``GloveGraspEnv.contact_pass``): the pass over MuJoCo's contacts that
-    gave the step's force display also gives W and c.
+    Soft-finger pinch (module docstring): ``c`` has 8 columns, W is 6 x 8 of rank 6 while
+    both fingers touch, so G (eq. 8) exists; ``f_int`` has two columns (the squeeze and the
+    opposed torsions). The contacts are the env's own (``GloveGraspEnv.contact_pass``):
+    the pass over MuJoCo's contacts that gave the step's force display also gives W and c.
     """
 
     def sample(self, env: GloveGraspEnv) -> None:
@@ -74,7 +80,7 @@ class GloveSkillModelRecorder(SkillModelSamples):
         """
         # MuJoCo scene code: imported on first use, so that importing the skills package
         # (the database) does not load MuJoCo.
-        from ias_gym.sim.glove_contacts import squeeze_null_vector
+        from ias_gym.sim.glove_contacts import pinch_null_basis
 
         if env.contact_pass is None:
             raise RuntimeError("sample the glove env after reset() or step()")
@@ -82,12 +88,13 @@ class GloveSkillModelRecorder(SkillModelSamples):
         contacts = p.finger_contacts(env.contact_pass)
         W, active = p.wrench_matrix(contacts)
         c = p.contact_intensities(contacts)
-        N = squeeze_null_vector(W, contacts)
+        N = pinch_null_basis(W, contacts)
         if N is not None:
-            f_int = np.array([N @ c])
-            c_h = N * f_int[0]
+            # G (eq. 8) exists: c = W+ W c + N N^T c (eqs. 4-7), f_int = N^T c (eq. 10).
+            f_int = N.T @ c
+            c_h = N @ f_int
         else:
-            f_int = np.full(1, np.nan)
+            f_int = np.full(N_INTERNAL, np.nan)
             c_h = np.full(c.shape, np.nan)
         # sliding left out: a glove session has no sliding schedule
         self._append(time=env.data.time, pen=p, W=W, touching=active, c=c, c_h=c_h, f_int=f_int)
