@@ -1,7 +1,9 @@
 """Evaluating a policy on an ``IAS-*`` environment: success rate, return, task errors, video.
 
 :func:`evaluate` takes a policy object with SB3's ``predict`` (as SB3's ``evaluate_policy``
-does); :func:`evaluate_spec` is its convenience from strings (env id, policy spec). Policies
+does); :func:`evaluate_spec` is its convenience from strings (env id, policy spec), whose
+episodes (:class:`EpisodeJob`, one per seed) run here, on local worker processes or on Ray
+(:mod:`ias_gym.parallel`) with the same results. Policies
 are loaded by :func:`ias_gym.baselines.policies.load_policy` (re-exported here with
 its errors, :data:`TELEOP` and :data:`Policy`, for the callers that import them from here).
 """

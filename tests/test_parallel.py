@@ -8,6 +8,7 @@ import json
 import os
 import signal
 import sys
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -193,22 +194,25 @@ def test_a_job_that_always_kills_its_worker_is_named(tmp_path: Path) -> None:
     assert got == [i * i for i in range(8) if i != 5]  # every other result is there, in order
 
 
+@pytest.fixture(scope="class")
+def local_ray() -> Iterator[None]:
+    """A local Ray for the tests of one class (the runner uses an initialised Ray as is)."""
+    import ray
+
+    # The workers import this module (its Killer job) from the tests folder: the local
+    # Ray's processes inherit this process's environment.
+    here = str(Path(__file__).parent)
+    path = os.pathsep.join(p for p in (here, os.environ.get("PYTHONPATH")) if p)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("PYTHONPATH", path)
+        ray.init(address="local", num_cpus=2, include_dashboard=False, logging_level="WARNING")
+    yield
+    ray.shutdown()
+
+
 @needs_ray
+@pytest.mark.usefixtures("local_ray")
 class TestRayFaults:
-    @pytest.fixture(scope="class", autouse=True)
-    def local_ray(self) -> Any:
-        import ray
-
-        # The workers import this module (its Killer job) from the tests folder: the local
-        # Ray's processes inherit this process's environment.
-        here = str(Path(__file__).parent)
-        path = os.pathsep.join(p for p in (here, os.environ.get("PYTHONPATH")) if p)
-        with pytest.MonkeyPatch.context() as patch:
-            patch.setenv("PYTHONPATH", path)
-            ray.init(address="local", num_cpus=2, include_dashboard=False, logging_level="WARNING")
-        yield
-        ray.shutdown()
-
     def test_a_killed_task_is_retried_once(self, tmp_path: Path) -> None:
         results = run_jobs(Killer(str(tmp_path), victim=2), range(5), Backend("ray", 0))
         assert [r[0] for r in results] == [i * i for i in range(5)]
