@@ -31,6 +31,8 @@ from ias_gym.skills.db import DEMO_ARRAYS, MODEL_ARRAYS, SkillDB
 SHORT = {"duration": 1.2}
 EVALUATE = ["evaluate", "--env", "IAS-PenRotate-v0", "--episodes", "8", "--seed", "3", "--json"]
 EVALUATE += ["--env-kwargs", json.dumps(SHORT)]
+#: Recorded episodes: 0.3 s of PenRotate, tracking judged from 0.2 s on [s].
+RECORD_KWARGS = {"duration": 0.3, "settle_time": 0.2}
 
 try:
     import ray  # noqa: F401
@@ -96,6 +98,19 @@ def test_evaluate_json_is_the_same_on_a_local_ray(capsys: pytest.CaptureFixture[
     assert not ray.is_initialized()  # the local Ray started for the run is shut down
 
 
+def test_the_video_episode_rendered_here_is_the_workers_episode(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """With --video the first episode runs here in a rendering env, the others on workers:
+    the summary is still the serial one without a video."""
+    argv = [*EVALUATE[:4], "3", *EVALUATE[5:]]  # 3 episodes
+    serial = _json_line(argv, capsys)
+    video = tmp_path / "first.mp4"
+    with_video = _json_line([*argv, "--workers", "2", "--video", str(video)], capsys)
+    assert with_video.pop("video") == str(video) and video.stat().st_size > 0
+    assert json.dumps(with_video) == json.dumps(serial)
+
+
 def test_random_policy_episodes_depend_on_their_seed_alone() -> None:
     """The random policy's actions are seeded per episode: seed 5 run second (serially),
     first (its own run) or on whichever worker gives the same episode."""
@@ -153,26 +168,26 @@ def test_recording_on_2_workers_writes_the_serial_database(tmp_path: Path) -> No
     """Workers return skills, this process writes them in seed order: the same database as a
     serial run, array for array, bit for bit (ids and creation times aside)."""
     argv = ["skills", "record", "--env", "IAS-PenRotate-v0", "--episodes", "4", "--seed", "2"]
-    argv += [
-        "--policy",
-        "random",
-        "--env-kwargs",
-        json.dumps({"duration": 0.3, "settle_time": 0.2}),
-        "--no-progress",
-    ]
+    argv += ["--policy", "random", "--env-kwargs", json.dumps(RECORD_KWARGS), "--no-progress"]
     assert main([*argv, "--db", str(tmp_path / "serial.db")]) == 0
     assert main([*argv, "--db", str(tmp_path / "pool.db"), "--workers", "2"]) == 0
-    serial, pool = _skills(tmp_path / "serial.db"), _skills(tmp_path / "pool.db")
-    assert [info["seed"] for info, _ in serial] == [2, 3, 4, 5]
-    assert len(pool) == len(serial)
-    for (info_a, arrays_a), (info_b, arrays_b) in zip(serial, pool, strict=True):
+    _assert_same_databases(tmp_path / "serial.db", tmp_path / "pool.db", seeds=[2, 3, 4, 5])
+
+
+def _assert_same_databases(a: Path, b: Path, seeds: list[int]) -> None:
+    serial, other = _skills(a), _skills(b)
+    assert [info["seed"] for info, _ in serial] == seeds
+    assert len(other) == len(serial)
+    for (info_a, arrays_a), (info_b, arrays_b) in zip(serial, other, strict=True):
         assert info_a == info_b
         assert arrays_a.keys() == arrays_b.keys()
-        for name, a in arrays_a.items():
-            b = arrays_b[name]
-            assert (a.dtype, a.shape, a.tobytes()) == (b.dtype, b.shape, b.tobytes()), name
+        for name, x in arrays_a.items():
+            y = arrays_b[name]
+            assert (x.dtype, x.shape, x.tobytes()) == (y.dtype, y.shape, y.tobytes()), name
     # different seeds made different episodes (the comparison above is not vacuous)
-    assert serial[0][1]["demo/actions"].tobytes() != serial[1][1]["demo/actions"].tobytes()
+    assert (
+        serial[0][1]["demo/observations"].tobytes() != serial[1][1]["demo/observations"].tobytes()
+    )
 
 
 # ---------------------------------------------------------------- faults
@@ -212,7 +227,19 @@ def local_ray() -> Iterator[None]:
 
 @needs_ray
 @pytest.mark.usefixtures("local_ray")
-class TestRayFaults:
+class TestOnRay:
+    def test_recording_on_ray_writes_the_serial_database(self, tmp_path: Path) -> None:
+        """Skills recorded by Ray tasks come back through Ray's serialisation intact."""
+        from ias_gym.skills.record import record_skills_spec
+
+        run: dict[str, Any] = {"seed": 7, "progress": False, "env_kwargs": RECORD_KWARGS}
+        record_skills_spec("IAS-PenRotate-v0", "expert", 3, tmp_path / "serial.db", **run)
+        on_ray = tmp_path / "ray.db"
+        record_skills_spec(
+            "IAS-PenRotate-v0", "expert", 3, on_ray, backend=Backend("ray", 0), **run
+        )
+        _assert_same_databases(tmp_path / "serial.db", on_ray, seeds=[7, 8, 9])
+
     def test_a_killed_task_is_retried_once(self, tmp_path: Path) -> None:
         results = run_jobs(Killer(str(tmp_path), victim=2), range(5), Backend("ray", 0))
         assert [r[0] for r in results] == [i * i for i in range(5)]
