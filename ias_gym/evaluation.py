@@ -1,13 +1,16 @@
 """Evaluating a policy on an ``IAS-*`` environment: success rate, return, task errors, video.
 
 :func:`evaluate` takes a policy object with SB3's ``predict`` (as SB3's ``evaluate_policy``
-does); :func:`evaluate_spec` is its convenience from strings (env id, policy spec). Policies
+does); :func:`evaluate_spec` is its convenience from strings (env id, policy spec), whose
+episodes (:class:`EpisodeJob`, one per seed) run here, on local worker processes or on Ray
+(:mod:`ias_gym.parallel`) with the same results. Policies
 are loaded by :func:`ias_gym.baselines.policies.load_policy` (re-exported here with
 its errors, :data:`TELEOP` and :data:`Policy`, for the callers that import them from here).
 """
 
 from __future__ import annotations
 
+import json
 import math
 import os
 from collections.abc import Mapping
@@ -26,10 +29,12 @@ from ias_gym.baselines.policies import (  # re-exported: the loader's home is th
     MissingDependencyError,
     Policy,
     PolicyNotFoundError,
+    RandomPolicy,
     load_policy,
 )
 from ias_gym.errors import IasGymError, InputError
 from ias_gym.outputs import atomic_output, check_output_file
+from ias_gym.parallel import SERIAL, Backend, prepare_here, run_jobs, worker_resource
 
 #: Frame rate of evaluation videos [1/s]; the env's frames are thinned to it.
 VIDEO_FPS = 25
@@ -64,13 +69,7 @@ def make_env(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
         InputError: the env refused ``kwargs`` (unknown, ill-typed or out of range; the
             message names them and, for the IAS envs, lists the known ones).
     """
-    try:
-        gym.spec(env_id)
-    except gym.error.Error as exc:
-        ids = ", ".join(sorted(i for i in gym.registry if i.startswith("IAS-")))
-        raise UnknownEnvError(
-            f"unknown env id {env_id!r} ({' '.join(str(exc).split())}); the IAS envs are: {ids}"
-        ) from None
+    check_env_id(env_id)
     try:
         return gym.make(env_id, **kwargs)
     except IasGymError:
@@ -80,6 +79,137 @@ def make_env(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
         # appends where it was raised, which the message below says already.
         reason = " ".join(str(exc).split()).split(" was raised from the environment creator")[0]
         raise InputError(f"{env_id} does not accept env kwargs {kwargs}: {reason}") from exc
+
+
+def check_env_id(env_id: str) -> None:
+    """Check that gymnasium knows ``env_id`` (without making the env).
+
+    Raises:
+        UnknownEnvError: ``env_id`` is not registered (the message lists the IAS ids).
+    """
+    try:
+        gym.spec(env_id)
+    except gym.error.Error as exc:
+        ids = ", ".join(sorted(i for i in gym.registry if i.startswith("IAS-")))
+        raise UnknownEnvError(
+            f"unknown env id {env_id!r} ({' '.join(str(exc).split())}); the IAS envs are: {ids}"
+        ) from None
+
+
+@dataclass(frozen=True)
+class EpisodeOutcome:
+    """One episode's outcome (what a worker sends back: plain numbers).
+
+    Attributes:
+        is_success: the env's ``is_success`` at the end.
+        episode_return: the sum of the rewards [-].
+        length: number of steps.
+        metrics: the env's ``episode_metrics`` (SI units; NaN: not defined).
+    """
+
+    is_success: bool
+    episode_return: float
+    length: int
+    metrics: dict[str, float]
+
+
+def run_episode(
+    env: gym.Env[Any, Any],
+    policy: Policy,
+    seed: int,
+    *,
+    reset_options: Mapping[str, Any] | None = None,
+    frames: list[np.ndarray] | None = None,
+    stride: int = 1,
+) -> EpisodeOutcome:
+    """Run one episode of ``policy`` from ``env.reset(seed=seed)``.
+
+    The first ``predict`` gets ``episode_start=True`` and ``state=None`` (a stateful
+    policy, the expert's controller, starts afresh); later steps pass the state the
+    previous call returned. Actions are deterministic.
+
+    Args:
+        env: the env (not closed here).
+        policy: an object with SB3's ``predict``.
+        seed: the reset seed.
+        reset_options: ``options`` of ``env.reset`` (see :func:`evaluate`).
+        frames: if given, ``env.render()`` of every ``stride``-th step is appended.
+        stride: the frame stride (>= 1).
+
+    Returns:
+        The outcome.
+    """
+    options = dict(reset_options) if reset_options is not None else None
+    obs, info = env.reset(seed=seed, options=options)
+    total, length, done = 0.0, 0, False
+    state: Any = None
+    while not done:
+        if frames is not None and length % stride == 0:
+            frames.append(env.render())  # type: ignore[arg-type]
+        action, state = policy.predict(
+            obs, state=state, episode_start=length == 0, deterministic=True
+        )
+        obs, reward, terminated, truncated, info = env.step(action)
+        total += float(reward)
+        length += 1
+        done = terminated or truncated
+    metrics = env.unwrapped.episode_metrics(info)  # type: ignore[attr-defined]
+    return EpisodeOutcome(bool(info["is_success"]), total, length, metrics)
+
+
+def seed_policy(policy: Policy, seed: int) -> None:
+    """Seed ``policy`` for the episode of ``seed``: the ``random`` policy samples its actions
+    from a stream seeded with the episode's seed (the others are deterministic).
+
+    What makes an episode depend on its seed alone, not on the episodes run before it in
+    the same process: a worker that runs seeds 3 and 7 gives what a serial run gives.
+    """
+    if isinstance(policy, RandomPolicy):
+        policy.space.seed(seed)
+
+
+@dataclass(frozen=True)
+class EpisodeJob:
+    """One seeded episode of a policy spec on an env spec: the job that
+    :func:`~ias_gym.parallel.run_jobs` maps over seeds (``job(seed) -> EpisodeOutcome``).
+
+    The process that runs it builds the env and loads the policy from the spec (once per
+    process, :func:`~ias_gym.parallel.worker_resource`) and seeds the policy with the
+    episode's seed (:func:`seed_policy`), so the outcome depends on the seed alone.
+
+    Attributes:
+        env_id: a registered id.
+        policy: a policy spec (:func:`load_policy`).
+        env_kwargs: configuration overrides for ``gym.make``.
+        trust_pickle: as for :func:`load_policy`.
+        reset_options: ``options`` of every episode's ``env.reset``.
+    """
+
+    env_id: str
+    policy: str = "expert"
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    trust_pickle: bool = False
+    reset_options: Mapping[str, Any] | None = None
+
+    def key(self) -> tuple[str, str, str, bool]:
+        """What identifies the env and policy a worker builds for this job."""
+        kwargs = json.dumps(dict(self.env_kwargs), sort_keys=True, default=repr)
+        return (self.env_id, kwargs, self.policy, self.trust_pickle)
+
+    def build(self) -> tuple[gym.Env[Any, Any], Policy]:
+        """Make the env and load the policy for it (seeded per episode, not here)."""
+        env = make_env(self.env_id, **self.env_kwargs)
+        try:
+            return env, load_policy(self.policy, env, None, trust_pickle=self.trust_pickle)
+        except BaseException:
+            env.close()
+            raise
+
+    def __call__(self, seed: int) -> EpisodeOutcome:
+        """Run the episode of ``seed``."""
+        env, policy = worker_resource(self.key(), self.build)
+        seed_policy(policy, seed)
+        return run_episode(env, policy, seed, reset_options=self.reset_options)
 
 
 @dataclass
@@ -92,6 +222,13 @@ class EvaluationResult:
     returns: list[float] = field(default_factory=list)
     lengths: list[int] = field(default_factory=list)
     metrics: list[dict[str, float]] = field(default_factory=list)
+
+    def add(self, outcome: EpisodeOutcome) -> None:
+        """Append one episode's outcome."""
+        self.successes.append(outcome.is_success)
+        self.returns.append(outcome.episode_return)
+        self.lengths.append(outcome.length)
+        self.metrics.append(outcome.metrics)
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary: success rate, mean return, and mean/max of each task metric.
@@ -159,7 +296,7 @@ def evaluate(
             asked of an env that does not render ``rgb_array``.
         OutputExistsError: ``video`` exists and ``overwrite`` is false.
     """
-    _check_run(episodes, seed)
+    check_run(episodes, seed)
     if video is not None:  # before any work: a bad path must not cost an episode
         video = check_output_file(video, overwrite=overwrite, suffixes=VIDEO_SUFFIXES, what="video")
         if env.render_mode != "rgb_array":
@@ -176,30 +313,21 @@ def evaluate(
         episode_iter = tqdm(episode_iter, desc=f"{env_id} / {name}", unit="episode")
     for episode in episode_iter:
         frames: list[np.ndarray] | None = [] if (video is not None and episode == 0) else None
-        options = dict(reset_options) if reset_options is not None else None
-        obs, info = env.reset(seed=seed + episode, options=options)
-        total, length, done = 0.0, 0, False
-        state: Any = None
-        while not done:
-            if frames is not None and length % stride == 0:
-                frames.append(env.render())  # type: ignore[arg-type]
-            action, state = policy.predict(
-                obs, state=state, episode_start=length == 0, deterministic=True
-            )
-            obs, reward, terminated, truncated, info = env.step(action)
-            total += float(reward)
-            length += 1
-            done = terminated or truncated
-        result.successes.append(bool(info["is_success"]))
-        result.returns.append(total)
-        result.lengths.append(length)
-        result.metrics.append(env.unwrapped.episode_metrics(info))  # type: ignore[attr-defined]
+        outcome = run_episode(
+            env, policy, seed + episode, reset_options=reset_options, frames=frames, stride=stride
+        )
+        result.add(outcome)
         if frames is not None and video is not None:
             write_video(video, frames, fps=fps / stride, overwrite=overwrite)
     return result
 
 
-def _check_run(episodes: int, seed: int) -> None:
+def check_run(episodes: int, seed: int) -> None:
+    """Check an episode count and a first seed.
+
+    Raises:
+        InputError: ``episodes`` < 1 or ``seed`` < 0.
+    """
     if episodes < 1:
         raise InputError(f"episodes must be >= 1, got {episodes}")
     if seed < 0:
@@ -218,52 +346,72 @@ def evaluate_spec(
     overwrite: bool = False,
     trust_pickle: bool = False,
     reset_options: Mapping[str, Any] | None = None,
+    backend: Backend | None = None,
 ) -> EvaluationResult:
-    """:func:`evaluate` from strings, for the command line and tests: make the env, load the
-    policy spec (:func:`load_policy`, seeded with ``seed``), evaluate, close the env.
+    """Evaluate a policy spec on an env id, for the command line and tests: episodes of
+    seeds ``seed, seed + 1, ...``, each an :class:`EpisodeJob` run on ``backend`` (here, on
+    local worker processes or on Ray), each with the policy seeded by its episode's seed
+    (:func:`seed_policy`): the result is the same on every backend, bit for bit.
 
     Args:
         env_id: a registered id, e.g. ``"IAS-PenSlide-v0"``.
         policy: ``"expert"``, ``"teleop"``, ``"random"`` or a path to a saved SB3 model
             (:func:`load_policy`); also the policy's name in the result.
         episodes: number of episodes (>= 1).
-        seed: seed of the first episode (>= 0) and of the ``random`` policy's sampling.
+        seed: seed of the first episode (>= 0); episode ``i`` (and the ``random`` policy's
+            sampling in it) is seeded with ``seed + i``.
         video: if given, an MP4 of the first episode is written there (needs ``MUJOCO_GL``
-            set for headless rendering, e.g. ``egl``). Checked before the env is built:
-            its directory must exist and be writable.
-        progress: show a progress bar over episodes.
+            set for headless rendering, e.g. ``egl``); that episode runs in this process.
+            Checked before the env is built: its directory must exist and be writable.
+        progress: show a progress bar over episodes (on stderr).
         env_kwargs: configuration overrides passed to ``gym.make``.
         overwrite: replace an existing ``video`` file.
         trust_pickle: load a model file with SB3's own ``load`` (runs code from the file).
         reset_options: as for :func:`evaluate`.
+        backend: where the episodes run (:class:`~ias_gym.parallel.Backend`; default: here).
 
     Raises:
         InputError: bad ``episodes``/``seed``, unusable ``video`` path, unknown env id or
             env kwargs, or a policy that cannot be loaded for this env (see
             :func:`make_env`, :func:`load_policy`).
         OutputExistsError: ``video`` exists and ``overwrite`` is false.
+        WorkerDiedError: a worker process died twice running the same episode.
     """
-    _check_run(episodes, seed)
+    check_run(episodes, seed)
     if video is not None:  # before the env is built: a bad path must not cost its build
         video = check_output_file(video, overwrite=overwrite, suffixes=VIDEO_SUFFIXES, what="video")
-    kwargs = dict(env_kwargs or {})
-    if video is not None:
-        os.environ.setdefault("MUJOCO_GL", "egl")
-        kwargs["render_mode"] = "rgb_array"
-    env = make_env(env_id, **kwargs)
+    check_env_id(env_id)  # before workers start: an unknown id fails here, at once
+    job = EpisodeJob(env_id, policy, dict(env_kwargs or {}), trust_pickle, reset_options)
+    backend = backend or SERIAL
+    prepare_here(job.key(), job.build, backend)  # a bad kwarg or policy fails here, at once
+    result = EvaluationResult(env_id=env_id, policy=policy)
+    seeds = list(range(seed, seed + episodes))
+    if video is not None:  # the first episode is rendered here, the others run anywhere
+        result.add(_video_episode(job, seeds.pop(0), video, overwrite=overwrite))
+    for outcome in run_jobs(job, seeds, backend, desc=f"{env_id} / {policy}", progress=progress):
+        result.add(outcome)
+    return result
+
+
+def _video_episode(job: EpisodeJob, seed: int, video: Path, *, overwrite: bool) -> EpisodeOutcome:
+    """Run ``job``'s episode of ``seed`` here in an env that renders, and write its video.
+
+    Rendering reads the simulation without changing it: the outcome is the one a worker
+    computes without rendering.
+    """
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    env = make_env(job.env_id, **{**job.env_kwargs, "render_mode": "rgb_array"})
     try:
-        act = load_policy(policy, env, seed, trust_pickle=trust_pickle)
-        return evaluate(
-            env,
-            act,
-            episodes,
-            seed,
-            name=policy,
-            video=video,
-            progress=progress,
-            overwrite=overwrite,
-            reset_options=reset_options,
+        act = load_policy(job.policy, env, None, trust_pickle=job.trust_pickle)
+        seed_policy(act, seed)
+        fps = float(env.metadata.get("render_fps", 50))
+        stride = max(1, round(fps / VIDEO_FPS))  # render only the frames the video keeps
+        frames: list[np.ndarray] = []
+        outcome = run_episode(
+            env, act, seed, reset_options=job.reset_options, frames=frames, stride=stride
         )
+        write_video(video, frames, fps=fps / stride, overwrite=overwrite)
+        return outcome
     finally:
         env.close()
 
@@ -311,15 +459,21 @@ __all__ = [
     "TELEOP",
     "VIDEO_FPS",
     "VIDEO_SUFFIXES",
+    "EpisodeJob",
+    "EpisodeOutcome",
     "EvaluationResult",
     "MissingDependencyError",
     "Policy",
     "PolicyNotFoundError",
     "UnknownEnvError",
+    "check_env_id",
+    "check_run",
     "evaluate",
     "evaluate_spec",
     "load_policy",
     "make_env",
     "report",
+    "run_episode",
+    "seed_policy",
     "write_video",
 ]

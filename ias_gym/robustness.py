@@ -10,13 +10,21 @@ classes and their sizes: docs/robustness.md.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 from ias_gym.baselines.policies import PolicyFactory
 from ias_gym.errors import InputError
-from ias_gym.evaluation import evaluate, make_env
+from ias_gym.evaluation import (
+    EpisodeJob,
+    EpisodeOutcome,
+    check_env_id,
+    check_run,
+    evaluate,
+    make_env,
+)
+from ias_gym.parallel import SERIAL, Backend, prepare_here, run_jobs
 
 #: The classes: name -> env kwargs. A person does not know mu or the pen's mass either.
 DISTURBANCES: dict[str, dict[str, Any]] = {
@@ -126,6 +134,89 @@ def run_robustness(
         rate = float(sum(result.successes)) / len(result.successes)
         rows.append(
             RobustnessRow(disturbance, rate, len(result.successes), DISTURBANCES[disturbance])
+        )
+    return rows
+
+
+@dataclass(frozen=True)
+class DisturbanceJob:
+    """One seeded episode in one disturbance class: the job :func:`run_robustness_spec` maps
+    over ``(class, seed)`` pairs (``job((class, seed)) -> EpisodeOutcome``), on any backend.
+
+    Attributes:
+        env_id: a pen task.
+        policy: a policy spec (:func:`~ias_gym.baselines.policies.load_policy`).
+        env_kwargs: env kwargs of every class (a class's own win).
+        trust_pickle: as for :func:`~ias_gym.baselines.policies.load_policy`.
+    """
+
+    env_id: str
+    policy: str = "expert"
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    trust_pickle: bool = False
+
+    def episode_job(self, disturbance: str) -> EpisodeJob:
+        """The :class:`~ias_gym.evaluation.EpisodeJob` of one class."""
+        kwargs = {**self.env_kwargs, **DISTURBANCES[disturbance]}
+        return EpisodeJob(self.env_id, self.policy, kwargs, self.trust_pickle)
+
+    def __call__(self, item: tuple[str, int]) -> EpisodeOutcome:
+        """Run the episode of ``item = (class name, seed)``."""
+        disturbance, seed = item
+        return self.episode_job(disturbance)(seed)
+
+
+def run_robustness_spec(
+    env_id: str,
+    policy: str = "expert",
+    episodes: int = 100,
+    seed: int = 0,
+    classes: Sequence[str] | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+    progress: bool = False,
+    *,
+    trust_pickle: bool = False,
+    backend: Backend | None = None,
+) -> list[RobustnessRow]:
+    """:func:`run_robustness` of a policy spec, its episodes run on ``backend``.
+
+    Every ``(class, seed)`` episode is one :class:`DisturbanceJob`, with the policy seeded
+    by the episode's seed (:func:`~ias_gym.evaluation.seed_policy`): the rows are the same
+    on every backend, bit for bit.
+
+    Args:
+        env_id: a pen task, e.g. ``"IAS-PenRotate-v0"``.
+        policy: ``"expert"``, ``"random"`` or the path of a saved SB3 model.
+        episodes: episodes per class (>= 1).
+        seed: seed of the first episode (>= 0); every class runs the same seeds.
+        classes: names of :data:`DISTURBANCES` (``None``: all of them).
+        env_kwargs: further env kwargs for every class (a class's own win).
+        progress: one progress bar over all episodes (on stderr).
+        trust_pickle: load a model file with SB3's own ``load`` (runs code from the file).
+        backend: where the episodes run (:class:`~ias_gym.parallel.Backend`; default: here).
+
+    Returns:
+        One row per class, in the order asked.
+
+    Raises:
+        InputError: an unknown class, env id or env kwarg, bad ``episodes``/``seed``, or a
+            policy that cannot be loaded for the env.
+        WorkerDiedError: a worker process died twice running the same episode.
+    """
+    names = check_classes(classes)
+    check_run(episodes, seed)
+    check_env_id(env_id)
+    job = DisturbanceJob(env_id, policy, dict(env_kwargs or {}), trust_pickle)
+    backend = backend or SERIAL
+    first = job.episode_job(names[0])
+    prepare_here(first.key(), first.build, backend)  # a bad kwarg or policy fails at once
+    items = [(name, s) for name in names for s in range(seed, seed + episodes)]
+    outcomes = run_jobs(job, items, backend, desc=f"{env_id} / {policy}", progress=progress)
+    rows = []
+    for k, name in enumerate(names):
+        successes = [o.is_success for o in outcomes[k * episodes : (k + 1) * episodes]]
+        rows.append(
+            RobustnessRow(name, sum(successes) / len(successes), episodes, DISTURBANCES[name])
         )
     return rows
 

@@ -102,14 +102,14 @@ def test_gymnasium_errors_are_one_line_and_bugs_still_raise(
     def gym_error(*args: object, **kwargs: object) -> None:
         raise gym.error.ResetNeeded("Cannot call env.step() before calling env.reset()\nat all")
 
-    monkeypatch.setattr(ias_gym.evaluation, "evaluate", gym_error)
+    monkeypatch.setattr(ias_gym.evaluation, "run_episode", gym_error)
     line = _one_error_line(EVALUATE, capsys)
     assert line == "ias-gym: error: Cannot call env.step() before calling env.reset() at all"
 
     def bug(*args: object, **kwargs: object) -> None:
         raise ZeroDivisionError("a bug, not the user's mistake")
 
-    monkeypatch.setattr(ias_gym.evaluation, "evaluate", bug)
+    monkeypatch.setattr(ias_gym.evaluation, "run_episode", bug)
     with pytest.raises(ZeroDivisionError):
         main(EVALUATE)
     assert is_user_error(InputError("x")) and not is_user_error(KeyError("x"))

@@ -13,17 +13,19 @@ from typing import Any
 
 from ias_gym.cli.args import (
     HelpFormatter,
+    backend_from_args,
     env_kwargs_argument,
-    non_negative_int,
     overwrite_argument,
+    parallel_arguments,
     parse_env_kwargs,
-    positive_int,
+    policy_arguments,
 )
 
 
 def _evaluate(args: argparse.Namespace) -> int:
     from ias_gym.evaluation import evaluate_spec
 
+    backend = backend_from_args(args)  # a missing Ray extra fails before any work
     result = evaluate_spec(
         args.env,
         policy=args.policy,
@@ -34,6 +36,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         env_kwargs=parse_env_kwargs(args.env_kwargs),
         overwrite=args.overwrite,
         trust_pickle=args.trust_pickle,
+        backend=backend,
     )
     summary = result.summary()
     if args.video is not None:
@@ -61,31 +64,14 @@ def add_evaluate_command(subparsers: argparse._SubParsersAction[Any]) -> None:
     evaluate = subparsers.add_parser(
         "evaluate",
         help="run a policy on an environment: success rate, return, task errors",
-        description="Evaluate a policy over N seeded episodes (seeds S, S+1, ...). Task "
+        description="Evaluate a policy over N seeded episodes (seeds S, S+1, ...), here or "
+        "on local worker processes (--workers) or Ray (--ray), with the same results. Task "
         "errors are printed with their unit in the name (_mm, _deg, _pct, _N).",
         formatter_class=HelpFormatter,
     )
     evaluate.add_argument("--env", required=True, metavar="ID", help="e.g. IAS-PenSlide-v0")
-    evaluate.add_argument(
-        "--policy",
-        default="expert",
-        metavar="expert|teleop|random|PATH",
-        help="the grip-transform expert (pen tasks), zero action (glove envs: the glove "
-        "alone drives the hand), uniform random actions, or a saved SB3 model (.zip, "
-        "loaded without running code from it)",
-    )
-    evaluate.add_argument(
-        "--trust-pickle",
-        action="store_true",
-        help="load a model file with SB3's own load, which unpickles it and so runs code "
-        "stored in it: only for files you trust",
-    )
-    evaluate.add_argument(
-        "--episodes", type=positive_int, default=10, metavar="N", help="number of episodes"
-    )
-    evaluate.add_argument(
-        "--seed", type=non_negative_int, default=0, metavar="S", help="seed of the first episode"
-    )
+    policy_arguments(evaluate, episodes=10)
+    parallel_arguments(evaluate)
     evaluate.add_argument(
         "--json", action="store_true", help="print one JSON object as the last line"
     )

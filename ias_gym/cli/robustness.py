@@ -12,31 +12,29 @@ from typing import Any
 
 from ias_gym.cli.args import (
     HelpFormatter,
+    backend_from_args,
     env_kwargs_argument,
-    non_negative_int,
+    parallel_arguments,
     parse_env_kwargs,
-    positive_int,
+    policy_arguments,
 )
 
 
 def _robustness(args: argparse.Namespace) -> int:
-    from ias_gym.baselines.policies import Policy, load_policy
-    from ias_gym.robustness import check_classes, run_robustness, summary_row
+    from ias_gym.robustness import check_classes, run_robustness_spec, summary_row
 
     classes = check_classes(None if args.classes is None else args.classes.split(","))
-
-    def load(env: Any) -> Policy:  # the spec is resolved here, once per class's env
-        return load_policy(args.policy, env, args.seed, trust_pickle=args.trust_pickle)
-
-    rows = run_robustness(
+    backend = backend_from_args(args)  # a missing Ray extra fails before any work
+    rows = run_robustness_spec(
         args.env,
-        load,
+        args.policy,
         episodes=args.episodes,
         seed=args.seed,
         classes=classes,
         env_kwargs=parse_env_kwargs(args.env_kwargs),
         progress=not args.json,
-        name=args.policy,
+        trust_pickle=args.trust_pickle,
+        backend=backend,
     )
     last = summary_row(rows)
     if args.json:
@@ -65,25 +63,21 @@ def add_robustness_command(subparsers: argparse._SubParsersAction[Any]) -> None:
         description="Evaluate a policy on the same seeds under each disturbance class of "
         "ias_gym.robustness.DISTURBANCES (pen friction and mass scaled, a push, sensor noise, "
         "action noise and delay, internal-force reference steps). With --json: one object per "
-        'class, then one with "disturbance": "all" and the minimum success rate.',
+        'class, then one with "disturbance": "all" and the minimum success rate. The '
+        "episodes run here, on local worker processes (--workers) or on Ray (--ray), with "
+        "the same results.",
         formatter_class=HelpFormatter,
     )
     robustness.add_argument("--env", required=True, metavar="ID", help="e.g. IAS-PenRotate-v0")
-    robustness.add_argument(
-        "--policy",
-        default="expert",
-        metavar="expert|random|PATH",
-        help="the grip-transform expert, uniform random actions, or a saved SB3 model (.zip)",
+    policy_arguments(
+        robustness,
+        episodes=100,
+        episodes_help="episodes per class",
+        policies="expert|random|PATH",
+        policy_help="the grip-transform expert, uniform random actions, or a saved SB3 model "
+        "(.zip, loaded without running code from it)",
     )
-    robustness.add_argument(
-        "--trust-pickle", action="store_true", help="as for evaluate: only for files you trust"
-    )
-    robustness.add_argument(
-        "--episodes", type=positive_int, default=100, metavar="N", help="episodes per class"
-    )
-    robustness.add_argument(
-        "--seed", type=non_negative_int, default=0, metavar="S", help="seed of the first episode"
-    )
+    parallel_arguments(robustness)
     robustness.add_argument(
         "--classes",
         metavar="A,B,...",

@@ -1,4 +1,5 @@
-"""The ``ias-gym skills`` command group: record, list, show, export, check, delete, migrate.
+"""The ``ias-gym skills`` command group: record, merge, list, show, export, check, delete,
+migrate.
 
 :func:`add_skills_commands` adds the group to the ``ias-gym`` parser's sub-commands; each
 handler takes the parsed arguments and returns an exit code (0 ok; ``check``: 2 when a skill
@@ -21,7 +22,15 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from ias_gym.cli.args import env_kwargs_argument, parse_env_kwargs
+from ias_gym.cli.args import (
+    HelpFormatter,
+    backend_from_args,
+    env_kwargs_argument,
+    overwrite_argument,
+    parallel_arguments,
+    parse_env_kwargs,
+    policy_arguments,
+)
 from ias_gym.errors import IasGymError, InputError
 from ias_gym.glove.skills import SKILLS
 
@@ -50,6 +59,7 @@ def _as_package_errors() -> Iterator[None]:
 def _record(args: argparse.Namespace) -> int:
     from ias_gym.skills.record import record_skills_spec
 
+    backend = backend_from_args(args)  # a missing Ray extra fails before any work
     with _as_package_errors():
         env_kwargs = parse_env_kwargs(args.env_kwargs)
         ids = record_skills_spec(
@@ -62,8 +72,19 @@ def _record(args: argparse.Namespace) -> int:
             env_kwargs=env_kwargs,
             person_id=args.person,
             skill=args.skill,
+            trust_pickle=args.trust_pickle,
+            backend=backend,
         )
     print(f"stored {len(ids)} skills (ids {', '.join(map(str, ids))}) in {args.db}")
+    return 0
+
+
+def _merge(args: argparse.Namespace) -> int:
+    from ias_gym.skills.db_merge import merge_databases
+
+    counts = merge_databases(args.out, args.dbs, overwrite=args.overwrite)
+    parts = ", ".join(f"{n} from {db}" for n, db in zip(counts, args.dbs, strict=True))
+    print(f"wrote {sum(counts)} skills to {args.out} ({parts})")
     return 0
 
 
@@ -200,8 +221,8 @@ def _migrate(args: argparse.Namespace) -> int:
 
 
 def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse.ArgumentParser:
-    """Add ``skills`` with its sub-commands ``record``, ``list``, ``show``, ``export``,
-    ``check``, ``delete`` and ``migrate``.
+    """Add ``skills`` with its sub-commands ``record``, ``merge``, ``list``, ``show``,
+    ``export``, ``check``, ``delete`` and ``migrate``.
 
     Args:
         subparsers: the object ``parser.add_subparsers(...)`` returned; each leaf parser
@@ -226,32 +247,29 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
         help="roll out a policy and store every episode as a skill",
         description="Run N seeded episodes (seeds S, S+1, ...) and store each, successful "
         "or not, with its skill model and demonstration; prints the new ids. On a glove env "
-        "(IAS-GloveGrasp-v0) each episode is a glove session (--policy teleop).",
+        "(IAS-GloveGrasp-v0) each episode is a glove session (--policy teleop). The "
+        "episodes run here, on local worker processes (--workers) or on Ray (--ray); this "
+        "process alone writes them, in seed order, with the same content on every backend.",
+        formatter_class=HelpFormatter,
     )
     record.add_argument(
         "--env", required=True, metavar="ID", help="e.g. IAS-PenRotate-v0, IAS-GloveGrasp-v0"
     )
-    record.add_argument(
-        "--policy",
-        default="expert",
-        metavar="expert|teleop|random|PATH",
-        help="the grip-transform expert (pen tasks), teleop (glove envs: zero action, a glove "
-        "session), uniform random actions, or a saved SB3 model (.zip) (default: expert)",
-    )
-    record.add_argument(
-        "--episodes", type=int, default=1, metavar="N", help="episodes to record (default: 1)"
+    policy_arguments(
+        record,
+        episodes=1,
+        episodes_help="episodes to record",
+        policy_help="the grip-transform expert (pen tasks), teleop (glove envs: zero action, "
+        "a glove session), uniform random actions, or a saved SB3 model (.zip)",
     )
     db_argument(record, "skill database file, created with its folder if missing")
-    record.add_argument(
-        "--seed", type=int, default=0, metavar="S", help="seed of the first episode (default: 0)"
-    )
     env_kwargs_argument(record)
     record.add_argument(
         "--person",
         metavar="ID",
         help="person id stored with the skills: letters, digits, '.', '_', '-' (glove envs: "
-        "the simulated person wearing the glove, any id; default: the env's, p1) "
-        "(default: none)",
+        "the simulated person wearing the glove, any id) (default: none stored; on glove envs "
+        "the env's person, p1)",
     )
     record.add_argument(
         "--skill",
@@ -260,7 +278,23 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
         f"{', '.join(SKILLS)} (stored as the skills' name) (default: none, the pinch-lift)",
     )
     record.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parallel_arguments(record)
     record.set_defaults(run=_record)
+
+    merge = commands.add_parser(
+        "merge",
+        help="join skill databases into one new file",
+        description="Copy every skill of the given databases, in their order, into one new "
+        "database (new ids; provenance and arrays kept bit for bit). Every array is verified "
+        "against its checksum when read; the output is written to a temporary file and "
+        "renamed into place when complete, and an existing one is replaced only with "
+        "--overwrite.",
+        formatter_class=HelpFormatter,
+    )
+    merge.add_argument("--out", required=True, metavar="PATH", help="the merged database")
+    merge.add_argument("dbs", nargs="+", metavar="DB", help="skill databases to join")
+    overwrite_argument(merge)
+    merge.set_defaults(run=_merge)
 
     listing = commands.add_parser(
         "list",

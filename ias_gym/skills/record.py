@@ -19,7 +19,9 @@ carry the env's person and the glove's id, and a glove skill (``skill`` env kwar
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -28,11 +30,12 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
-from ias_gym.baselines.policies import Policy, load_policy, policy_source
+from ias_gym.baselines.policies import Policy, RandomPolicy, load_policy, policy_source
 from ias_gym.errors import InputError
 from ias_gym.glove.ids import check_id
 from ias_gym.glove.skills import check_skill
 from ias_gym.grasp.grip_transform import GraspRankError, GripTransform
+from ias_gym.parallel import SERIAL, Backend, iter_jobs, prepare_here, worker_resource
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.glove_session import GloveSkillModelRecorder, glove_session_source
 from ias_gym.skills.skill import Demonstration, Skill, SkillModel, SkillModelSamples
@@ -327,9 +330,18 @@ def record_skills_spec(
     env_kwargs: Mapping[str, Any] | None = None,
     person_id: str | None = None,
     skill: str | None = None,
+    trust_pickle: bool = False,
+    backend: Backend | None = None,
 ) -> list[int]:
-    """:func:`record_skills` from strings, for the command line and tests: make the env,
-    load ``policy_spec`` for it (seeded with ``seed``), record, close the env.
+    """Record ``episodes`` episodes of a policy spec into a skill database, the episodes
+    run on ``backend`` (here, local worker processes or Ray; :class:`RecordJob`).
+
+    Workers send the recorded :class:`Skill` objects (plain arrays) back; this process is
+    the database's only writer and stores them in seed order, each in its own transaction,
+    as soon as the ones before it are in (an interrupted run keeps them). Episode ``i`` is
+    reset with seed ``seed + i`` and the ``random`` policy's sampling is seeded with it
+    too, so the database holds the same skills on every backend (ids and creation times
+    aside).
 
     On a glove env, ``person_id`` chooses the env's person (``env_kwargs["person_id"]``)
     unless the env kwargs name one, and ``skill`` the skill the person performs
@@ -346,6 +358,8 @@ def record_skills_spec(
         env_kwargs: configuration overrides for ``gym.make`` (e.g. ``{"duration": 0.5}``).
         person_id: stored as the skills' person id (glove envs: the env's person).
         skill: a glove skill (:data:`~ias_gym.glove.skills.SKILLS`; glove envs only).
+        trust_pickle: load a model file with SB3's own ``load`` (runs code from the file).
+        backend: where the episodes run (:class:`~ias_gym.parallel.Backend`; default: here).
 
     Returns:
         The new skills' ids, in episode order.
@@ -357,6 +371,8 @@ def record_skills_spec(
         ValueError: ``episodes`` < 1, ``expert`` on a glove env, ``teleop`` on a pen env
             (:func:`~ias_gym.baselines.policies.load_policy`), a person other than the glove
             env's (:func:`record_episode`).
+        WorkerDiedError: a worker process died twice recording the same episode (the
+            episodes before it are stored).
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
@@ -377,18 +393,66 @@ def record_skills_spec(
                 )
     elif skill is not None:
         raise InputError(f"--skill is for glove envs (IAS-GloveGrasp-v0), not {env_id}")
-    env = gym.make(env_id, **kwargs)
-    try:
-        return record_skills(
+    gym.spec(env_id)  # an unknown id fails here, before the database or a worker
+    job = RecordJob(env_id, policy_spec, kwargs, person_id, trust_pickle)
+    backend = backend or SERIAL
+    prepare_here(job.key(), job.build, backend)  # a bad kwarg or policy fails at once
+    seeds = range(seed, seed + episodes)
+    ids: list[int] = []
+    with SkillDB(db_path) as db:  # opened before any rollout: a bad path costs none
+        desc = f"{env_id} / {policy_source(policy_spec)}"
+        for recorded in iter_jobs(job, seeds, backend, desc=desc, progress=progress):
+            ids.append(db.add(recorded))
+    return ids
+
+
+@dataclass(frozen=True)
+class RecordJob:
+    """One recorded episode of a policy spec on an env spec: the job
+    :func:`record_skills_spec` maps over seeds (``job(seed) -> Skill``, not stored).
+
+    The process that runs it makes the env and loads the policy (once per process,
+    :func:`~ias_gym.parallel.worker_resource`), seeds the ``random`` policy's sampling
+    with the episode's seed, and records the episode (:func:`record_episode`).
+
+    Attributes:
+        env_id: a registered id.
+        policy: a policy spec (:func:`~ias_gym.baselines.policies.load_policy`).
+        env_kwargs: configuration overrides for ``gym.make`` (stored with each skill).
+        person_id: stored as the skills' person id.
+        trust_pickle: as for :func:`~ias_gym.baselines.policies.load_policy`.
+    """
+
+    env_id: str
+    policy: str = "expert"
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    person_id: str | None = None
+    trust_pickle: bool = False
+
+    def build(self) -> tuple[gym.Env[Any, Any], Policy]:
+        """Make the env and load the policy for it."""
+        env = gym.make(self.env_id, **self.env_kwargs)
+        try:
+            return env, load_policy(self.policy, env, None, trust_pickle=self.trust_pickle)
+        except BaseException:
+            env.close()
+            raise
+
+    def key(self) -> tuple[str, str, str, str, bool]:
+        """What identifies the env and policy a worker builds for this job."""
+        kwargs = json.dumps(dict(self.env_kwargs), sort_keys=True, default=repr)
+        return ("record", self.env_id, kwargs, self.policy, self.trust_pickle)
+
+    def __call__(self, seed: int) -> Skill:
+        """Record the episode of ``seed``."""
+        env, policy = worker_resource(self.key(), self.build)
+        if isinstance(policy, RandomPolicy):  # as ias_gym.evaluation.seed_policy does
+            policy.space.seed(seed)
+        return record_episode(
             env,
-            load_policy(policy_spec, env, seed),
-            episodes,
-            db_path,
-            seed,
-            progress,
-            source=policy_source(policy_spec),
-            env_kwargs=kwargs,
-            person_id=person_id,
+            policy,
+            seed=seed,
+            source=policy_source(self.policy),
+            person_id=self.person_id,
+            env_kwargs=self.env_kwargs,
         )
-    finally:
-        env.close()
