@@ -50,6 +50,7 @@ Beyond the paper, where its assumptions do not hold in the simulation:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -374,3 +375,10 @@ def _ahead(ref: PenReference, lead: float) -> PenReference:
         contact_x=ref.contact_x,
         contact_vx=ref.contact_vx,
     )
+
+
+def batch_torques(
+    controllers: Sequence[GripTransformController], envs: Sequence[PenHandEnv]
+) -> FloatArray:
+    """Joint torques ``(n, n_hand_dofs)`` [N m] of ``controllers[i]`` on ``envs[i]``."""
+    return np.stack([c.torques(e) for c, e in zip(controllers, envs, strict=True)])
