@@ -193,6 +193,39 @@ def test_batched_expert_resets_one_env_at_a_time() -> None:
     assert not np.array_equal(again[1], start[1])
 
 
+def test_a_batch_of_different_tasks_and_disturbances_acts_as_serial_experts() -> None:
+    """One batched step over envs that take the per-env branches differently (sensor noise,
+    internal-force offsets of the task, sliding or not, another task) equals each env's own
+    serial expert bit for bit, and records each env's own diagnostics."""
+    disturbed = {
+        **SLIDING_NOW,
+        "force_noise": 0.02,
+        "joint_velocity_noise": 0.01,
+        "internal_force_step": 0.1,
+    }
+    rotate = {"duration": 0.8, "settle_time": 0.1}
+    specs = [(SLIDE, SLIDING_NOW, 1), (SLIDE, disturbed, 2), (ROTATE, rotate, 3)]
+    batch_envs = [gym.make(env_id, **kw) for env_id, kw, _ in specs]
+    serial_envs = [gym.make(env_id, **kw) for env_id, kw, _ in specs]
+    for (_, _, seed), a, b in zip(specs, batch_envs, serial_envs, strict=True):
+        a.reset(seed=seed)
+        b.reset(seed=seed)
+    batched = BatchedExpert(batch_envs)
+    serial = [ExpertPolicy(e) for e in serial_envs]
+    for step in range(55):  # the task's first internal-force step comes at 0.5 s
+        actions = batched.actions()
+        for i, (env, expert) in enumerate(zip(serial_envs, serial, strict=True)):
+            obs = np.zeros(env.observation_space.shape)
+            np.testing.assert_array_equal(actions[i], expert.predict(obs)[0], err_msg=f"{step} {i}")
+            np.testing.assert_array_equal(
+                batched.controllers[i].last.c_h_desired, expert.controller.last.c_h_desired
+            )
+            env.step(actions[i])
+            batch_envs[i].step(actions[i])
+    assert batched.controllers[1]._N is not None  # env 1 took the offset branch
+    assert batched.controllers[0]._N is None and batched.controllers[2]._N is None
+
+
 def test_policies_take_one_observation_or_a_batch() -> None:
     env = gym.make(ROTATE, **SHORT)
     obs, _ = env.reset(seed=0)

@@ -506,16 +506,31 @@ class _Reference:
 
 
 def _right_inverses(W: FloatArray) -> FloatArray:
-    """``W+ = W^T (W W^T)^-1`` (eq. 5) of each ``(6, m)`` W in a batch, as ``(A^-1 W)^T``
-    with the symmetric ``A = W W^T`` (a solve, no inverse formed); an env whose ``W W^T`` is
-    singular (a grasp that lost fingers) gets the least-squares inverse
-    (:func:`~ias_gym.grasp.grip_transform.pseudo_inverse`)."""
+    """``W+ = W^T (W W^T)^-1`` (eq. 5) of each ``(6, 3 k)`` W of a batch of hard-finger
+    grasps (columns of a finger not touching are zero), as ``(A^-1 W)^T`` with the symmetric
+    ``A = W W^T`` (a solve, no inverse formed).
+
+    A grasp with at most two touching contacts has rank W <= 5 (no moment about the line
+    through them), so ``W W^T`` is singular: that env gets the least-squares inverse
+    ``np.linalg.pinv(W)`` (:func:`~ias_gym.grasp.grip_transform.pseudo_inverse`), decided
+    from the zero columns, not from the rounding errors of an elimination. So does every env
+    of a batch whose solve LAPACK finds singular.
+    """
+    m = W.shape[-1] // 3
+    touching = np.any(W.reshape(*W.shape[:-1], m, 3) != 0.0, axis=(-3, -1)).sum(axis=-1)
+    few = touching <= 2
+    if few.any():
+        result = np.empty(W.swapaxes(-1, -2).shape)
+        result[few] = [np.linalg.pinv(w) for w in W[few]]
+        if (~few).any():
+            result[~few] = _right_inverses(W[~few])
+        return result
     gram = W @ W.swapaxes(-1, -2)
     try:
         solved: FloatArray = np.linalg.solve(gram, W).astype(np.float64, copy=False)
     except np.linalg.LinAlgError:
         return np.stack([pseudo_inverse(w, least_squares_if_singular=True) for w in W])
-    result: FloatArray = solved.swapaxes(-1, -2)
+    result = solved.swapaxes(-1, -2)
     return result
 
 
