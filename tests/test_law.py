@@ -345,19 +345,6 @@ def test_each_row_of_a_batch_is_that_envs_own_term_bit_for_bit(seed: int) -> Non
             np.testing.assert_array_equal(batch[name][i], value, err_msg=f"{name}, env {i}")
 
 
-@settings(max_examples=60, deadline=None)
-@given(seed=SEEDS)
-def test_inverse3_inverts_each_matrix_of_a_stack(seed: int) -> None:
-    """The written-out 3 x 3 inverse (adjugate / determinant) of J+'s blocks agrees with
-    LAPACK's on well-conditioned matrices, for a stack of them at once."""
-    rng = np.random.default_rng(seed)
-    A = rng.normal(size=(4, 2, 3, 3))
-    A = A[np.linalg.cond(A) < 1e3]  # (m, 3, 3), the well-conditioned ones
-    inverse = law.inverse3(A)
-    np.testing.assert_allclose(inverse, np.linalg.inv(A), rtol=1e-10, atol=1e-10)
-    np.testing.assert_allclose(A @ inverse, np.broadcast_to(np.eye(3), A.shape), atol=1e-10)
-
-
 def test_the_controllers_right_inverse_of_a_batch_falls_back_per_env() -> None:
     """A batch where one env lost fingers (W W^T singular): that env gets np.linalg.pinv,
     the others ``W^T (W W^T)^-1``."""

@@ -507,14 +507,15 @@ class _Reference:
 
 def _right_inverses(W: FloatArray) -> FloatArray:
     """``W+ = W^T (W W^T)^-1`` (eq. 5) of each ``(6, 3 k)`` W of a batch of hard-finger
-    grasps (columns of a finger not touching are zero), as ``(A^-1 W)^T`` with the symmetric
-    ``A = W W^T`` (a solve, no inverse formed).
+    grasps (columns of a finger not touching are zero): one batched inverse of the 6 x 6
+    ``W W^T`` (a solve with W's 3 k columns as right-hand sides costs the same and changes
+    the last bits).
 
     A grasp with at most two touching contacts has rank W <= 5 (no moment about the line
     through them), so ``W W^T`` is singular: that env gets the least-squares inverse
     ``np.linalg.pinv(W)`` (:func:`~ias_gym.grasp.grip_transform.pseudo_inverse`), decided
     from the zero columns, not from the rounding errors of an elimination. So does every env
-    of a batch whose solve LAPACK finds singular.
+    of a batch whose inverse LAPACK finds singular.
     """
     m = W.shape[-1] // 3
     touching = np.any(W.reshape(*W.shape[:-1], m, 3) != 0.0, axis=(-3, -1)).sum(axis=-1)
@@ -527,10 +528,10 @@ def _right_inverses(W: FloatArray) -> FloatArray:
         return result
     gram = W @ W.swapaxes(-1, -2)
     try:
-        solved: FloatArray = np.linalg.solve(gram, W).astype(np.float64, copy=False)
+        inverse: FloatArray = np.linalg.inv(gram).astype(np.float64, copy=False)
     except np.linalg.LinAlgError:
         return np.stack([pseudo_inverse(w, least_squares_if_singular=True) for w in W])
-    result = solved.swapaxes(-1, -2)
+    result = W.swapaxes(-1, -2) @ inverse
     return result
 
 

@@ -297,9 +297,7 @@ def keep_sliding_friction(
 def _constraint_rows(c: FloatArray, faces: FloatArray, k_mu: float, f0: float) -> FloatArray:
     """``(..., k, 1 + 2 F)`` per contact: ``c_n - f0``, then ``k mu c_n - d . c_t`` and
     ``k mu c_n + d . c_t`` for the F face directions d (``>= 0``: inside)."""
-    normal = c[..., :1]
-    # d . c_t written out (two terms per face): a matrix product per contact costs more
-    along = c[..., 1:2] * faces[:, 0] + c[..., 2:3] * faces[:, 1]
+    normal, along = c[..., :1], c[..., 1:] @ faces.T
     friction = k_mu * normal
     result: FloatArray = np.concatenate([normal - f0, friction - along, friction + along], axis=-1)
     return result
@@ -309,9 +307,8 @@ def damped_pinv_blocks(J: FloatArray, damping: float) -> FloatArray:
     """The diagonal blocks of ``J+ = J^T (J J^T + damping I)^-1`` (eq. 32), ``(k, 3, 3)``.
 
     J is block diagonal, one 3 x 3 block per finger (eq. 35's ``diag(J_1 ... J_k)``), so J+
-    is too (damped near singular fingers). The 3 x 3 inverses are written out (adjugate over
-    determinant, :func:`inverse3`) for all fingers and envs at once: LAPACK's batched
-    inverse costs a call per 3 x 3 block.
+    is too; the blocks of every finger (and env) are inverted in one batched call (damped
+    near singular fingers).
 
     Args:
         J: ``(..., 3 k, 3 k)`` block-diagonal fingertip Jacobian [m/rad].
@@ -325,37 +322,14 @@ def damped_pinv_blocks(J: FloatArray, damping: float) -> FloatArray:
     diagonal = np.diagonal(J.reshape(-1, k, 3, k, 3), axis1=1, axis2=3)
     blocks = diagonal.transpose(0, 3, 1, 2).reshape(*J.shape[:-2], k, 3, 3)
     blocks_t = blocks.swapaxes(-1, -2)
-    result: FloatArray = blocks_t @ inverse3(blocks @ blocks_t + damping * np.eye(3))
-    return result
-
-
-#: Row orders (1, 2, 0) and (2, 0, 1) of a 3 x 3 matrix, for :func:`inverse3`.
-_NEXT, _AFTER = np.array([1, 2, 0]), np.array([2, 0, 1])
-
-
-def inverse3(A: FloatArray) -> FloatArray:
-    """Inverses of ``(..., 3, 3)`` matrices: adjugate over determinant, all at once.
-
-    Column j of ``A^-1`` is ``r_{j+1} x r_{j+2} / det A`` for the rows ``r`` of A
-    (indices mod 3), and ``det A = r_0 . (r_1 x r_2)``; a singular A gives inf or NaN.
-
-    Args:
-        A: ``(..., 3, 3)`` invertible matrices.
-
-    Returns:
-        ``(..., 3, 3)`` their inverses.
-    """
-    rows_next, rows_after = A[..., _NEXT, :], A[..., _AFTER, :]
-    cof = cross_last(rows_next, rows_after)  # row j: r_{j+1} x r_{j+2}
-    det = _dot(A[..., 0, :], cof[..., 0, :])
-    result: FloatArray = cof.swapaxes(-1, -2) / det[..., None, None]
+    result: FloatArray = blocks_t @ np.linalg.inv(blocks @ blocks_t + damping * np.eye(3))
     return result
 
 
 def apply_blocks(blocks: FloatArray, x: FloatArray) -> FloatArray:
     """``blockdiag(blocks) @ x`` for ``(..., k, 3, 3)`` blocks and ``(..., 3 k)`` x."""
-    xs = x.reshape(*x.shape[:-1], -1, 3, 1)
-    result: FloatArray = (blocks @ xs).reshape(x.shape)
+    xs = x.reshape(*x.shape[:-1], -1, 3)
+    result: FloatArray = np.einsum("...kij,...kj->...ki", blocks, xs).reshape(x.shape)
     return result
 
 
@@ -452,8 +426,13 @@ def joint_torques(
 
 
 def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
-    """``a . b`` along the last axis, ``(...)`` (3-vectors: three products, two sums)."""
-    result: FloatArray = (a * b).sum(axis=-1)
+    """``a . b`` along the last axis, ``(...)``: numpy's dot product per row (the bits of
+    ``a[i] @ b[i]``; an elementwise sum rounds differently)."""
+    if a.ndim == 1:
+        return np.asarray(a @ b)
+    if a.ndim == 2 and len(a) == 1:
+        return np.asarray(a[0] @ b[0])[None]
+    result: FloatArray = (a[..., None, :] @ b[..., :, None])[..., 0, 0]
     return result
 
 

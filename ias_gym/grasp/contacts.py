@@ -151,5 +151,8 @@ def wrench_matrices(points: FloatArray, frames: FloatArray, reference: FloatArra
     cols[..., 4] = p[..., 2] * dirs[..., 0] - p[..., 0] * dirs[..., 2]
     cols[..., 5] = p[..., 0] * dirs[..., 1] - p[..., 1] * dirs[..., 0]
     m = frames.shape[-3]
-    result: FloatArray = cols.reshape(*frames.shape[:-3], 3 * m, 6).swapaxes(-1, -2)
+    # A C-contiguous copy, as wrench_matrix's: a product with the transposed view sums in
+    # another order (other last bits)
+    cols = cols.reshape(*frames.shape[:-3], 3 * m, 6)
+    result: FloatArray = np.ascontiguousarray(cols.swapaxes(-1, -2))
     return result
