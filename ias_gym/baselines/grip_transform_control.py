@@ -52,6 +52,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -246,35 +247,57 @@ def _ahead(ref: PenReference, lead: float) -> PenReference:
 
 
 class _Gathered:
-    """What :func:`batch_torques` reads from ``n`` envs: one row per env (paper frame)."""
+    """What :func:`batch_torques` reads from ``n`` envs: one row per env (paper frame).
 
-    def __init__(self, n: int, k: int, dofs: int) -> None:
-        self.motion = np.empty((n, 12))  # measured position, axis, velocity, omega
-        self.ref = np.empty((n, 6, 3))  # position, acceleration, axis, alpha, velocity, omega
-        self.contact_x = np.zeros((n, k))  # sliding schedule [m], [m/s] (0: none)
-        self.contact_vx = np.zeros((n, k))
-        self.sliding = np.zeros((n, k), dtype=bool)  # touching and sliding
-        self.scheduled = np.zeros((n, 1), dtype=bool)  # the reference has a schedule
-        self.active = np.empty((n, k), dtype=bool)
-        self.points = np.empty((n, k, 3))
-        self.frames = np.empty((n, k, 3, 3))
-        self.com = np.empty((n, 3))
-        self.J = np.empty((n, 3 * k, dofs))
-        self.prev_W = np.empty((n, 6, 3 * k))
-        self.prev_J = np.empty((n, 3 * k, dofs))
-        self.c_measured = np.empty((n, 3 * k))
-        self.extra = np.empty((n, 3 * k))
-        self.qvel = np.empty((n, dofs))
-        self.tips = np.empty((n, k, 3))
-        self.tip_x = np.empty((n, k))
-        self.M = np.empty((n, dofs, dofs))
-        self.coriolis = np.empty((n, dofs))
-        self.damping = np.empty((n, dofs))
-        self.mass = np.empty(n)
-        self.inertia = np.empty((n, 3, 3))
-        self.gravity = np.empty((n, 3))
-        self.dt = np.empty((n, 1))
-        self.first = np.zeros(n, dtype=bool)  # no previous W and J (first step)
+    Each env's values are collected in lists and stacked once per field (a batch of one
+    takes a view of its only row: no copy).
+    """
+
+    motion: FloatArray  # (n, 12) measured position, axis, velocity, omega
+    ref: FloatArray  # (n, 6, 3) reference position, acceleration, axis, alpha, velocity, omega
+    contact_x: FloatArray  # (n, k) sliding schedule [m] (0: none)
+    contact_vx: FloatArray  # (n, k) [m/s]
+    sliding: NDArrayBool  # (n, k) touching and sliding
+    active: NDArrayBool  # (n, k)
+    points: FloatArray  # (n, k, 3)
+    frames: FloatArray  # (n, k, 3, 3)
+    com: FloatArray  # (n, 3)
+    J: FloatArray  # (n, 3 k, dofs)
+    prev_W: FloatArray  # (n, 6, 3 k), zeros on a first step
+    prev_J: FloatArray  # (n, 3 k, dofs)
+    c_measured: FloatArray  # (n, 3 k)
+    extra: FloatArray  # (n, 3 k) servo forces of the last step
+    qvel: FloatArray  # (n, dofs)
+    tips: FloatArray  # (n, k, 3)
+    tip_x: FloatArray  # (n, k)
+    M: FloatArray  # (n, dofs, dofs) (only with finger_inertia)
+    coriolis: FloatArray  # (n, dofs)
+    damping: FloatArray  # (n, dofs)
+    inertia: FloatArray  # (n, 3, 3)
+    gravity: FloatArray  # (n, 3)
+    mass: FloatArray  # (n,)
+    dt: FloatArray  # (n, 1)
+    scheduled: NDArrayBool  # (n, 1) the reference has a sliding schedule
+    first: NDArrayBool  # (n,) no previous W and J (first step)
+
+    def __init__(self) -> None:
+        self._rows: dict[str, list[Any]] = {}
+
+    def add(self, **values: Any) -> None:
+        """Append one env's values (arrays of one env's shape, or scalars)."""
+        for name, value in values.items():
+            self._rows.setdefault(name, []).append(value)
+
+    def stack(self) -> _Gathered:
+        """Turn the collected rows into the ``(n, ...)`` fields."""
+        for name, rows in self._rows.items():
+            if isinstance(rows[0], np.ndarray):
+                setattr(self, name, rows[0][None] if len(rows) == 1 else np.stack(rows))
+            else:
+                setattr(self, name, np.array(rows))
+        self.dt = self.dt[:, None]
+        self.scheduled = self.scheduled[:, None]
+        return self
 
 
 def batch_torques(
@@ -308,8 +331,8 @@ def batch_torques(
     g = controllers[0].gains
     if any(c.gains is not g and c.gains != g for c in controllers):
         raise ValueError("batch_torques needs controllers with equal gains")
-    k, dofs = envs[0].physics.n_fingers, envs[0].physics.n_hand_dofs
-    x = _Gathered(n, k, dofs)
+    k = envs[0].physics.n_fingers
+    x = _Gathered()
     refs: list[PenReference] = []
     offsets: list[FloatArray | None] = []
     slides: list[dict[int, FloatArray]] = []
@@ -341,40 +364,42 @@ def batch_torques(
         offsets.append(internal)
         active = contacts.active
         slides.append({j: s for j, s in ref.sliding.items() if active[j]})
-        for j in slides[-1]:
-            x.sliding[i, j] = True
-        if ref.contact_x is not None and ref.contact_vx is not None:
-            x.scheduled[i] = True
-            x.contact_x[i] = ref.contact_x
-            x.contact_vx[i] = ref.contact_vx
-        x.motion[i] = state.vector[:12]
-        rows = x.ref[i]
-        rows[0], rows[1], rows[2] = ref.position, ref.acceleration, ref.axis
-        rows[3], rows[4], rows[5] = ref.alpha, ref.velocity, ref.omega
-        x.active[i] = active
-        x.points[i] = contacts.points
-        x.frames[i] = contacts.frames
-        x.com[i] = p.pen_com()
-        x.J[i] = J
-        if ctrl._prev_W is None or ctrl._prev_J is None:
-            x.first[i] = True
-            x.prev_W[i], x.prev_J[i] = 0.0, 0.0
-        else:
-            x.prev_W[i], x.prev_J[i] = ctrl._prev_W, ctrl._prev_J
-        x.c_measured[i] = c_measured
-        x.extra[i] = ctrl._extra
-        x.qvel[i] = qvel
-        x.tips[i] = tips
-        x.tip_x[i] = tip_x
+        sliding = np.zeros(k, dtype=bool)
+        sliding[list(slides[-1])] = True
+        scheduled = ref.contact_x is not None and ref.contact_vx is not None
+        first = ctrl._prev_W is None or ctrl._prev_J is None
+        x.add(
+            motion=state.vector[:12],
+            ref=np.stack(
+                (ref.position, ref.acceleration, ref.axis, ref.alpha, ref.velocity, ref.omega)
+            ),
+            contact_x=ref.contact_x if scheduled else np.zeros(k),
+            contact_vx=ref.contact_vx if scheduled else np.zeros(k),
+            scheduled=scheduled,
+            sliding=sliding,
+            active=active,
+            points=contacts.points,
+            frames=contacts.frames,
+            com=p.pen_com(),
+            J=J,
+            first=first,
+            prev_W=np.zeros((6, 3 * k)) if first else ctrl._prev_W,
+            prev_J=np.zeros(J.shape) if first else ctrl._prev_J,
+            c_measured=c_measured,
+            extra=ctrl._extra,
+            qvel=qvel,
+            tips=tips,
+            tip_x=tip_x,
+            coriolis=env.data.qfrc_bias[p.hand_dof_ids] - env.data.qfrc_gravcomp[p.hand_dof_ids],
+            damping=ctrl._damping(env),
+            mass=p.pen_mass_nominal,
+            inertia=p.pen_inertia(nominal=True),
+            gravity=ctrl._g(env),
+            dt=env.config.control_dt,
+        )
         if g.finger_inertia:
-            x.M[i] = p.hand_mass_matrix()
-        d, ids = env.data, p.hand_dof_ids
-        x.coriolis[i] = d.qfrc_bias[ids] - d.qfrc_gravcomp[ids]
-        x.damping[i] = ctrl._damping(env)
-        x.mass[i] = p.pen_mass_nominal
-        x.inertia[i] = p.pen_inertia(nominal=True)
-        x.gravity[i] = ctrl._g(env)
-        x.dt[i] = env.config.control_dt
+            x.add(M=p.hand_mass_matrix())
+    x.stack()
     return _control_step(controllers, x, refs, slides, offsets, accel_offsets)
 
 
@@ -413,7 +438,7 @@ def _control_step(
             feasible[i] = False
 
     # Grip transform of the measured W (eqs. 5, 7): c = c_p + c_h.
-    W_pinv = _right_inverses(W)
+    W_pinv = _right_inverses(W, active.sum(axis=-1))
     dW = (W - x.prev_W) / x.dt[:, :, None]
     dW[x.first] = 0.0
     c_p = law._matvec(W_pinv, wrench)
@@ -505,7 +530,7 @@ class _Reference:
         self.twist = rows[:, 4:].reshape(len(rows), 6)  # [velocity; omega]
 
 
-def _right_inverses(W: FloatArray) -> FloatArray:
+def _right_inverses(W: FloatArray, touching: np.ndarray | None = None) -> FloatArray:
     """``W+ = W^T (W W^T)^-1`` (eq. 5) of each ``(6, 3 k)`` W of a batch of hard-finger
     grasps (columns of a finger not touching are zero): one batched inverse of the 6 x 6
     ``W W^T`` (a solve with W's 3 k columns as right-hand sides costs the same and changes
@@ -517,14 +542,15 @@ def _right_inverses(W: FloatArray) -> FloatArray:
     from the zero columns, not from the rounding errors of an elimination. So does every env
     of a batch whose inverse LAPACK finds singular.
     """
-    m = W.shape[-1] // 3
-    touching = np.any(W.reshape(*W.shape[:-1], m, 3) != 0.0, axis=(-3, -1)).sum(axis=-1)
+    if touching is None:  # the touching contacts: those with a nonzero column
+        m = W.shape[-1] // 3
+        touching = np.any(W.reshape(*W.shape[:-1], m, 3) != 0.0, axis=(-3, -1)).sum(axis=-1)
     few = touching <= 2
     if few.any():
         result = np.empty(W.swapaxes(-1, -2).shape)
         result[few] = [np.linalg.pinv(w) for w in W[few]]
         if (~few).any():
-            result[~few] = _right_inverses(W[~few])
+            result[~few] = _right_inverses(W[~few], touching[~few])
         return result
     gram = W @ W.swapaxes(-1, -2)
     try:
