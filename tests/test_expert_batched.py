@@ -172,8 +172,11 @@ def test_wrapper_computes_one_action_per_state_and_resets_with_the_env() -> None
     env.step(first)
     second = env.expert_action()
     assert not np.array_equal(second, first)
+    assert env.controller.last is not None
     env.reset(seed=2)
-    np.testing.assert_array_equal(env.expert_action(), first)  # the memory went with reset
+    # a fresh controller: no memory of the last episode (its W, J, servo forces)
+    assert env.controller.last is None and env.controller.infeasible_count == 0
+    np.testing.assert_array_equal(env.expert_action(), first)
 
 
 def test_batched_expert_resets_one_env_at_a_time() -> None:

@@ -115,6 +115,11 @@ class ExpertActionWrapper(gym.Wrapper[Any, Any, Any, Any]):
         self._action = None
         return self.env.step(action)
 
+    @property
+    def controller(self) -> GripTransformController:
+        """The env's controller (diagnostics: ``.last``, ``.infeasible_count``)."""
+        return self._expert.controllers[0]
+
     def expert_action(self) -> FloatArray:
         """The expert's action ``(act_dim,)`` float32 for the env's current state.
 
