@@ -153,8 +153,8 @@ def main() -> None:
     print("\ncontroller time per env and step [us], serial vs batched (alternating blocks):")
     header = ("env", "envs", "serial median", "p90", "batched median", "p90", "serial / batched")
     print(
-        f"{header[0]:<18}{header[1]:>6}{header[2]:>14}{header[3]:>10}{header[4]:>14}"
-        f"{header[5]:>10}{header[6]:>17}"
+        f"{header[0]:<18}{header[1]:>6}{header[2]:>15}{header[3]:>10}{header[4]:>16}"
+        f"{header[5]:>10}{header[6]:>18}"
     )
     for env_id in ENV_IDS:
         batch_rows(env_id, args.steps)
