@@ -43,7 +43,8 @@ class Policy(Protocol):
         """The action for ``observation`` and the policy's next ``state``.
 
         Args:
-            observation: the env's observation.
+            observation: the env's observation, or a batch ``(n, *obs_shape)`` from a vector
+                env (then the actions are ``(n, *act_shape)``).
             state: the state the previous call returned (``None`` at an episode's start).
             episode_start: true on the first step of an episode (a stateful policy resets).
             deterministic: act deterministically (SB3: the mode of the distribution).
