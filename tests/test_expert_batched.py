@@ -229,6 +229,28 @@ def test_a_batch_of_different_tasks_and_disturbances_acts_as_serial_experts() ->
     assert batched.controllers[0]._N is None and batched.controllers[2]._N is None
 
 
+def test_a_reset_nobody_announced_starts_the_controller_afresh() -> None:
+    """A vector env autoresets its envs without telling the policy (Gymnasium's vector envs
+    pass no episode_start): the controller must not carry the last episode's memory (its W,
+    J and servo forces) into the next. Its measured internal forces show that memory."""
+    env, twin = gym.make(ROTATE, **SHORT), gym.make(ROTATE, **SHORT)
+    env.reset(seed=8)
+    expert = BatchedExpert([env])
+    for _ in range(5):
+        env.step(expert.actions()[0])
+    env.reset(seed=9)  # the expert is not told
+    twin.reset(seed=9)
+    fresh = BatchedExpert([twin])
+    for _ in range(3):
+        a, b = expert.actions()[0], fresh.actions()[0]
+        np.testing.assert_array_equal(a, b)
+        last, expected = expert.controllers[0].last, fresh.controllers[0].last
+        assert last is not None and expected is not None
+        np.testing.assert_array_equal(last.c_h_measured, expected.c_h_measured)
+        env.step(a)
+        twin.step(b)
+
+
 def test_policies_take_one_observation_or_a_batch() -> None:
     env = gym.make(ROTATE, **SHORT)
     obs, _ = env.reset(seed=0)

@@ -18,6 +18,7 @@ batch ``(n, obs_dim)`` gives ``(n, act_dim)`` actions.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -52,6 +53,10 @@ class BatchedExpert:
     and does the dense linear algebra of eq. (45) for all of them at once (numpy over the env
     axis). The actions equal those of ``n`` separate :class:`ExpertPolicy` objects.
 
+    A controller also starts afresh when its env's clock went back since the last step (the
+    env was reset, e.g. by a vector env's autoreset, and nobody said so): it never carries
+    one episode's W, J and servo forces into the next.
+
     Args:
         envs: ``IAS-Pen*`` environments (wrappers are looked through), stepped by the caller.
         gains: controller gains (defaults tuned for the 10 ms control period).
@@ -66,6 +71,7 @@ class BatchedExpert:
         self.envs = [_pen_env(e) for e in envs]
         self.gains = gains or ControllerGains()
         self.controllers = [self._controller(e) for e in self.envs]
+        self._times = [math.inf] * len(self.envs)  # env time [s] at the last step
 
     def _controller(self, env: PenHandEnv) -> GripTransformController:
         return GripTransformController(f0=env.config.min_grasp_force, gains=self.gains)
@@ -77,6 +83,11 @@ class BatchedExpert:
 
     def actions(self) -> FloatArray:
         """``(n, act_dim)`` float32 actions (normalised torques) for the envs' current states."""
+        for i, env in enumerate(self.envs):
+            now = env.time
+            if now < self._times[i]:  # reset since the last step
+                self.controllers[i] = self._controller(env)
+            self._times[i] = now
         tau = batch_torques(self.controllers, self.envs)
         ctrl_max = np.stack([e._ctrl_max for e in self.envs])
         return np.clip(tau / ctrl_max, -1.0, 1.0).astype(np.float32)
