@@ -280,23 +280,44 @@ class _Gathered:
     scheduled: NDArrayBool  # (n, 1) the reference has a sliding schedule
     first: NDArrayBool  # (n,) no previous W and J (first step)
 
-    def __init__(self) -> None:
-        self._rows: dict[str, list[Any]] = {}
+    #: The array fields, in the order of the rows :meth:`stack` takes.
+    FIELDS = (
+        "motion",
+        "ref",
+        "contact_x",
+        "contact_vx",
+        "sliding",
+        "active",
+        "points",
+        "frames",
+        "com",
+        "J",
+        "prev_W",
+        "prev_J",
+        "c_measured",
+        "extra",
+        "qvel",
+        "tips",
+        "tip_x",
+        "coriolis",
+        "damping",
+        "inertia",
+        "gravity",
+        "M",
+    )
 
-    def add(self, **values: Any) -> None:
-        """Append one env's values (arrays of one env's shape, or scalars)."""
-        for name, value in values.items():
-            self._rows.setdefault(name, []).append(value)
-
-    def stack(self) -> _Gathered:
-        """Turn the collected rows into the ``(n, ...)`` fields."""
-        for name, rows in self._rows.items():
-            if isinstance(rows[0], np.ndarray):
-                setattr(self, name, rows[0][None] if len(rows) == 1 else np.stack(rows))
-            else:
-                setattr(self, name, np.array(rows))
-        self.dt = self.dt[:, None]
-        self.scheduled = self.scheduled[:, None]
+    def stack(self, rows: list[tuple[Any, ...]], scalars: list[tuple[Any, ...]]) -> _Gathered:
+        """The fields from one row per env (arrays in the order of :attr:`FIELDS`) and the
+        scalars ``(mass, dt, first, scheduled)`` per env."""
+        if len(rows) == 1:
+            for name, value in zip(self.FIELDS, rows[0], strict=False):
+                setattr(self, name, value[None])
+        else:
+            for name, column in zip(self.FIELDS, zip(*rows, strict=True), strict=False):
+                setattr(self, name, np.stack(column))
+        mass, dt, first, scheduled = zip(*scalars, strict=True)
+        self.mass, self.first = np.array(mass), np.array(first)
+        self.dt, self.scheduled = np.array(dt)[:, None], np.array(scheduled)[:, None]
         return self
 
 
@@ -332,7 +353,8 @@ def batch_torques(
     if any(c.gains is not g and c.gains != g for c in controllers):
         raise ValueError("batch_torques needs controllers with equal gains")
     k = envs[0].physics.n_fingers
-    x = _Gathered()
+    rows: list[tuple[Any, ...]] = []
+    scalars: list[tuple[Any, ...]] = []
     refs: list[PenReference] = []
     offsets: list[FloatArray | None] = []
     slides: list[dict[int, FloatArray]] = []
@@ -368,38 +390,36 @@ def batch_torques(
         sliding[list(slides[-1])] = True
         scheduled = ref.contact_x is not None and ref.contact_vx is not None
         first = ctrl._prev_W is None or ctrl._prev_J is None
-        x.add(
-            motion=state.vector[:12],
-            ref=np.stack(
-                (ref.position, ref.acceleration, ref.axis, ref.alpha, ref.velocity, ref.omega)
-            ),
-            contact_x=ref.contact_x if scheduled else np.zeros(k),
-            contact_vx=ref.contact_vx if scheduled else np.zeros(k),
-            scheduled=scheduled,
-            sliding=sliding,
-            active=active,
-            points=contacts.points,
-            frames=contacts.frames,
-            com=p.pen_com(),
-            J=J,
-            first=first,
-            prev_W=np.zeros((6, 3 * k)) if first else ctrl._prev_W,
-            prev_J=np.zeros(J.shape) if first else ctrl._prev_J,
-            c_measured=c_measured,
-            extra=ctrl._extra,
-            qvel=qvel,
-            tips=tips,
-            tip_x=tip_x,
-            coriolis=env.data.qfrc_bias[p.hand_dof_ids] - env.data.qfrc_gravcomp[p.hand_dof_ids],
-            damping=ctrl._damping(env),
-            mass=p.pen_mass_nominal,
-            inertia=p.pen_inertia(nominal=True),
-            gravity=ctrl._g(env),
-            dt=env.config.control_dt,
+        rows.append(
+            (
+                state.vector[:12],
+                np.stack(
+                    (ref.position, ref.acceleration, ref.axis, ref.alpha, ref.velocity, ref.omega)
+                ),
+                ref.contact_x if scheduled else np.zeros(k),
+                ref.contact_vx if scheduled else np.zeros(k),
+                sliding,
+                active,
+                contacts.points,
+                contacts.frames,
+                p.pen_com(),
+                J,
+                np.zeros((6, 3 * k)) if first else ctrl._prev_W,
+                np.zeros(J.shape) if first else ctrl._prev_J,
+                c_measured,
+                ctrl._extra,
+                qvel,
+                tips,
+                tip_x,
+                env.data.qfrc_bias[p.hand_dof_ids] - env.data.qfrc_gravcomp[p.hand_dof_ids],
+                ctrl._damping(env),
+                p.pen_inertia(nominal=True),
+                ctrl._g(env),
+                *((p.hand_mass_matrix(),) if g.finger_inertia else ()),
+            )
         )
-        if g.finger_inertia:
-            x.add(M=p.hand_mass_matrix())
-    x.stack()
+        scalars.append((p.pen_mass_nominal, env.config.control_dt, first, scheduled))
+    x = _Gathered().stack(rows, scalars)
     return _control_step(controllers, x, refs, slides, offsets, accel_offsets)
 
 
@@ -440,7 +460,9 @@ def _control_step(
     # Grip transform of the measured W (eqs. 5, 7): c = c_p + c_h.
     W_pinv = _right_inverses(W, active.sum(axis=-1))
     dW = (W - x.prev_W) / x.dt[:, :, None]
-    dW[x.first] = 0.0
+    first = bool(x.first.any())
+    if first:
+        dW[x.first] = 0.0
     c_p = law._matvec(W_pinv, wrench)
     c_h_d = law.internal_part(c_ref, W, W_pinv)
     offset_scale = [1.0] * len(controllers)
@@ -486,7 +508,8 @@ def _control_step(
     if g.finger_inertia:
         # J' over one control period; zero on the first step (no previous J).
         dJ = (J - x.prev_J) / x.dt[:, :, None]
-        dJ[x.first] = 0.0
+        if first:
+            dJ[x.first] = 0.0
         v = x.motion[:, 6:]  # [velocity; omega]
         inertia = law.finger_inertia_torques(x.M, J_pinv, W, dW, dJ, x.qvel, a_d, v, touching)
     if g.damping_feedforward:

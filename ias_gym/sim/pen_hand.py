@@ -315,7 +315,7 @@ class PenHandPhysics(FreePenPhysics):
         active = block[:, 0] > 0
         everyone = bool(active.all())
         # The pen's axis from the same forward pass as the contacts (not from qpos).
-        axis_mj = d.xmat[self.pen_body_id, [0, 3, 6]]
+        axis_mj = d.xmat[self.pen_body_id, 0::3]  # the first column of the rotation
         normal_mj = block[:, 8:11]  # unit vectors from MuJoCo
         points_mj = block[:, 5:8]
         if not everyone:
