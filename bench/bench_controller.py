@@ -4,6 +4,10 @@ Run: ``python bench/bench_controller.py``. For each pen task: the controller's c
 control step (median and p90 [us], and the fraction of the 10 ms control period), then
 rollout rates in env steps per second, measured side by side in the same run: the expert
 (env step + controller) against uniform random actions (env step only; resets included).
+
+Then the controller's time per env and step for 1 and 8 envs in this process: ``serial``
+(one :class:`ExpertPolicy` per env, called in turn) against ``batched`` (one
+:class:`BatchedExpert` computing every env's step at once), in alternating blocks.
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ import mujoco
 import numpy as np
 
 import ias_gym  # noqa: F401
-from ias_gym.baselines.expert import ExpertPolicy
+from ias_gym.baselines.expert import BatchedExpert, ExpertPolicy
 
 ENV_IDS = ("IAS-PenSlide-v0", "IAS-PenRotate-v0")
 
@@ -78,6 +82,57 @@ def rollout_rates(env_id: str, steps: int, blocks: int = 10) -> tuple[float, flo
     return float(np.median(expert_rates)), float(np.median(random_rates))
 
 
+class Fleet:
+    """``n`` envs stepped by their experts, serially or batched; times the controller only."""
+
+    def __init__(self, env_id: str, n: int, batched: bool) -> None:
+        self.envs = [gym.make(env_id) for _ in range(n)]
+        for i, env in enumerate(self.envs):
+            env.reset(seed=i)
+        self.batched = BatchedExpert(self.envs) if batched else None
+        self.serial = [ExpertPolicy(env) for env in self.envs]
+        self.obs_shape = self.envs[0].observation_space.shape
+        self.times: list[float] = []
+
+    def actions(self) -> list[np.ndarray]:
+        if self.batched is not None:
+            return list(self.batched.actions())
+        obs = np.zeros(self.obs_shape)  # the expert reads the simulation, not obs
+        return [expert.predict(obs)[0] for expert in self.serial]
+
+    def block(self, steps: int) -> None:
+        """``steps`` control steps of every env; appends seconds per env and step."""
+        n = len(self.envs)
+        for _ in range(steps):
+            t0 = time.perf_counter()
+            actions = self.actions()
+            self.times.append((time.perf_counter() - t0) / n)
+            for i, (env, action) in enumerate(zip(self.envs, actions, strict=True)):
+                _, _, terminated, truncated, _ = env.step(action)
+                if terminated or truncated:
+                    env.reset()
+                    if self.batched is not None:
+                        self.batched.reset(i)
+                    else:
+                        self.serial[i].reset()
+
+
+def batch_rows(env_id: str, steps: int, sizes: tuple[int, ...] = (1, 8), blocks: int = 10) -> None:
+    """Print per-env controller time, serial vs batched, for each number of envs."""
+    for n in sizes:
+        serial, batched = Fleet(env_id, n, False), Fleet(env_id, n, True)
+        per_block = max(1, steps // (blocks * n))
+        for _ in range(blocks):
+            serial.block(per_block)
+            batched.block(per_block)
+        s, b = np.array(serial.times) * 1e6, np.array(batched.times) * 1e6
+        print(
+            f"{env_id:<18}{n:>6}{np.median(s):>15.0f}{np.percentile(s, 90):>10.0f}"
+            f"{np.median(b):>16.0f}{np.percentile(b, 90):>10.0f}"
+            f"{np.median(s) / np.median(b):>18.2f}"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2000, help="control steps per measurement")
@@ -95,6 +150,14 @@ def main() -> None:
             f"{env_id:<18}{median * 1e6:>17.0f}{np.percentile(t, 90) * 1e6:>17.0f}"
             f"{median / period:>17.1%}{expert:>17.0f}{random:>17.0f}{expert / random:>8.2f}"
         )
+    print("\ncontroller time per env and step [us], serial vs batched (alternating blocks):")
+    header = ("env", "envs", "serial median", "p90", "batched median", "p90", "serial / batched")
+    print(
+        f"{header[0]:<18}{header[1]:>6}{header[2]:>15}{header[3]:>10}{header[4]:>16}"
+        f"{header[5]:>10}{header[6]:>18}"
+    )
+    for env_id in ENV_IDS:
+        batch_rows(env_id, args.steps)
 
 
 if __name__ == "__main__":

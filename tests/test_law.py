@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 
 import ias_gym  # noqa: F401  (registers the envs)
 from ias_gym.baselines import law
-from ias_gym.baselines.grip_transform_control import GripTransformController
+from ias_gym.baselines.grip_transform_control import GripTransformController, _right_inverses
 from ias_gym.envs.pen_hand_env import PenHandEnv
 from ias_gym.grasp.contacts import cross3, wrench_matrix
 from ias_gym.grasp.grip_transform import GraspRankError, null_space_basis, pseudo_inverse
@@ -274,6 +274,87 @@ def test_damped_pinv_blocks_invert_each_finger() -> None:
     full = J.T @ np.linalg.solve(J @ J.T + 1e-5 * np.eye(3 * K), x)
     np.testing.assert_allclose(damped, full, rtol=1e-9, atol=1e-9)
     assert np.abs(J @ damped - x).max() > 1e-6  # the damping did act
+
+
+# ---------------------------------------------------------------- batches of envs
+@settings(max_examples=30, deadline=None)
+@given(seed=SEEDS)
+def test_each_row_of_a_batch_is_that_envs_own_term_bit_for_bit(seed: int) -> None:
+    """The adapter computes n envs in one call (a leading env axis): row i of every term must
+    be env i's term computed alone, to the last bit (no mixing across envs, and the
+    arithmetic must not change with n: a batched expert acts as n serial ones)."""
+    rng = np.random.default_rng(seed)
+    n = 5
+    W = np.stack([cylinder_grasp(rng) for _ in range(n)])
+    J = np.stack([block_jacobian(rng) for _ in range(n)])
+    dJ, dW = rng.normal(size=J.shape), rng.normal(size=W.shape)
+    M = np.stack([spd(rng, 3 * K, 0.01) for _ in range(n)])
+    W_pinv = np.stack([pseudo_inverse(w) for w in W])
+    c, step = rng.normal(size=(n, 3 * K)), rng.normal(size=(n, 3 * K))
+    c[:, 0::3] = np.abs(c[:, 0::3]) + 1.0  # feasible normals
+    qvel, a_d, v = rng.normal(size=(n, 3 * K)), rng.normal(size=(n, 6)), rng.normal(size=(n, 6))
+    active = rng.random((n, K)) < 0.8
+    sliding = rng.random((n, K)) < 0.3
+    touching = np.repeat(active, 3, axis=-1)
+    settings_ = InternalForceSettings(mu=0.25, f0=0.2, cone="polygon", margin=0.4)
+    state, ref = Motion(rng), Motion(rng)
+    states, refs = Motion(rng), Motion(rng)
+    for name in ("position", "velocity", "acceleration", "axis", "omega", "alpha"):
+        setattr(states, name, rng.normal(size=(n, 3)))
+        setattr(refs, name, rng.normal(size=(n, 3)))
+    gains = {"kp": 400.0, "kv": 40.0, "kp_rot": 300.0, "kv_rot": 30.0}
+    masses, inertia = rng.uniform(0.01, 0.03, n), np.stack([spd(rng, 3, 1e-3) for _ in range(n)])
+    J_pinv = law.damped_pinv_blocks(J, 1e-6)
+    batch = {
+        "object_acceleration": law.object_acceleration(states, refs, **gains),
+        "object_wrench": law.object_wrench(masses, inertia, states.omega, a_d, -v[:, :3]),
+        "internal_part": law.internal_part(c, W, W_pinv),
+        "internal_force_step": law.internal_force_step(step, W_pinv, dW, 50.0, 0.01),
+        "cones": law.largest_steps_inside_cones(c, step, active, sliding, settings_),
+        "J_pinv": J_pinv,
+        "finger_inertia": law.finger_inertia_torques(M, J_pinv, W, dW, dJ, qvel, a_d, v, touching),
+        "feedforward": law.damping_feedforward_torques(qvel, J_pinv, W, v, touching),
+        "joint_torques": law.joint_torques(J, c, qvel, a_d[:, :1], v[:, :1]),
+    }
+    for i in range(n):
+        state.position, state.velocity, state.axis, state.omega = (
+            getattr(states, f)[i] for f in ("position", "velocity", "axis", "omega")
+        )
+        for f in ("position", "velocity", "acceleration", "axis", "omega", "alpha"):
+            setattr(ref, f, getattr(refs, f)[i])
+        alone = {
+            "object_acceleration": law.object_acceleration(state, ref, **gains),
+            "object_wrench": law.object_wrench(
+                masses[i], inertia[i], states.omega[i], a_d[i], -v[i, :3]
+            ),
+            "internal_part": law.internal_part(c[i], W[i], W_pinv[i]),
+            "internal_force_step": law.internal_force_step(step[i], W_pinv[i], dW[i], 50.0, 0.01),
+            "cones": law.largest_step_inside_cones(
+                c[i], step[i], active[i], set(np.flatnonzero(sliding[i])), settings_
+            ),
+            "J_pinv": law.damped_pinv_blocks(J[i], 1e-6),
+            "finger_inertia": law.finger_inertia_torques(
+                M[i], J_pinv[i], W[i], dW[i], dJ[i], qvel[i], a_d[i], v[i], touching[i]
+            ),
+            "feedforward": law.damping_feedforward_torques(
+                qvel[i], J_pinv[i], W[i], v[i], touching[i]
+            ),
+            "joint_torques": law.joint_torques(J[i], c[i], qvel[i], a_d[i, :1], v[i, :1]),
+        }
+        for name, value in alone.items():
+            np.testing.assert_array_equal(batch[name][i], value, err_msg=f"{name}, env {i}")
+
+
+def test_the_controllers_right_inverse_of_a_batch_falls_back_per_env() -> None:
+    """A batch where one env lost fingers (W W^T singular): that env gets np.linalg.pinv,
+    the others ``W^T (W W^T)^-1``."""
+    rng = np.random.default_rng(4)
+    W = np.stack([cylinder_grasp(rng) for _ in range(3)])
+    W[1, :, 3:] = 0.0  # env 1: one finger left
+    result = _right_inverses(W)
+    np.testing.assert_allclose(result[1], np.linalg.pinv(W[1]), atol=1e-12)
+    for i in (0, 2):
+        np.testing.assert_allclose(result[i], pseudo_inverse(W[i]), rtol=1e-9, atol=1e-9)
 
 
 # ---------------------------------------------------------------- helpers and layering

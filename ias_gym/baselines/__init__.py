@@ -6,8 +6,10 @@ imports nothing: ``import ias_gym.baselines.law`` must not drag the envs in.
 - :mod:`~ias_gym.baselines.law`: the law as pure functions (numpy only);
 - :mod:`~ias_gym.baselines.grip_transform_control`: :class:`GripTransformController`,
   :class:`ControllerGains` (the law on a pen env);
-- :mod:`~ias_gym.baselines.expert`: :class:`ExpertPolicy` (SB3 ``predict`` interface);
+- :mod:`~ias_gym.baselines.expert`: :class:`ExpertPolicy` (SB3 ``predict`` interface, one env
+  or a vector env), :class:`BatchedExpert`, :class:`ExpertActionWrapper` (worker processes);
 - :mod:`~ias_gym.baselines.action_wrapper`: :class:`GripTransformAction`;
+- :mod:`~ias_gym.baselines.batch`: SB3's batch convention of ``predict``;
 - :mod:`~ias_gym.baselines.policies`: the policy loader (``expert``, ``teleop``,
   ``random``, a saved model).
 """

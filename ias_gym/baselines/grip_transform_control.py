@@ -50,13 +50,15 @@ Beyond the paper, where its assumptions do not hold in the simulation:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from ias_gym.baselines import law
 from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv, PenReference
-from ias_gym.grasp.contacts import cross3
+from ias_gym.grasp.contacts import cross3, wrench_matrices
 from ias_gym.grasp.grip_transform import null_space_basis, pseudo_inverse
 from ias_gym.grasp.internal_forces import (
     Cone,
@@ -126,22 +128,32 @@ class GripTransformController:
     last: ControlStep | None = None
 
     def __post_init__(self) -> None:
-        settings = InternalForceSettings(
+        self._settings = InternalForceSettings(
             mu=self.gains.mu, f0=self.f0, margin=self.gains.friction_margin, cone=self.gains.cone
         )
-        # A regulariser of 1e-2 /N (not the solver's 1e-6) picks the least-norm solution
-        # among equal sums of normals: the smaller one left the top fingers squeezing the pen
-        # along its axis with 0.04 N at their friction limit, and MuJoCo's soft friction let
-        # them creep 3 mm in 0.5 s (measured). Soft contacts creep under any shear, so the
-        # controller asks for no shear it does not need.
-        self._solver = InternalForceSolver(4, settings, regularisation=1e-2)
-        self._last_c = np.tile([self.f0, 0.0, 0.0], 4)
+        # Sized for the env's fingers on the first control step (_bind).
+        self._solver: InternalForceSolver | None = None
+        self._last_c: FloatArray | None = None  # the last feasible solution [N]
+        self._extra: FloatArray | None = None  # servo forces commanded last step [N]
         self._prev_W: FloatArray | None = None
         self._prev_J: FloatArray | None = None
         self._N: FloatArray | None = None
-        self._extra = np.zeros(12)  # servo forces commanded last step [N]
         self._joint_damping: FloatArray | None = None
         self._gravity: FloatArray | None = None  # the model's, paper frame [m/s^2]
+
+    def _bind(self, env: PenHandEnv) -> InternalForceSolver:
+        """The internal-force solver for the env's fingers (built on the first step)."""
+        if self._solver is None:
+            k = env.physics.n_fingers
+            # A regulariser of 1e-2 /N (not the solver's 1e-6) picks the least-norm solution
+            # among equal sums of normals: the smaller one left the top fingers squeezing the
+            # pen along its axis with 0.04 N at their friction limit, and MuJoCo's soft
+            # friction let them creep 3 mm in 0.5 s (measured). Soft contacts creep under any
+            # shear, so the controller asks for no shear it does not need.
+            self._solver = InternalForceSolver(k, self._settings, regularisation=1e-2)
+            self._last_c = np.tile([self.f0, 0.0, 0.0], k)
+            self._extra = np.zeros(3 * k)
+        return self._solver
 
     def object_acceleration(self, env: PenHandEnv, ref: PenReference) -> FloatArray:
         """Desired object acceleration ``[v'; omega']`` of eqs. (41), (43) [m/s^2, rad/s^2].
@@ -168,11 +180,15 @@ class GripTransformController:
             a_d: ``(6,)`` desired object acceleration [m/s^2, rad/s^2].
         """
         p = env.physics
+        return law.object_wrench(
+            p.pen_mass_nominal, p.pen_inertia(nominal=True), env.state.omega, a_d, self._g(env)
+        )
+
+    def _g(self, env: PenHandEnv) -> FloatArray:
+        """The model's gravity [m/s^2], paper frame (looked up once)."""
         if self._gravity is None:
             self._gravity = mj_to_paper(env.model.opt.gravity)
-        return law.object_wrench(
-            p.pen_mass_nominal, p.pen_inertia(nominal=True), env.state.omega, a_d, self._gravity
-        )
+        return self._gravity
 
     def torques(
         self,
@@ -182,6 +198,8 @@ class GripTransformController:
     ) -> FloatArray:
         """Joint torques [N m] of eq. (45) for the env's current state and reference.
 
+        :func:`batch_torques` for this one env (the same computation, bit for bit).
+
         Args:
             env: the unwrapped environment.
             accel_offset: added to the desired object acceleration ``a_d`` (6,)
@@ -189,119 +207,8 @@ class GripTransformController:
             internal_offset: added to the internal forces ``f_int`` of the reference,
                 ``c_h^d += N offset`` (6,) [N] (eq. 7; N kept continuous along the episode).
         """
-        g = self.gains
-        p = env.physics
-        if p.n_fingers != self._solver.n_contacts:  # a hand other than the four-finger one
-            self._solver = InternalForceSolver(p.n_fingers, self._solver.settings, 1e-2)
-            self._last_c = np.tile([self.f0, 0.0, 0.0], p.n_fingers)
-            self._extra = np.zeros(3 * p.n_fingers)
-        dt = env.config.control_dt
-        ref = _ahead(env.reference(), g.lead)
-        contacts = p.fingertip_contacts()
-        W, active = p.wrench_matrix(contacts)
-        J = p.fingertip_jacobians(contacts)
-        c_measured = p.contact_intensities(contacts)
-        qvel = p.hand_qvel()
-        tips = p.tip_positions()
-        tip_x = env.state.tip_x
-        noise = env.sensor_noise
-        if noise is not None:  # the expert measures through the task's sensor noise
-            touching = np.repeat(active, 3)
-            c_measured = np.where(
-                touching, noise.contact_intensities(c_measured, contacts.frames), 0.0
-            )
-            qvel = qvel + noise.qvel
-            tips = tips + noise.tip_displacement(J, contacts.frames)
-            tip_x = tip_x + (tips - p.tip_positions()) @ env.state.axis
-        task_offset = env.internal_force_reference()
-        if task_offset is not None:
-            internal_offset = (
-                task_offset if internal_offset is None else internal_offset + task_offset
-            )
-
-        a_d = self.object_acceleration(env, ref)
-        if accel_offset is not None:
-            a_d = a_d + accel_offset
-        wrench = self.object_wrench(env, a_d)
-        sliding = {k: s for k, s in ref.sliding.items() if active[k]}
-        try:
-            c_ref = self._solver.solve(W, -wrench, sliding).c
-            self._last_c = c_ref
-            feasible = True
-        except InfeasibleGraspError:
-            self.infeasible_count += 1
-            c_ref = self._last_c
-            feasible = False
-
-        # Grip transform of the measured W (eqs. 5, 7): c = c_p + c_h.
-        W_pinv = pseudo_inverse(W, least_squares_if_singular=True)
-        dW = np.zeros_like(W) if self._prev_W is None else (W - self._prev_W) / dt
-        c_p = W_pinv @ wrench
-        c_h_d = law.internal_part(c_ref, W, W_pinv)
-        settings = self._solver.settings
-        offset_scale = 1.0
-        if internal_offset is not None and np.any(internal_offset):
-            self._N = null_space_basis(W, self._N) if bool(active.all()) else self._N
-            if self._N is not None:
-                # A requested offset is taken only as far as the cones allow (a squeeze that
-                # opens a contact or pushes one out of its cone would drop the object).
-                offset = law.keep_sliding_friction(self._N, internal_offset, sliding, settings.mu)
-                offset_scale = law.largest_step_inside_cones(
-                    c_p + c_h_d, offset, active, sliding, settings
-                )
-                c_h_d = c_h_d + offset_scale * offset
-        # The servo forces below (lateral, sliding) are part of what the contacts carry but not
-        # of the grasp model's c; left in the measurement, eq. (44) would feed them back and
-        # amplify them by 1 / (delta dt) (measured: at delta dt = 0.25 the grasp broke).
-        c_model = c_measured - self._extra
-        c_h = law.internal_part(c_model, W, W_pinv)
-        e_f = c_h - c_h_d
-        # One explicit-Euler step of eq. (44): e_f' = -(delta I + W+ W') e_f.
-        step = law.internal_force_step(e_f, W_pinv, dW, g.delta, dt)
-        error_scale = law.largest_step_inside_cones(c_p + c_h_d, step, active, sliding, settings)
-        c_h_cmd = c_h_d + error_scale * step
-        c_cmd = c_p + c_h_cmd
-
-        extra = np.zeros_like(c_cmd)
-        extra[2::3] = self._lateral_servo(env, contacts.frames, J, qvel, tips)
-        if sliding and ref.contact_x is not None and ref.contact_vx is not None:
-            extra[1::3] = self._slide_servo(env, ref, sliding, J, qvel, tip_x)
-        self._extra = extra
-        f = c_cmd + extra
-
-        # H of eq. (35): Coriolis/centrifugal forces (gravity is compensated by the model's
-        # gravcomp). The joints' passive damping is deliberately NOT cancelled: sampled and
-        # held for a control period, a cancellation turns into negative damping of the
-        # grasp's roll mode (tips circling the pen, which rolls with them), which nothing else
-        # damps; measured: the pen's roll rate doubled every 0.2 s and it fell after 1.2 s.
-        d = env.data
-        dofs = p.hand_dof_ids
-        coriolis = d.qfrc_bias[dofs] - d.qfrc_gravcomp[dofs]
-        inertia = feedforward = None
-        if g.finger_inertia or g.damping_feedforward:
-            J_pinv = law.damped_pinv_blocks(J, g.jacobian_damping)
-            touching = np.repeat(active, 3)
-        if g.finger_inertia:
-            # J' over one control period; zero on the first step (no previous J).
-            dJ = np.zeros_like(J) if self._prev_J is None else (J - self._prev_J) / dt
-            v = np.concatenate([env.state.velocity, env.state.omega])
-            inertia = law.finger_inertia_torques(
-                p.hand_mass_matrix(), J_pinv, W, dW, dJ, qvel, a_d, v, touching
-            )
-        if g.damping_feedforward:
-            # The joints' damping along the *reference* motion (never the measured one, which
-            # would cancel the damping, see above): fingers that follow the object drag on
-            # it otherwise (measured: a 23 ms lag of the pen's tilt behind its reference).
-            v_ref = np.concatenate([ref.velocity, ref.omega])
-            feedforward = law.damping_feedforward_torques(
-                self._damping(env), J_pinv, W, v_ref, touching
-            )
-        tau = law.joint_torques(J, f, coriolis, inertia, feedforward)
-
-        self._prev_W, self._prev_J = W, J
-        self.last = ControlStep(
-            tau, wrench, c_h_d, c_h, c_cmd, active, feasible, offset_scale, error_scale
-        )
+        accel = None if accel_offset is None else np.asarray(accel_offset)[None]
+        tau: FloatArray = batch_torques([self], [env], accel, [internal_offset])[0]
         return tau
 
     def _damping(self, env: PenHandEnv) -> FloatArray:
@@ -309,47 +216,6 @@ class GripTransformController:
         if self._joint_damping is None:
             self._joint_damping = env.model.dof_damping[env.physics.hand_dof_ids].copy()
         return self._joint_damping
-
-    def _lateral_servo(
-        self, env: PenHandEnv, frames: FloatArray, J: FloatArray, qvel: FloatArray, tips: FloatArray
-    ) -> FloatArray:
-        """Forces along t2 [N] that keep each tip on the pen's top or bottom line.
-
-        Without them nothing holds the tips from circling the pen (the pen rolls with them at
-        no cost), and they drift until the grasp breaks. The lateral direction is built from
-        the vertical and the pen's axis, never from the pen's own (rolling) frame.
-        """
-        g = self.gains
-        s = env.state
-        x, _, z = s.axis.tolist()
-        norm = np.hypot(x, z)
-        lateral = np.array([z / norm, 0.0, -x / norm])  # up x axis, normalised
-        sign = frames[:, 2] @ lateral  # t2 is +-lateral
-        offset = (tips - s.position) @ lateral
-        rate = sign * (J[2::3] @ qvel) - s.velocity @ lateral
-        result: FloatArray = -sign * (g.kp_lateral * offset + g.kv_lateral * rate)
-        return result
-
-    def _slide_servo(
-        self,
-        env: PenHandEnv,
-        ref: PenReference,
-        sliding: dict[int, FloatArray],
-        J: FloatArray,
-        qvel: FloatArray,
-        tip_x: FloatArray,
-    ) -> FloatArray:
-        """Forces along t1 [N] that move sliding tips along their schedule (eq. 17)."""
-        assert ref.contact_x is not None and ref.contact_vx is not None
-        g = self.gains
-        s = env.state
-        mask = np.zeros(len(tip_x))
-        mask[list(sliding)] = 1.0
-        # Velocity of each tip along the pen relative to the pen's centre, from J.
-        vx = J[1::3] @ qvel - s.velocity @ s.axis
-        error = ref.contact_x - tip_x
-        result: FloatArray = mask * (g.kp_slide * error + g.kv_slide * (ref.contact_vx - vx))
-        return result
 
     def action(
         self,
@@ -378,3 +244,379 @@ def _ahead(ref: PenReference, lead: float) -> PenReference:
         contact_x=ref.contact_x,
         contact_vx=ref.contact_vx,
     )
+
+
+class _Gathered:
+    """What :func:`batch_torques` reads from ``n`` envs: one row per env (paper frame).
+
+    Each env's values are collected in lists and stacked once per field (a batch of one
+    takes a view of its only row: no copy).
+    """
+
+    motion: FloatArray  # (n, 12) measured position, axis, velocity, omega
+    ref: FloatArray  # (n, 6, 3) reference position, acceleration, axis, alpha, velocity, omega
+    contact_x: FloatArray  # (n, k) sliding schedule [m] (0: none)
+    contact_vx: FloatArray  # (n, k) [m/s]
+    sliding: NDArrayBool  # (n, k) touching and sliding
+    active: NDArrayBool  # (n, k)
+    points: FloatArray  # (n, k, 3)
+    frames: FloatArray  # (n, k, 3, 3)
+    com: FloatArray  # (n, 3)
+    J: FloatArray  # (n, 3 k, dofs)
+    prev_W: FloatArray  # (n, 6, 3 k), zeros on a first step
+    prev_J: FloatArray  # (n, 3 k, dofs)
+    c_measured: FloatArray  # (n, 3 k)
+    extra: FloatArray  # (n, 3 k) servo forces of the last step
+    qvel: FloatArray  # (n, dofs)
+    tips: FloatArray  # (n, k, 3)
+    tip_x: FloatArray  # (n, k)
+    M: FloatArray  # (n, dofs, dofs) (only with finger_inertia)
+    coriolis: FloatArray  # (n, dofs)
+    damping: FloatArray  # (n, dofs)
+    inertia: FloatArray  # (n, 3, 3)
+    gravity: FloatArray  # (n, 3)
+    mass: FloatArray  # (n,)
+    dt: FloatArray  # (n, 1)
+    scheduled: NDArrayBool  # (n, 1) the reference has a sliding schedule
+    first: NDArrayBool  # (n,) no previous W and J (first step)
+
+    #: The array fields, in the order of the rows :meth:`stack` takes.
+    FIELDS = (
+        "motion",
+        "ref",
+        "contact_x",
+        "contact_vx",
+        "sliding",
+        "active",
+        "points",
+        "frames",
+        "com",
+        "J",
+        "prev_W",
+        "prev_J",
+        "c_measured",
+        "extra",
+        "qvel",
+        "tips",
+        "tip_x",
+        "coriolis",
+        "damping",
+        "inertia",
+        "gravity",
+        "M",
+    )
+
+    def stack(self, rows: list[tuple[Any, ...]], scalars: list[tuple[Any, ...]]) -> _Gathered:
+        """The fields from one row per env (arrays in the order of :attr:`FIELDS`) and the
+        scalars ``(mass, dt, first, scheduled)`` per env."""
+        if len(rows) == 1:
+            for name, value in zip(self.FIELDS, rows[0], strict=False):
+                setattr(self, name, value[None])
+        else:
+            for name, column in zip(self.FIELDS, zip(*rows, strict=True), strict=False):
+                setattr(self, name, np.stack(column))
+        mass, dt, first, scheduled = zip(*scalars, strict=True)
+        self.mass, self.first = np.array(mass), np.array(first)
+        self.dt, self.scheduled = np.array(dt)[:, None], np.array(scheduled)[:, None]
+        return self
+
+
+def batch_torques(
+    controllers: Sequence[GripTransformController],
+    envs: Sequence[PenHandEnv],
+    accel_offsets: FloatArray | None = None,
+    internal_offsets: Sequence[FloatArray | None] | None = None,
+) -> FloatArray:
+    """Joint torques of eq. (45) [N m], ``(n, n_hand_dofs)``: ``controllers[i]`` on ``envs[i]``.
+
+    The control step of :meth:`GripTransformController.torques` for ``n`` envs at once: each
+    env's physics is read (contacts, J, M, the reference) and its internal-force problem
+    solved on its own, and the dense linear algebra in between (W, W+, the law's terms of
+    :mod:`~ias_gym.baselines.law`, the cone limiter, J+, the servos) runs once for all envs,
+    numpy over the env axis. Each row equals that env's own control step bit for bit.
+
+    Args:
+        controllers: one controller per env (its memory is updated), all with equal gains.
+        envs: the unwrapped environments, all with the same hand.
+        accel_offsets: ``(n, 6)`` added to each desired object acceleration ``a_d``
+            [m/s^2, rad/s^2] (``None``: none).
+        internal_offsets: per env the offset of the internal forces ``f_int`` (6,) [N] or
+            ``None`` (see :meth:`GripTransformController.torques`).
+
+    Raises:
+        ValueError: the controllers' gains differ, or the lengths do not match.
+    """
+    n = len(envs)
+    if len(controllers) != n or n == 0:
+        raise ValueError(f"need one controller per env, got {len(controllers)} for {n} envs")
+    g = controllers[0].gains
+    if any(c.gains is not g and c.gains != g for c in controllers):
+        raise ValueError("batch_torques needs controllers with equal gains")
+    k = envs[0].physics.n_fingers
+    if any(env.physics.n_fingers != k for env in envs):
+        raise ValueError("batch_torques needs envs of one hand (the same number of fingers)")
+    rows: list[tuple[Any, ...]] = []
+    scalars: list[tuple[Any, ...]] = []
+    refs: list[PenReference] = []
+    offsets: list[FloatArray | None] = []
+    slides: list[dict[int, FloatArray]] = []
+    for i, (ctrl, env) in enumerate(zip(controllers, envs, strict=True)):
+        ctrl._bind(env)
+        p = env.physics
+        ref = _ahead(env.reference(), g.lead)
+        refs.append(ref)
+        contacts = p.fingertip_contacts()
+        J = p.fingertip_jacobians(contacts)
+        c_measured = p.contact_intensities(contacts)
+        qvel = p.hand_qvel()
+        tips = p.tip_positions()
+        state = env.state
+        tip_x = state.tip_x
+        noise = env.sensor_noise
+        if noise is not None:  # the expert measures through the task's sensor noise
+            touching = np.repeat(contacts.active, 3)
+            c_measured = np.where(
+                touching, noise.contact_intensities(c_measured, contacts.frames), 0.0
+            )
+            qvel = qvel + noise.qvel
+            tips = tips + noise.tip_displacement(J, contacts.frames)
+            tip_x = tip_x + (tips - p.tip_positions()) @ state.axis
+        internal = None if internal_offsets is None else internal_offsets[i]
+        task_offset = env.internal_force_reference()
+        if task_offset is not None:
+            internal = task_offset if internal is None else internal + task_offset
+        offsets.append(internal)
+        active = contacts.active
+        slides.append({j: s for j, s in ref.sliding.items() if active[j]})
+        sliding = np.zeros(k, dtype=bool)
+        sliding[list(slides[-1])] = True
+        scheduled = ref.contact_x is not None and ref.contact_vx is not None
+        first = ctrl._prev_W is None or ctrl._prev_J is None
+        rows.append(
+            (
+                state.vector[:12],
+                np.stack(
+                    (ref.position, ref.acceleration, ref.axis, ref.alpha, ref.velocity, ref.omega)
+                ),
+                ref.contact_x if scheduled else np.zeros(k),
+                ref.contact_vx if scheduled else np.zeros(k),
+                sliding,
+                active,
+                contacts.points,
+                contacts.frames,
+                p.pen_com(),
+                J,
+                np.zeros((6, 3 * k)) if first else ctrl._prev_W,
+                np.zeros(J.shape) if first else ctrl._prev_J,
+                c_measured,
+                ctrl._extra,
+                qvel,
+                tips,
+                tip_x,
+                env.data.qfrc_bias[p.hand_dof_ids] - env.data.qfrc_gravcomp[p.hand_dof_ids],
+                ctrl._damping(env),
+                p.pen_inertia(nominal=True),
+                ctrl._g(env),
+                *((p.hand_mass_matrix(),) if g.finger_inertia else ()),
+            )
+        )
+        scalars.append((p.pen_mass_nominal, env.config.control_dt, first, scheduled))
+    x = _Gathered().stack(rows, scalars)
+    return _control_step(controllers, x, refs, slides, offsets, accel_offsets)
+
+
+def _control_step(
+    controllers: Sequence[GripTransformController],
+    x: _Gathered,
+    refs: Sequence[PenReference],
+    slides: Sequence[dict[int, FloatArray]],
+    offsets: Sequence[FloatArray | None],
+    accel_offsets: FloatArray | None,
+) -> FloatArray:
+    """The control step of :func:`batch_torques` on the gathered rows (order of eq. 45)."""
+    g = controllers[0].gains
+    settings = controllers[0]._settings
+    state = _Motion(x.motion)
+    ref = _Reference(x.ref)
+    active = x.active
+    W = wrench_matrices(x.points, x.frames, x.com)
+    if not active.all():  # zero columns for fingers not touching
+        W = np.where(np.repeat(active, 3, axis=-1)[:, None, :], W, 0.0)
+    J = x.J
+
+    a_d = law.object_acceleration(state, ref, kp=g.kp, kv=g.kv, kp_rot=g.kp_rot, kv_rot=g.kv_rot)
+    if accel_offsets is not None:
+        a_d = a_d + accel_offsets
+    wrench = law.object_wrench(x.mass, x.inertia, state.omega, a_d, x.gravity)
+    c_ref = np.empty_like(x.c_measured)
+    feasible = [True] * len(controllers)
+    for i, ctrl in enumerate(controllers):
+        assert ctrl._solver is not None and ctrl._last_c is not None
+        try:
+            c_ref[i] = ctrl._last_c = ctrl._solver.solve(W[i], -wrench[i], slides[i]).c
+        except InfeasibleGraspError:
+            ctrl.infeasible_count += 1
+            c_ref[i] = ctrl._last_c
+            feasible[i] = False
+
+    # Grip transform of the measured W (eqs. 5, 7): c = c_p + c_h.
+    W_pinv = _right_inverses(W, active.sum(axis=-1))
+    dW = (W - x.prev_W) / x.dt[:, :, None]
+    first = bool(x.first.any())
+    if first:
+        dW[x.first] = 0.0
+    c_p = law._matvec(W_pinv, wrench)
+    c_h_d = law.internal_part(c_ref, W, W_pinv)
+    offset_scale = [1.0] * len(controllers)
+    for i, ctrl in enumerate(controllers):
+        internal_offset = offsets[i]
+        if internal_offset is not None and np.any(internal_offset):
+            ctrl._N = null_space_basis(W[i], ctrl._N) if bool(active[i].all()) else ctrl._N
+            if ctrl._N is not None:
+                # A requested offset is taken only as far as the cones allow (a squeeze that
+                # opens a contact or pushes one out of its cone would drop the object).
+                offset = law.keep_sliding_friction(ctrl._N, internal_offset, slides[i], settings.mu)
+                offset_scale[i] = law.largest_step_inside_cones(
+                    c_p[i] + c_h_d[i], offset, active[i], slides[i], settings
+                )
+                c_h_d[i] = c_h_d[i] + offset_scale[i] * offset
+    # The servo forces below (lateral, sliding) are part of what the contacts carry but not
+    # of the grasp model's c; left in the measurement, eq. (44) would feed them back and
+    # amplify them by 1 / (delta dt) (measured: at delta dt = 0.25 the grasp broke).
+    c_model = x.c_measured - x.extra
+    c_h = law.internal_part(c_model, W, W_pinv)
+    e_f = c_h - c_h_d
+    # One explicit-Euler step of eq. (44): e_f' = -(delta I + W+ W') e_f.
+    step = law.internal_force_step(e_f, W_pinv, dW, g.delta, x.dt)
+    c_feasible = c_p + c_h_d
+    error_scale = law.largest_steps_inside_cones(c_feasible, step, active, x.sliding, settings)
+    c_h_cmd = c_h_d + error_scale[:, None] * step
+    c_cmd = c_p + c_h_cmd
+
+    extra = np.zeros(c_cmd.shape)
+    extra[:, 2::3] = _lateral_servo(g, state, x.frames, J, x.qvel, x.tips)
+    extra[:, 1::3] = _slide_servo(g, state, x, J)
+    f = c_cmd + extra
+
+    # H of eq. (35): Coriolis/centrifugal forces (gravity is compensated by the model's
+    # gravcomp). The joints' passive damping is deliberately NOT cancelled: sampled and
+    # held for a control period, a cancellation turns into negative damping of the
+    # grasp's roll mode (tips circling the pen, which rolls with them), which nothing else
+    # damps; measured: the pen's roll rate doubled every 0.2 s and it fell after 1.2 s.
+    inertia = feedforward = None
+    if g.finger_inertia or g.damping_feedforward:
+        J_pinv = law.damped_pinv_blocks(J, g.jacobian_damping)
+        touching = np.repeat(active, 3, axis=-1)
+    if g.finger_inertia:
+        # J' over one control period; zero on the first step (no previous J).
+        dJ = (J - x.prev_J) / x.dt[:, :, None]
+        if first:
+            dJ[x.first] = 0.0
+        v = x.motion[:, 6:]  # [velocity; omega]
+        inertia = law.finger_inertia_torques(x.M, J_pinv, W, dW, dJ, x.qvel, a_d, v, touching)
+    if g.damping_feedforward:
+        # The joints' damping along the *reference* motion (never the measured one, which
+        # would cancel the damping, see above): fingers that follow the object drag on
+        # it otherwise (measured: a 23 ms lag of the pen's tilt behind its reference).
+        v_ref = ref.twist
+        feedforward = law.damping_feedforward_torques(x.damping, J_pinv, W, v_ref, touching)
+    tau = law.joint_torques(J, f, x.coriolis, inertia, feedforward)
+
+    for i, ctrl in enumerate(controllers):
+        ctrl._prev_W, ctrl._prev_J, ctrl._extra = W[i], J[i], extra[i]
+        ctrl.last = ControlStep(
+            tau[i],
+            wrench[i],
+            c_h_d[i],
+            c_h[i],
+            c_cmd[i],
+            active[i].copy(),
+            feasible[i],
+            offset_scale[i],
+            float(error_scale[i]),
+        )
+    return tau
+
+
+class _Motion:
+    """Rows of measured object motion (``law.ObjectMotion`` for a batch)."""
+
+    def __init__(self, rows: FloatArray) -> None:
+        self.position, self.axis = rows[:, 0:3], rows[:, 3:6]
+        self.velocity, self.omega = rows[:, 6:9], rows[:, 9:12]
+
+
+class _Reference:
+    """Rows of references (``law.ObjectReference`` for a batch)."""
+
+    def __init__(self, rows: FloatArray) -> None:
+        self.position, self.acceleration, self.axis = rows[:, 0], rows[:, 1], rows[:, 2]
+        self.alpha, self.velocity, self.omega = rows[:, 3], rows[:, 4], rows[:, 5]
+        self.twist = rows[:, 4:].reshape(len(rows), 6)  # [velocity; omega]
+
+
+def _right_inverses(W: FloatArray, touching: np.ndarray | None = None) -> FloatArray:
+    """``W+ = W^T (W W^T)^-1`` (eq. 5) of each ``(6, 3 k)`` W of a batch of hard-finger
+    grasps (columns of a finger not touching are zero): one batched inverse of the 6 x 6
+    ``W W^T`` (a solve with W's 3 k columns as right-hand sides costs the same and changes
+    the last bits).
+
+    A grasp with at most two touching contacts has rank W <= 5 (no moment about the line
+    through them), so ``W W^T`` is singular: that env gets the least-squares inverse
+    ``np.linalg.pinv(W)`` (:func:`~ias_gym.grasp.grip_transform.pseudo_inverse`), decided
+    from the zero columns, not from the rounding errors of an elimination. So does every env
+    of a batch whose inverse LAPACK finds singular.
+    """
+    if touching is None:  # the touching contacts: those with a nonzero column
+        m = W.shape[-1] // 3
+        touching = np.any(W.reshape(*W.shape[:-1], m, 3) != 0.0, axis=(-3, -1)).sum(axis=-1)
+    few = touching <= 2
+    if few.any():
+        result = np.empty(W.swapaxes(-1, -2).shape)
+        result[few] = [np.linalg.pinv(w) for w in W[few]]
+        if (~few).any():
+            result[~few] = _right_inverses(W[~few], touching[~few])
+        return result
+    gram = W @ W.swapaxes(-1, -2)
+    try:
+        inverse: FloatArray = np.linalg.inv(gram).astype(np.float64, copy=False)
+    except np.linalg.LinAlgError:
+        return np.stack([pseudo_inverse(w, least_squares_if_singular=True) for w in W])
+    result = W.swapaxes(-1, -2) @ inverse
+    return result
+
+
+def _lateral_servo(
+    g: ControllerGains,
+    s: _Motion,
+    frames: FloatArray,
+    J: FloatArray,
+    qvel: FloatArray,
+    tips: FloatArray,
+) -> FloatArray:
+    """Forces along t2 [N] ``(n, k)`` that keep each tip on the pen's top or bottom line.
+
+    Without them nothing holds the tips from circling the pen (the pen rolls with them at
+    no cost), and they drift until the grasp breaks. The lateral direction is built from
+    the vertical and the pen's axis, never from the pen's own (rolling) frame.
+    """
+    ax, az = s.axis[:, 0], s.axis[:, 2]
+    norm = np.hypot(ax, az)
+    lateral = np.zeros_like(s.axis)  # up x axis, normalised
+    lateral[:, 0], lateral[:, 2] = az / norm, -ax / norm
+    sign = law._matvec(frames[:, :, 2], lateral)  # t2 is +-lateral
+    offset = law._matvec(tips - s.position[:, None], lateral)
+    rate = sign * law._matvec(J[:, 2::3], qvel) - law._dot(s.velocity, lateral)[:, None]
+    result: FloatArray = -sign * (g.kp_lateral * offset + g.kv_lateral * rate)
+    return result
+
+
+def _slide_servo(g: ControllerGains, s: _Motion, x: _Gathered, J: FloatArray) -> FloatArray:
+    """Forces along t1 [N] ``(n, k)`` that move sliding tips along their schedule (eq. 17);
+    zero for the others."""
+    # Velocity of each tip along the pen relative to the pen's centre, from J.
+    vx = law._matvec(J[:, 1::3], x.qvel) - law._dot(s.velocity, s.axis)[:, None]
+    error = x.contact_x - x.tip_x
+    force = g.kp_slide * error + g.kv_slide * (x.contact_vx - vx)
+    result: FloatArray = np.where(x.sliding & x.scheduled, force, 0.0)
+    return result

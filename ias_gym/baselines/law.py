@@ -15,7 +15,12 @@ reads the physics and calls them in the order of eq. (45)::
 
 Frames and units as the adapter's: the paper frame (x the pen's axis, y up), SI units;
 intensities per contact ``[normal, t1, t2]`` [N]; ``J`` is block diagonal with one 3 x 3 block
-per finger (eq. 35's ``diag(J_1 ... J_k)``). The module docstring of
+per finger (eq. 35's ``diag(J_1 ... J_k)``).
+
+Batches: every array argument may carry leading axes (``(..., 6, 3 k)`` for W, ``(..., 3)``
+for a vector), one entry per env, and the result has them too: the adapter computes the law
+for ``n`` envs in one call each (:func:`~ias_gym.baselines.grip_transform_control.
+batch_torques`). The shapes in the docstrings are those of one env. The module docstring of
 :mod:`~ias_gym.baselines.grip_transform_control` explains where the code departs from the paper
 and why; docs/controller.md records the measurements.
 """
@@ -28,7 +33,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.grasp.contacts import cross3
+from ias_gym.grasp.contacts import cross_last
 from ias_gym.grasp.internal_forces import (
     POLYGON_DIRECTIONS,
     POLYGON_SCALE,
@@ -101,13 +106,17 @@ def object_acceleration(
     omega, axis = state.omega, state.axis
     acc = ref.acceleration - kv * (state.velocity - ref.velocity) - kp * state.position
     acc += kp * ref.position
-    omega_across = omega - (omega @ axis) * axis
-    alpha = ref.alpha + kp_rot * cross3(axis, ref.axis) - kv_rot * (omega_across - ref.omega)
-    return np.concatenate([acc, alpha])
+    omega_across = omega - _dot(omega, axis)[..., None] * axis
+    alpha = ref.alpha + kp_rot * cross_last(axis, ref.axis) - kv_rot * (omega_across - ref.omega)
+    return np.concatenate([acc, alpha], axis=-1)
 
 
 def object_wrench(
-    mass: float, inertia: FloatArray, omega: FloatArray, a_d: FloatArray, gravity: FloatArray
+    mass: float | FloatArray,
+    inertia: FloatArray,
+    omega: FloatArray,
+    a_d: FloatArray,
+    gravity: FloatArray,
 ) -> FloatArray:
     """Net contact wrench that gives the object the acceleration ``a_d``: eq. (33) plus weight.
 
@@ -116,7 +125,7 @@ def object_wrench(
     eq. (18) is added here, so that ``c_p = W+ w`` (eqs. 5, 36) holds the object up.
 
     Args:
-        mass: object mass [kg].
+        mass: object mass [kg] (``(n,)`` for a batch).
         inertia: ``(3, 3)`` inertia tensor about the centre of mass [kg m^2], same frame.
         omega: angular velocity [rad/s] (3,).
         a_d: ``(6,)`` desired acceleration ``[a; alpha]`` [m/s^2, rad/s^2].
@@ -125,9 +134,10 @@ def object_wrench(
     Returns:
         ``(6,)`` ``[force (N); moment about the centre of mass (N m)]``.
     """
-    force = mass * a_d[:3] - mass * gravity
-    moment = inertia @ a_d[3:] + cross3(omega, inertia @ omega)
-    return np.concatenate([force, moment])
+    mass = np.asarray(mass)[..., None]  # a batch of masses broadcasts over the force
+    force = mass * a_d[..., :3] - mass * gravity
+    moment = _matvec(inertia, a_d[..., 3:]) + cross_last(omega, _matvec(inertia, omega))
+    return np.concatenate([force, moment], axis=-1)
 
 
 def internal_part(c: FloatArray, W: FloatArray, W_pinv: FloatArray) -> FloatArray:
@@ -138,12 +148,12 @@ def internal_part(c: FloatArray, W: FloatArray, W_pinv: FloatArray) -> FloatArra
         W: ``(6, n)`` wrench matrix.
         W_pinv: ``(n, 6)`` its right inverse ``W+``.
     """
-    result: FloatArray = c - W_pinv @ (W @ c)
+    result: FloatArray = c - _matvec(W_pinv, _matvec(W, c))
     return result
 
 
 def internal_force_step(
-    e_f: FloatArray, W_pinv: FloatArray, dW: FloatArray, delta: float, dt: float
+    e_f: FloatArray, W_pinv: FloatArray, dW: FloatArray, delta: float, dt: float | FloatArray
 ) -> FloatArray:
     """The internal-force error one explicit-Euler step of eq. (44) ahead.
 
@@ -155,12 +165,12 @@ def internal_force_step(
         W_pinv: ``(n, 6)`` right inverse ``W+`` of the wrench matrix.
         dW: ``(6, n)`` its rate ``W'`` [1/s, m/s].
         delta: the error's decay rate delta [1/s].
-        dt: the control period [s].
+        dt: the control period [s] (``(n, 1)`` for a batch of envs).
 
     Returns:
         ``(n,)`` the error to command after one step [N].
     """
-    result: FloatArray = e_f - dt * (delta * e_f + W_pinv @ (dW @ e_f))
+    result: FloatArray = e_f - dt * (delta * e_f + _matvec(W_pinv, _matvec(dW, e_f)))
     return result
 
 
@@ -181,6 +191,7 @@ def largest_step_inside_cones(
     admissible ``lam`` form an interval from 0 that the first constraint ``step`` crosses
     ends. Not in the paper: eq. (44) lets the internal forces lag while ``c_p`` acts at once,
     and the sum could leave the cones during transients (docs/controller.md).
+    :func:`largest_steps_inside_cones` is the same for a batch.
 
     Args:
         c_ref: ``(3 k,)`` feasible intensities ``c_p + c_h^d`` [N].
@@ -192,24 +203,58 @@ def largest_step_inside_cones(
     Returns:
         ``lam`` [-], 1.0 when the whole step is feasible.
     """
-    c, d = c_ref.reshape(-1, 3), step.reshape(-1, 3)
-    if settings.cone == "polygon":
-        faces, scale = POLYGON_DIRECTIONS, POLYGON_SCALE
-    else:
-        faces, scale = np.eye(2), 1.0
+    mask = np.zeros(len(active), dtype=bool)
+    mask[list(sliding)] = True
+    return float(largest_steps_inside_cones(c_ref, step, active, mask, settings))
+
+
+def largest_steps_inside_cones(
+    c_ref: FloatArray,
+    step: FloatArray,
+    active: BoolArray,
+    sliding: BoolArray,
+    settings: InternalForceSettings,
+) -> FloatArray:
+    """:func:`largest_step_inside_cones` for a batch: one ``lam`` per leading index.
+
+    Args:
+        c_ref: ``(..., 3 k)`` feasible intensities [N].
+        step: ``(..., 3 k)`` the changes to take [N].
+        active: ``(..., k)`` contacts that touch.
+        sliding: ``(..., k)`` contacts that slide (only their normal bound applies).
+        settings: the internal-force problem's settings.
+
+    Returns:
+        ``(...)`` ``lam`` [-] in [0, 1].
+    """
+    faces, scale = _cone_faces(settings.cone)
     k_mu = scale * settings.mu_sticking
+    c = c_ref.reshape(*c_ref.shape[:-1], -1, 3)
+    d = step.reshape(c.shape)
     # Rows a + lam b >= 0: n - f0, then k mu n -+ d . t for each face direction d
     # (the friction rows only for sticking contacts).
     a = _constraint_rows(c, faces, k_mu, settings.f0)
     b = _constraint_rows(d, faces, k_mu, 0.0)
-    use = np.repeat(active[:, None], a.shape[1], axis=1)
-    for k in sliding:
-        use[k, 1:] = False
+    use = np.empty(a.shape, dtype=bool)
+    use[..., 0] = active
+    use[..., 1:] = (active & ~sliding)[..., None]
     crossing = use & (b < 0)
     if not crossing.any():
-        return 1.0
-    bounds = np.maximum(a[crossing], 0.0) / -b[crossing]
-    return float(min(1.0, bounds.min()))
+        return np.ones(a.shape[:-2])
+    # Where a row is crossed its bound is max(a, 0) / -b (-b > 0); elsewhere inf.
+    bounds = np.where(crossing, np.maximum(a, 0.0) / np.where(crossing, -b, 1.0), np.inf)
+    result: FloatArray = np.minimum(1.0, bounds.reshape(*bounds.shape[:-2], -1).min(axis=-1))
+    return result
+
+
+def _cone_faces(cone: str) -> tuple[FloatArray, float]:
+    """The face directions (F, 2) and their scale k of a cone (an exact one: its box)."""
+    if cone == "polygon":
+        return POLYGON_DIRECTIONS, POLYGON_SCALE
+    return _BOX_DIRECTIONS, 1.0
+
+
+_BOX_DIRECTIONS = np.eye(2)
 
 
 def keep_sliding_friction(
@@ -250,11 +295,11 @@ def keep_sliding_friction(
 
 
 def _constraint_rows(c: FloatArray, faces: FloatArray, k_mu: float, f0: float) -> FloatArray:
-    """``(k, 1 + 2 F)`` per contact: ``c_n - f0``, then ``k mu c_n - d . c_t`` and
+    """``(..., k, 1 + 2 F)`` per contact: ``c_n - f0``, then ``k mu c_n - d . c_t`` and
     ``k mu c_n + d . c_t`` for the F face directions d (``>= 0``: inside)."""
-    normal, along = c[:, :1], c[:, 1:] @ faces.T
+    normal, along = c[..., :1], c[..., 1:] @ faces.T
     friction = k_mu * normal
-    result: FloatArray = np.concatenate([normal - f0, friction - along, friction + along], axis=1)
+    result: FloatArray = np.concatenate([normal - f0, friction - along, friction + along], axis=-1)
     return result
 
 
@@ -262,24 +307,29 @@ def damped_pinv_blocks(J: FloatArray, damping: float) -> FloatArray:
     """The diagonal blocks of ``J+ = J^T (J J^T + damping I)^-1`` (eq. 32), ``(k, 3, 3)``.
 
     J is block diagonal, one 3 x 3 block per finger (eq. 35's ``diag(J_1 ... J_k)``), so J+
-    is too; the blocks are inverted together in one batched call (damped near singular
-    fingers).
+    is too; the blocks of every finger (and env) are inverted in one batched call (damped
+    near singular fingers).
 
     Args:
-        J: ``(3 k, 3 k)`` block-diagonal fingertip Jacobian [m/rad].
+        J: ``(..., 3 k, 3 k)`` block-diagonal fingertip Jacobian [m/rad].
         damping: damping of the inverse [m^2]; 0 gives the exact inverse of each block.
+
+    Returns:
+        ``(..., k, 3, 3)`` the blocks of J+ [rad/m].
     """
-    k = len(J) // 3
-    fingers = np.arange(k)
-    blocks = J.reshape(k, 3, k, 3)[fingers, :, fingers, :]
-    blocks_t = blocks.transpose(0, 2, 1)
+    k = J.shape[-1] // 3
+    # (m, 3, 3, k) diagonal blocks of the m Jacobians -> (..., k, 3, 3): [finger, row, col]
+    diagonal = np.diagonal(J.reshape(-1, k, 3, k, 3), axis1=1, axis2=3)
+    blocks = diagonal.transpose(0, 3, 1, 2).reshape(*J.shape[:-2], k, 3, 3)
+    blocks_t = blocks.swapaxes(-1, -2)
     result: FloatArray = blocks_t @ np.linalg.inv(blocks @ blocks_t + damping * np.eye(3))
     return result
 
 
 def apply_blocks(blocks: FloatArray, x: FloatArray) -> FloatArray:
-    """``blockdiag(blocks) @ x`` for ``(k, 3, 3)`` blocks and ``(3 k,)`` x."""
-    result: FloatArray = np.einsum("kij,kj->ki", blocks, x.reshape(-1, 3)).reshape(-1)
+    """``blockdiag(blocks) @ x`` for ``(..., k, 3, 3)`` blocks and ``(..., 3 k)`` x."""
+    xs = x.reshape(*x.shape[:-1], -1, 3)
+    result: FloatArray = np.einsum("...kij,...kj->...ki", blocks, xs).reshape(x.shape)
     return result
 
 
@@ -314,9 +364,9 @@ def finger_inertia_torques(
     Returns:
         ``(n,)`` joint torques [N m].
     """
-    contact_acc = W.T @ a_d + dW.T @ v - dJ @ qvel
+    contact_acc = _matvec_t(W, a_d) + _matvec_t(dW, v) - _matvec(dJ, qvel)
     contact_acc[~touching] = 0.0
-    result: FloatArray = M @ apply_blocks(J_pinv_blocks, contact_acc)
+    result: FloatArray = _matvec(M, apply_blocks(J_pinv_blocks, contact_acc))
     return result
 
 
@@ -342,7 +392,7 @@ def damping_feedforward_torques(
     Returns:
         ``(n,)`` joint torques [N m].
     """
-    qvel_ref = apply_blocks(J_pinv_blocks, np.where(touching, W.T @ v_ref, 0.0))
+    qvel_ref = apply_blocks(J_pinv_blocks, np.where(touching, _matvec_t(W, v_ref), 0.0))
     result: FloatArray = damping * qvel_ref
     return result
 
@@ -367,9 +417,42 @@ def joint_torques(
     Returns:
         ``(n,)`` joint torques [N m].
     """
-    tau: FloatArray = J.T @ f + H
+    tau: FloatArray = _matvec_t(J, f) + H
     if finger_inertia is not None:
         tau += finger_inertia
     if damping_feedforward is not None:
         tau += damping_feedforward
     return tau
+
+
+def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``a . b`` along the last axis, ``(...)``: numpy's dot product per row (the bits of
+    ``a[i] @ b[i]``; an elementwise sum rounds differently)."""
+    if a.ndim == 1:
+        return np.asarray(a @ b)
+    if a.ndim == 2 and len(a) == 1:
+        return np.asarray(a[0] @ b[0])[None]
+    result: FloatArray = (a[..., None, :] @ b[..., :, None])[..., 0, 0]
+    return result
+
+
+def _matvec(A: FloatArray, x: FloatArray) -> FloatArray:
+    """``A x`` for ``(..., m, n)`` A and ``(..., n)`` x (a batch of matrix-vector products).
+
+    A batch of one takes numpy's 2-D product (a third of the time, the same bits: numpy
+    multiplies each matrix of a stack as it does a single one).
+    """
+    if A.ndim == 2 or (A.ndim == 3 and len(A) == 1):
+        result: FloatArray = (A[0] @ x[0])[None] if A.ndim == 3 else A @ x
+        return result
+    result = (A @ x[..., None])[..., 0]
+    return result
+
+
+def _matvec_t(A: FloatArray, x: FloatArray) -> FloatArray:
+    """``A^T x`` for ``(..., m, n)`` A and ``(..., m)`` x (as :func:`_matvec`)."""
+    if A.ndim == 2 or (A.ndim == 3 and len(A) == 1):
+        result: FloatArray = (x[0] @ A[0])[None] if A.ndim == 3 else x @ A
+        return result
+    result = (x[..., None, :] @ A)[..., 0, :]
+    return result

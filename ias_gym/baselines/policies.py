@@ -25,6 +25,7 @@ from typing import Any, Protocol
 import gymnasium as gym
 import numpy as np
 
+from ias_gym.baselines.batch import batch_size
 from ias_gym.errors import IasGymError, InputError
 from ias_gym.safe_sb3 import LoadedPolicy, load_sb3_policy
 
@@ -42,7 +43,8 @@ class Policy(Protocol):
         """The action for ``observation`` and the policy's next ``state``.
 
         Args:
-            observation: the env's observation.
+            observation: the env's observation, or a batch ``(n, *obs_shape)`` from a vector
+                env (then the actions are ``(n, *act_shape)``).
             state: the state the previous call returned (``None`` at an episode's start).
             episode_start: true on the first step of an episode (a stateful policy resets).
             deterministic: act deterministically (SB3: the mode of the distribution).
@@ -61,9 +63,12 @@ class ZeroPolicy:
 
     Args:
         space: the env's Box action space.
+        observation_shape: the env's observation shape, to tell one observation from a
+            batch ``(n, *shape)`` (``None``: always one).
     """
 
     space: gym.spaces.Box
+    observation_shape: tuple[int, ...] | None = None
 
     def predict(
         self,
@@ -72,8 +77,11 @@ class ZeroPolicy:
         episode_start: Any = None,
         deterministic: bool = True,
     ) -> tuple[np.ndarray, Any]:
-        """A fresh zero array of the space's shape and dtype (SB3's signature)."""
-        return np.zeros(self.space.shape, dtype=self.space.dtype), state
+        """A fresh zero array of the space's shape and dtype, ``(n, ...)`` for a batch of n
+        observations (SB3's signature)."""
+        n = batch_size(observation, self.observation_shape)
+        shape = self.space.shape if n is None else (n, *self.space.shape)
+        return np.zeros(shape, dtype=self.space.dtype), state
 
 
 class RandomPolicy:
@@ -85,10 +93,18 @@ class RandomPolicy:
     Args:
         space: the env's action space (seeded in place).
         seed: seed of the action sampling (``None``: unseeded).
+        observation_shape: the env's observation shape, to tell one observation from a
+            batch ``(n, *shape)`` (``None``: always one).
     """
 
-    def __init__(self, space: gym.Space[Any], seed: int | None = None) -> None:
+    def __init__(
+        self,
+        space: gym.Space[Any],
+        seed: int | None = None,
+        observation_shape: tuple[int, ...] | None = None,
+    ) -> None:
         self.space = space
+        self.observation_shape = observation_shape
         space.seed(seed)
 
     def predict(
@@ -98,8 +114,12 @@ class RandomPolicy:
         episode_start: Any = None,
         deterministic: bool = True,
     ) -> tuple[Any, Any]:
-        """A sample of the action space (SB3's signature; ``deterministic`` is ignored)."""
-        return self.space.sample(), state
+        """A sample of the action space, ``n`` stacked samples for a batch of n observations
+        (SB3's signature; ``deterministic`` is ignored)."""
+        n = batch_size(observation, self.observation_shape)
+        if n is None:
+            return self.space.sample(), state
+        return np.stack([self.space.sample() for _ in range(n)]), state
 
 
 @dataclass(frozen=True)
@@ -185,7 +205,7 @@ def load_policy(
         space = env.action_space
         if not isinstance(space, gym.spaces.Box):
             raise InputError(f"{TELEOP!r} needs a Box action space, got {space}")
-        return ZeroPolicy(space)
+        return ZeroPolicy(space, _observation_shape(env))
     if spec == EXPERT:
         if glove:
             raise InputError(
@@ -195,7 +215,7 @@ def load_policy(
             )
         return ExpertPolicy(env)
     if spec == RANDOM:
-        return RandomPolicy(env.action_space, seed)
+        return RandomPolicy(env.action_space, seed, _observation_shape(env))
     path = Path(spec)
     if not path.is_file():
         raise PolicyNotFoundError(
@@ -208,6 +228,11 @@ def load_policy(
             "loading a saved model needs stable-baselines3: pip install 'ias-gym[train]'"
         ) from None
     return ModelPolicy(load_sb3_policy(path, env, trust_pickle=trust_pickle))
+
+
+def _observation_shape(env: gym.Env[Any, Any]) -> tuple[int, ...] | None:
+    shape = env.observation_space.shape
+    return None if shape is None else tuple(shape)
 
 
 def policy_source(policy_spec: str) -> str:

@@ -46,6 +46,20 @@ def cross3(a: FloatArray, b: FloatArray) -> FloatArray:
     )
 
 
+def cross_last(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``a x b`` along the last axis of ``(..., 3)`` arrays (a batch of :func:`cross3`).
+
+    The same products and differences as :func:`cross3`, so each row has its bits.
+    """
+    result: FloatArray = a[..., _YZX] * b[..., _ZXY] - a[..., _ZXY] * b[..., _YZX]
+    return result
+
+
+# Index permutations of the written-out cross product.
+_YZX = np.array([1, 2, 0])
+_ZXY = np.array([2, 0, 1])
+
+
 def contact_wrench_basis(
     point: ArrayLike,
     normal: ArrayLike,
@@ -116,3 +130,29 @@ def wrench_matrix(
         torsion = np.concatenate([np.zeros((m, 1, 3)), frs[:, :1]], axis=2)
         cols = np.concatenate([cols, torsion], axis=1)
     return cols.reshape(-1, 6).T.copy()
+
+
+def wrench_matrices(points: FloatArray, frames: FloatArray, reference: FloatArray) -> FloatArray:
+    """:func:`wrench_matrix` of hard-finger contacts for a batch of grasps (same bits per grasp).
+
+    Args:
+        points: ``(..., m, 3)`` contact points [m].
+        frames: ``(..., m, 3, 3)`` contact frames, rows normal, t1, t2.
+        reference: ``(..., 3)`` points [m] about which moments are taken.
+
+    Returns:
+        ``(..., 6, 3 m)``: per grasp the columns of contact 1, then contact 2, ...
+    """
+    p = (points - reference[..., None, :])[..., None, :]  # (..., m, 1, 3)
+    dirs = frames
+    cols = np.empty((*frames.shape[:-1], 6))  # (..., m, 3, 6)
+    cols[..., :3] = dirs
+    cols[..., 3] = p[..., 1] * dirs[..., 2] - p[..., 2] * dirs[..., 1]
+    cols[..., 4] = p[..., 2] * dirs[..., 0] - p[..., 0] * dirs[..., 2]
+    cols[..., 5] = p[..., 0] * dirs[..., 1] - p[..., 1] * dirs[..., 0]
+    m = frames.shape[-3]
+    # A C-contiguous copy, as wrench_matrix's: a product with the transposed view sums in
+    # another order (other last bits)
+    cols = cols.reshape(*frames.shape[:-3], 3 * m, 6)
+    result: FloatArray = np.ascontiguousarray(cols.swapaxes(-1, -2))
+    return result

@@ -9,6 +9,7 @@ share (:mod:`ias_gym.grasp.internal_forces_reference`, the LP and SOCP;
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Literal
@@ -163,7 +164,11 @@ def _check_problem(
         raise ValueError(f"W must be 6 x 3m (three columns per contact), got shape {W.shape}")
     if w.shape != (6,):
         raise ValueError(f"w_ext must be a 6-vector [fx fy fz mx my mz], got shape {w.shape}")
-    if not (np.isfinite(W).all() and np.isfinite(w).all()):
+    # One sum first (NaN and inf propagate into it; a control loop calls this every step),
+    # the exact test only if the sum is not finite (it may overflow).
+    if not math.isfinite(float(W.sum()) + float(w.sum())) and not (
+        np.isfinite(W).all() and np.isfinite(w).all()
+    ):
         raise ValueError("W and w_ext must be finite (found NaN or inf)")
     m = W.shape[1] // 3
     slides: dict[int, FloatArray] = {}

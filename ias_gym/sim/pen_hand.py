@@ -331,15 +331,17 @@ class PenHandPhysics(FreePenPhysics):
         d, k = self.data, self.n_fingers
         block = d.sensordata[self._contact_sensor_idx].reshape(k, _CONTACT_SENSOR_DIM)
         active = block[:, 0] > 0
+        everyone = bool(active.all())
         # The pen's axis from the same forward pass as the contacts (not from qpos).
-        axis_mj = d.xmat[self.pen_body_id, [0, 3, 6]]
-        tips_mj = d.site_xpos[self.tip_site_ids]
-        normal_mj = block[:, 8:11].copy()  # unit vectors from MuJoCo
-        points_mj = block[:, 5:8].copy()
-        if not active.all():
+        axis_mj = d.xmat[self.pen_body_id, 0::3]  # the first column of the rotation
+        normal_mj = block[:, 8:11]  # unit vectors from MuJoCo
+        points_mj = block[:, 5:8]
+        if not everyone:
             # For fingers that do not touch: the tip centre, and the geometric normal from it
             # to the nearest point of the pen's axis segment.
             idle = ~active
+            tips_mj = d.site_xpos[self.tip_site_ids]
+            normal_mj, points_mj = normal_mj.copy(), points_mj.copy()
             normal_mj[idle] = axis_normals(
                 tips_mj[idle], d.xpos[self.pen_body_id], axis_mj, self._pen_half_length
             )
@@ -349,7 +351,8 @@ class PenHandPhysics(FreePenPhysics):
         binormal = cross(normal_mj, tangent)
         f = block[:, 1:4]
         force_mj = f[:, :1] * normal_mj + f[:, 1:2] * tangent + f[:, 2:3] * binormal
-        force_mj[~active] = 0.0
+        if not everyone:
+            force_mj[~active] = 0.0
 
         # Frame rows in MuJoCo coordinates, converted to the paper frame in one product
         # (t2 = sign * (t1 x n): the paper frame is a proper rotation of MuJoCo's, so the
@@ -359,7 +362,7 @@ class PenHandPhysics(FreePenPhysics):
             active=active,
             points=(points_mj - self.origin_mj) @ R_PAPER_TO_MJ,
             frames=frames @ R_PAPER_TO_MJ,
-            depth=np.where(active, -block[:, 4], 0.0),
+            depth=-block[:, 4] if everyone else np.where(active, -block[:, 4], 0.0),
             force=force_mj @ R_PAPER_TO_MJ,
         )
 
@@ -401,12 +404,12 @@ class PenHandPhysics(FreePenPhysics):
         cts = self.fingertip_contacts() if contacts is None else contacts
         frames_mj = paper_to_mj(cts.frames)  # rows n, t1, t2 in MuJoCo coordinates
         points_mj = paper_to_mj(cts.points) + self.origin_mj
-        jac = np.empty((self.n_fingers, 3, self.n_hand_dofs))
+        # Every finger's translational Jacobian, then one stacked product with the frames
+        # (numpy multiplies each matrix of a stack as it would alone: the same bits).
+        jacp = np.empty((self.n_fingers, 3, self.model.nv))
         for i in range(self.n_fingers):
-            mujoco.mj_jac(
-                self.model, self.data, self._jacp, None, points_mj[i], self._tip_bodies[i]
-            )
-            jac[i] = frames_mj[i] @ self._jacp[:, self.hand_dof_ids]
+            mujoco.mj_jac(self.model, self.data, jacp[i], None, points_mj[i], self._tip_bodies[i])
+        jac = frames_mj @ jacp[:, :, self.hand_dof_ids]
         return jac.reshape(3 * self.n_fingers, self.n_hand_dofs)
 
     def n_link_contacts(self) -> int:
