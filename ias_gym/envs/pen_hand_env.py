@@ -128,6 +128,16 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         self._rot = np.zeros(9)
         self._rows = np.zeros((8, 3))
         self._warnings = self.data.warning.number  # a view: MuJoCo's warning counters
+        # Views into MjData's fixed buffers, made once: each attribute access of the
+        # bindings builds a new array (about 0.3 us, several per step).
+        d = self.data
+        self._qpos, self._qvel, self._ctrl = d.qpos, d.qvel, d.ctrl
+        self._sensordata, self._site_xpos = d.sensordata, d.site_xpos
+        self._pen_xpos = d.xpos[self._pen_body]
+        self._pen_pos = d.qpos[self._pen_q : self._pen_q + 3]
+        self._pen_quat = d.qpos[self._pen_q + 3 : self._pen_q + 7]
+        self._pen_lin = d.qvel[self._pen_v : self._pen_v + 3]
+        self._pen_ang = d.qvel[self._pen_v + 3 : self._pen_v + 6]
         self.disturbances = self._build_disturbances()
 
         mujoco.mj_resetDataKeyframe(self.model, self.data, self._key)
@@ -201,6 +211,12 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
 
     # ------------------------------------------------------------------ gymnasium API
     @property
+    def dt(self) -> float:
+        """Control period [s]: one ``step`` (``frame_skip`` physics steps), as Gymnasium's
+        MuJoCo envs have it."""
+        return float(self.model.opt.timestep * self.frame_skip)
+
+    @property
     def time(self) -> float:
         """Time since reset [s]."""
         return float(self.data.time)
@@ -263,7 +279,7 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             a = dist.actuate(a)
             push = dist.push(self.time)
             d.xfrc_applied[self._pen_body, :3] = push[_TO_PAPER_INDEX] * (1.0, -1.0, 1.0)
-        d.ctrl[self._act_ids] = a * self._ctrl_max
+        self._ctrl[self._act_ids] = a * self._ctrl_max
         warnings_before = int(self._warnings.sum())
         mujoco.mj_step(m, d, nstep=self.frame_skip)
         self._steps += 1
@@ -273,7 +289,7 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
 
         # A diverging simulation makes MuJoCo warn (and reset its data).
         self._unstable = int(self._warnings.sum()) > warnings_before or not math.isfinite(
-            float(d.qpos.sum()) + float(d.qvel.sum())
+            float(self._qpos.sum()) + float(self._qvel.sum())
         )
         if self._unstable:
             mujoco.mj_resetDataKeyframe(m, d, self._key)
@@ -305,20 +321,19 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         The pen's and hand's state come from ``qpos``/``qvel`` (now); fingertip positions
         and contact sensors from the last forward pass, one physics step (1 ms) earlier.
         """
-        d = self.data
-        a, va = self._pen_q, self._pen_v
-        mujoco.mju_quat2Mat(self._rot, d.qpos[a + 3 : a + 7])
+        mujoco.mju_quat2Mat(self._rot, self._pen_quat)
         rot = self._rot.reshape(3, 3)
         rows = self._rows  # (8, 3) in MuJoCo's frame
-        np.subtract(d.qpos[a : a + 3], self.physics.origin_mj, out=rows[0])
+        np.subtract(self._pen_pos, self.physics.origin_mj, out=rows[0])
         rows[1] = rot[:, 0]
-        rows[2] = d.qvel[va : va + 3]
-        np.dot(rot, d.qvel[va + 3 : va + 6], out=rows[3])  # body -> world
-        rows[4:] = d.sensordata[self._force_adr].reshape(4, 3)
+        rows[2] = self._pen_lin
+        np.dot(rot, self._pen_ang, out=rows[3])  # body -> world
+        sensordata = self._sensordata
+        rows[4:] = sensordata[self._force_adr].reshape(4, 3)
         paper = rows[:, _TO_PAPER_INDEX]
         paper[:, 2] *= -1.0
-        tips = d.site_xpos[self._tip_sites] - d.xpos[self._pen_body]
-        self.state = PenState(paper.ravel(), d.sensordata[self._found_adr] > 0, tips @ rot[:, 0])
+        tips = self._site_xpos[self._tip_sites] - self._pen_xpos
+        self.state = PenState(paper.ravel(), sensordata[self._found_adr] > 0, tips @ rot[:, 0])
 
     def _start_episode(self) -> None:
         """Zero the episode's statistics for the current (just reset) state."""
@@ -333,15 +348,15 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         self._task_update()
 
     def _observation(self) -> FloatArray:
-        d = self.data
+        qpos, qvel = self._qpos, self._qvel
         noise = self.sensor_noise
         if noise is not None:
             vector = self.state.vector.copy()
             vector[12:24] += noise.force.ravel()
             return np.concatenate(
                 [
-                    d.qpos[self._hand_q] + noise.qpos,
-                    d.qvel[self._hand_v] + noise.qvel,
+                    qpos[self._hand_q] + noise.qpos,
+                    qvel[self._hand_v] + noise.qvel,
                     vector,
                     (self._steps / self.max_steps,),
                     self._task_observation(),
@@ -349,8 +364,8 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             )
         return np.concatenate(
             [
-                d.qpos[self._hand_q],
-                d.qvel[self._hand_v],
+                qpos[self._hand_q],
+                qvel[self._hand_v],
                 self.state.vector,
                 (self._steps / self.max_steps,),
                 self._task_observation(),
