@@ -26,6 +26,7 @@ from stable_baselines3.common.vec_env.base_vec_env import (
 )
 
 from ias_gym.envs.vector import BatchedWorkers
+from ias_gym.errors import InputError
 
 
 class BatchedVecEnv(VecEnv):
@@ -207,3 +208,40 @@ def make_batched_vec_env(
     )
     vec.seed(seed)
     return vec
+
+
+def make_training_env(
+    env_id: str,
+    n_envs: int = 1,
+    seed: int = 0,
+    *,
+    num_workers: int | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+) -> VecEnv:
+    """The training envs of ``train/*.py``: one env in this process (SB3's ``DummyVecEnv``,
+    :func:`ias_gym.learning.finetune.make_vec_env`), or ``n_envs > 1`` batched in worker
+    processes (:func:`make_batched_vec_env`); the same envs, seeds and trajectories.
+
+    Args:
+        env_id: a registered id.
+        n_envs: number of envs.
+        seed: seed of the first env (env ``i`` gets ``seed + i``).
+        num_workers: worker processes for ``n_envs > 1`` (default: one per core, at most
+            ``n_envs``).
+        env_kwargs: configuration overrides for ``gym.make``.
+
+    Returns:
+        The seeded vector env.
+
+    Raises:
+        ~ias_gym.errors.InputError: ``n_envs < 1`` or ``num_workers`` outside ``1..n_envs``.
+    """
+    if n_envs < 1:
+        raise InputError(f"n_envs must be >= 1, got {n_envs}")
+    if n_envs == 1:
+        from ias_gym.learning.finetune import make_vec_env
+
+        return make_vec_env(env_id, 1, seed=seed, env_kwargs=env_kwargs)
+    return make_batched_vec_env(
+        env_id, n_envs, seed, num_workers=num_workers, env_kwargs=env_kwargs
+    )
