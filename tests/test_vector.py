@@ -375,3 +375,48 @@ def test_sb3_batched_vec_env_starts_with_forkserver_too() -> None:
     obs: Any = vec.reset()
     np.testing.assert_array_equal(obs[1], gym.make(PEN).reset(seed=2)[0])
     vec.close()
+
+
+# ---------------------------------------------------------------------- the glove hardware
+
+
+def test_the_hardware_env_vectorises_from_a_recorded_session(channel: str, tmp_path: Any) -> None:
+    """IAS-GloveHardware-v0 needs a device; a recorded session (replay=, no bus) is one that
+    every worker can open: sync, async and batched give each sub-env the single replay."""
+    from ias_gym.hardware import GloveEmulator
+
+    log = tmp_path / "session.blf"
+    zero = np.zeros(10, dtype=np.float32)
+    with GloveEmulator(channel=channel, rate_hz=500, watchdog_timeout=0.2):
+        env = gym.make(
+            "IAS-GloveHardware-v0",
+            channel=channel,
+            record=log,
+            control_dt=0.004,
+            watchdog_timeout=0.2,
+        )
+        env.reset(seed=0)
+        for _ in range(30):
+            env.step(zero)
+        env.close()
+    kwargs = {"replay": log, "control_dt": 0.004}
+    single = gym.make("IAS-GloveHardware-v0", **kwargs)
+    want = [single.reset(seed=0)[0]] + [single.step(zero)[0] for _ in range(20)]
+    single.close()
+    vecs = [
+        gym.make_vec("IAS-GloveHardware-v0", 2, vectorization_mode="sync", **kwargs),
+        gym.make_vec(
+            "IAS-GloveHardware-v0",
+            2,
+            vectorization_mode="async",
+            vector_kwargs={"context": CTX},
+            **kwargs,
+        ),
+        make_batched_vec("IAS-GloveHardware-v0", 2, 2, context=CTX, **kwargs),
+    ]
+    for vec in vecs:
+        got = [vec.reset(seed=0)[0]] + [vec.step(np.stack([zero, zero]))[0] for _ in range(20)]
+        vec.close()
+        for g, w in zip(got, want, strict=True):
+            np.testing.assert_array_equal(g[0], w)
+            np.testing.assert_array_equal(g[1], w)

@@ -47,7 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="PPO envs; more than one run batched in worker processes (ias_gym.envs.vector)",
     )
     parser.add_argument(
-        "--workers", type=int, default=None, help="worker processes (default: one per core)"
+        "--workers", type=int, default=None, help="worker processes (None: one per core)"
     )
     parser.add_argument(
         "--lr", type=float, default=None, help="PPO learning rate (default: FINE_TUNE_PPO's)"

@@ -33,7 +33,7 @@ def build_parser(algo: str, description: str) -> argparse.ArgumentParser:
         help="envs; more than one run batched in worker processes (ias_gym.envs.vector)",
     )
     parser.add_argument(
-        "--workers", type=int, default=None, help="worker processes (default: one per core)"
+        "--workers", type=int, default=None, help="worker processes (None: one per core)"
     )
     if algo != "ppo":
         parser.add_argument("--buffer-size", type=int, default=1_000_000, help="replay buffer")

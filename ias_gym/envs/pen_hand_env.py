@@ -37,6 +37,13 @@ ANGLE_SCALE = math.radians(5.0)  # [rad]
 _TO_PAPER_INDEX = np.array([0, 2, 1])  # and negate the last
 
 
+def _as_index(ids: NDArray[np.integer[Any]]) -> slice | NDArray[np.integer[Any]]:
+    """``ids`` as a slice when they are consecutive (indexing then gives a view)."""
+    if len(ids) and np.array_equal(ids, np.arange(ids[0], ids[0] + len(ids))):
+        return slice(int(ids[0]), int(ids[0]) + len(ids))
+    return ids
+
+
 class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
     """Base class of the pen tasks (not registered itself).
 
@@ -138,6 +145,15 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         self._pen_quat = d.qpos[self._pen_q + 3 : self._pen_q + 7]
         self._pen_lin = d.qvel[self._pen_v : self._pen_v + 3]
         self._pen_ang = d.qvel[self._pen_v + 3 : self._pen_v + 6]
+        self._axis = self._rot[0::3]  # the pen's axis: column 0 of the rotation, a view
+        # Contiguous indices as slices (views instead of fancy-indexed copies).
+        self._hand_q_ix, self._hand_v_ix = _as_index(self._hand_q), _as_index(self._hand_v)
+        self._act_ix, self._tip_ix = _as_index(self._act_ids), _as_index(self._tip_sites)
+        # The force sensors as views when they sit back to back (count, fx, fy, fz each).
+        self._sensor_block: NDArray[np.float64] | None = None
+        if np.all(np.diff(adr) == 4):
+            block = d.sensordata[adr[0] : adr[0] + 4 * len(adr)].reshape(len(adr), 4)
+            self._sensor_block = block
         self.disturbances = self._build_disturbances()
 
         mujoco.mj_resetDataKeyframe(self.model, self.data, self._key)
@@ -279,7 +295,7 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             a = dist.actuate(a)
             push = dist.push(self.time)
             d.xfrc_applied[self._pen_body, :3] = push[_TO_PAPER_INDEX] * (1.0, -1.0, 1.0)
-        self._ctrl[self._act_ids] = a * self._ctrl_max
+        self._ctrl[self._act_ix] = a * self._ctrl_max
         warnings_before = int(self._warnings.sum())
         mujoco.mj_step(m, d, nstep=self.frame_skip)
         self._steps += 1
@@ -325,15 +341,20 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         rot = self._rot.reshape(3, 3)
         rows = self._rows  # (8, 3) in MuJoCo's frame
         np.subtract(self._pen_pos, self.physics.origin_mj, out=rows[0])
-        rows[1] = rot[:, 0]
+        rows[1] = self._axis
         rows[2] = self._pen_lin
         np.dot(rot, self._pen_ang, out=rows[3])  # body -> world
-        sensordata = self._sensordata
-        rows[4:] = sensordata[self._force_adr].reshape(4, 3)
+        block = self._sensor_block
+        if block is not None:
+            rows[4:] = block[:, 1:]
+            found = block[:, 0]
+        else:
+            rows[4:] = self._sensordata[self._force_adr].reshape(4, 3)
+            found = self._sensordata[self._found_adr]
         paper = rows[:, _TO_PAPER_INDEX]
         paper[:, 2] *= -1.0
-        tips = self._site_xpos[self._tip_sites] - self._pen_xpos
-        self.state = PenState(paper.ravel(), sensordata[self._found_adr] > 0, tips @ rot[:, 0])
+        tips = self._site_xpos[self._tip_ix] - self._pen_xpos
+        self.state = PenState(paper.ravel(), found > 0, tips @ self._axis)
 
     def _start_episode(self) -> None:
         """Zero the episode's statistics for the current (just reset) state."""
@@ -355,8 +376,8 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             vector[12:24] += noise.force.ravel()
             return np.concatenate(
                 [
-                    qpos[self._hand_q] + noise.qpos,
-                    qvel[self._hand_v] + noise.qvel,
+                    qpos[self._hand_q_ix] + noise.qpos,
+                    qvel[self._hand_v_ix] + noise.qvel,
                     vector,
                     (self._steps / self.max_steps,),
                     self._task_observation(),
@@ -364,8 +385,8 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             )
         return np.concatenate(
             [
-                qpos[self._hand_q],
-                qvel[self._hand_v],
+                qpos[self._hand_q_ix],
+                qvel[self._hand_v_ix],
                 self.state.vector,
                 (self._steps / self.max_steps,),
                 self._task_observation(),

@@ -65,10 +65,9 @@ def place_grasp(
     local[:, 1] = offset
     targets = physics.origin_mj + (centre + local @ rot.T) @ R_PAPER_TO_MJ.T
 
-    qadr = physics.hand_qpos_ids
     # The hand's kinematics does not depend on the pen: at the hand's keyframe posture (every
     # env reset starts there) the first iteration's tips and Jacobians are known already.
-    at_rest = np.array_equal(d.qpos[qadr], c.rest_qpos)
+    at_rest = bool((d.qpos[c.q_ix] == c.rest_qpos).all())
     err = np.inf
     for i in range(iterations):
         cached = i == 0 and at_rest
@@ -85,7 +84,8 @@ def place_grasp(
         # All fingers' damped Gauss-Newton steps in one batched solve (each finger is its
         # own chain); the same floating-point operations as one solve per finger.
         step = np.linalg.solve(lhs, jac_t @ residual[:, :, None])
-        d.qpos[qadr] = np.clip(d.qpos[qadr] + step.ravel(), c.lo, c.hi)
+        # (np.clip's values, without its call overhead; q_ix: a slice when consecutive)
+        d.qpos[c.q_ix] = np.minimum(np.maximum(d.qpos[c.q_ix] + step.ravel(), c.lo), c.hi)
     mujoco.mj_forward(m, d)
     return err
 
@@ -122,6 +122,8 @@ class _IKConstants:
         self.finger_rows = np.arange(k)[:, None]
         self.finger_dofs = np.asarray(dadr).reshape(k, n)
         self.jac_buffer = np.zeros((k, 3, m.nv))
+        consecutive = np.array_equal(qadr, np.arange(qadr[0], qadr[0] + len(qadr)))
+        self.q_ix = slice(int(qadr[0]), int(qadr[0]) + len(qadr)) if consecutive else qadr
         self.lo, self.hi = m.jnt_range[self.joints].T.copy()
         self.damping = 1e-8 * np.eye(n)
         # The hand at its keyframe posture: its tips, joint axes and anchors. Valid whenever
