@@ -4,7 +4,8 @@ Run: ``python bench/bench_vector.py`` (options: ``--help``). For ``num_envs`` x
 ``num_workers``, the env steps per second of random actions (episodes end after a few
 steps, so resets count) in Gymnasium's ``SyncVectorEnv`` and ``AsyncVectorEnv``, SB3's
 ``SubprocVecEnv`` and the batched vector env of ``ias_gym.envs.vector``; each as a ratio to
-one plain env and to linear scaling (``min(processes, cores)`` x one plain env). Then each
+one plain env (measured right before each row) and to linear scaling (``min(processes,
+cores)`` x one plain env): on a machine that other processes load, no row scales. Then each
 env's reset time [ms] and single-env rate, with Gymnasium-Robotics' ``AdroitHandPen-v1``
 (same 10 ms control period) measured in the same run (skipped with a message if
 ``gymnasium-robotics`` is missing: ``pip install -e .[bench]``). Configurations are measured
@@ -136,8 +137,8 @@ def main() -> None:
     parser.add_argument("--env", default="IAS-PenSlide-v0", help="env id of the vector rows")
     parser.add_argument("--envs", default="1,2,4,8", help="num_envs values")
     parser.add_argument("--workers", default="1,2", help="num_workers values of ours")
-    parser.add_argument("--seconds", type=float, default=1.0, help="per measurement [s]")
-    parser.add_argument("--repeats", type=int, default=3, help="measurements per row")
+    parser.add_argument("--seconds", type=float, default=0.5, help="per measurement [s]")
+    parser.add_argument("--repeats", type=int, default=5, help="measurements per row")
     args = parser.parse_args()
     try:
         import torch
@@ -153,16 +154,22 @@ def main() -> None:
         f"{platform.python_version()}, mujoco {mujoco.__version__}, gymnasium {gym.__version__}"
     )
 
-    # One plain env: the unit of the ratios, measured between the vector rows too.
+    # One plain env, the unit of the ratios, is measured right before every vector row (the
+    # ratio of each pair, then the median over the repeats: load that changes between
+    # rows, e.g. other processes on the machine, cancels out as far as it can).
     single = Single(args.env)
     configs = configurations(envs, workers)
     runners = {c: build(c[0], args.env, c[1], c[2]) for c in configs}
     rates: dict[tuple[str, int, int], list[float]] = {c: [] for c in configs}
+    ratios: dict[tuple[str, int, int], list[float]] = {c: [] for c in configs}
     single_rates = []
     for _ in range(args.repeats):
-        single_rates.append(_rate(single.step, args.seconds))
         for c, runner in runners.items():
-            rates[c].append(_rate(runner.step, args.seconds))
+            base = _rate(single.step, args.seconds)
+            rate = _rate(runner.step, args.seconds)
+            single_rates.append(base)
+            rates[c].append(rate)
+            ratios[c].append(rate / base)
     for runner in runners.values():
         runner.close()
     base = float(np.median(single_rates))
@@ -170,10 +177,14 @@ def main() -> None:
     print(f"\n{args.env}, random actions, resets included; one plain env: {base:.0f} steps/s\n")
     print("| vector env | envs | processes | steps/s | x one env | / linear |")
     print("|---|---:|---:|---:|---:|---:|")
-    for (kind, n, procs), values in rates.items():
-        rate = float(np.median(values))
-        linear = base * min(procs, cores, n)
-        print(f"| {kind} | {n} | {procs} | {rate:.0f} | {rate / base:.2f} | {rate / linear:.2f} |")
+    for c, values in rates.items():
+        kind, n, procs = c
+        ratio = float(np.median(ratios[c]))
+        linear = min(procs, cores, n)
+        print(
+            f"| {kind} | {n} | {procs} | {np.median(values):.0f} | {ratio:.2f} "
+            f"| {ratio / linear:.2f} |"
+        )
 
     print("\n| env | reset [ms] | one env, random [steps/s] |")
     print("|---|---:|---:|")
