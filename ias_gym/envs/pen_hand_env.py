@@ -155,6 +155,7 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             block = d.sensordata[adr[0] : adr[0] + 4 * len(adr)].reshape(len(adr), 4)
             self._sensor_block = block
         self.disturbances = self._build_disturbances()
+        self._reward_keys: tuple[str, ...] | None = None
 
         mujoco.mj_resetDataKeyframe(self.model, self.data, self._key)
         mujoco.mj_forward(self.model, self.data)
@@ -270,7 +271,9 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             self.disturbances.reset(self.np_random)
         self._start_episode()
         obs = self._observation()
-        terms = dict.fromkeys(self._reward_terms(), 0.0)
+        if self._reward_keys is None:  # the task's terms, once (not every reset)
+            self._reward_keys = tuple(self._reward_terms())
+        terms = dict.fromkeys(self._reward_keys, 0.0)
         if self.render_mode == "human":
             self.render()
         return obs, self._info(terms)

@@ -19,6 +19,16 @@ from ias_gym.sim.pen_hand import GRASP_KEYFRAME, PenHandPhysics, rpy_to_matrix
 
 FloatArray = np.ndarray
 
+try:  # numpy's LAPACK gufunc behind np.linalg.solve, without its per-call checks (10 us)
+    from numpy.linalg import _umath_linalg
+
+    def _solve(a: FloatArray, b: FloatArray) -> FloatArray:
+        result: FloatArray = _umath_linalg.solve(a, b, signature="dd->d")
+        return result
+
+except ImportError:  # pragma: no cover - another numpy layout: the public function
+    _solve = np.linalg.solve
+
 #: Which side of the pen each finger touches (+1 top, -1 bottom), paper order.
 _SIDE = np.array([1.0, -1.0, -1.0, 1.0])
 
@@ -83,7 +93,8 @@ def place_grasp(
         jac_t, lhs = (c.rest_jac_t, c.rest_lhs) if cached else _finger_jacobians(c, m, d)
         # All fingers' damped Gauss-Newton steps in one batched solve (each finger is its
         # own chain); the same floating-point operations as one solve per finger.
-        step = np.linalg.solve(lhs, jac_t @ residual[:, :, None])
+        # (the matrices are positive definite: J^T J plus damping)
+        step = _solve(lhs, jac_t @ residual[:, :, None])
         # (np.clip's values, without its call overhead; q_ix: a slice when consecutive)
         d.qpos[c.q_ix] = np.minimum(np.maximum(d.qpos[c.q_ix] + step.ravel(), c.lo), c.hi)
     mujoco.mj_forward(m, d)
@@ -101,8 +112,8 @@ def _finger_jacobians(
     the grasp stays the same bit for bit (tests/test_env_speed.py).
     """
     mujoco.mj_comPos(m, d)  # the Jacobians' cdof
-    for f, site in enumerate(c.tip_sites):
-        mujoco.mj_jacSite(m, d, c.jac_buffer[f], None, int(site))
+    for jac, site in c.jac_rows:
+        mujoco.mj_jacSite(m, d, jac, None, site)
     jac_t = np.ascontiguousarray(c.jac_buffer[c.finger_rows, :, c.finger_dofs])
     return jac_t, jac_t @ jac_t.transpose(0, 2, 1) + c.damping
 
@@ -122,6 +133,7 @@ class _IKConstants:
         self.finger_rows = np.arange(k)[:, None]
         self.finger_dofs = np.asarray(dadr).reshape(k, n)
         self.jac_buffer = np.zeros((k, 3, m.nv))
+        self.jac_rows = [(self.jac_buffer[f], int(site)) for f, site in enumerate(self.tip_sites)]
         consecutive = np.array_equal(qadr, np.arange(qadr[0], qadr[0] + len(qadr)))
         self.q_ix = slice(int(qadr[0]), int(qadr[0]) + len(qadr)) if consecutive else qadr
         self.lo, self.hi = m.jnt_range[self.joints].T.copy()
