@@ -420,3 +420,23 @@ def test_the_hardware_env_vectorises_from_a_recorded_session(channel: str, tmp_p
         for g, w in zip(got, want, strict=True):
             np.testing.assert_array_equal(g[0], w)
             np.testing.assert_array_equal(g[1], w)
+
+
+def test_training_envs_are_batched_for_more_than_one_env() -> None:
+    """train/*.py --n-envs N: one env in this process, N > 1 batched, the same envs."""
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from ias_gym.learning.vec_env import make_training_env
+
+    one = make_training_env(PEN, 1, seed=3)
+    assert isinstance(one, DummyVecEnv)
+    many = make_training_env(PEN, 3, seed=3, num_workers=2, context=CTX)
+    assert isinstance(many, BatchedVecEnv) and many.num_workers == 2
+    same = make_vec_env(PEN, 3, seed=3)
+    first: Any = same.reset()
+    np.testing.assert_array_equal(many.reset(), first)
+    np.testing.assert_array_equal(one.reset(), first[:1])
+    for env in (one, many, same):
+        env.close()
+    with pytest.raises(InputError, match="n_envs"):
+        make_training_env(PEN, 0)

@@ -217,6 +217,7 @@ def make_training_env(
     *,
     num_workers: int | None = None,
     env_kwargs: dict[str, Any] | None = None,
+    context: str | None = None,
 ) -> VecEnv:
     """The training envs of ``train/*.py``: one env in this process (SB3's ``DummyVecEnv``,
     :func:`ias_gym.learning.finetune.make_vec_env`), or ``n_envs > 1`` batched in worker
@@ -229,6 +230,7 @@ def make_training_env(
         num_workers: worker processes for ``n_envs > 1`` (default: one per core, at most
             ``n_envs``).
         env_kwargs: configuration overrides for ``gym.make``.
+        context: multiprocessing start method of the workers (see :class:`BatchedVecEnv`).
 
     Returns:
         The seeded vector env.
@@ -243,5 +245,5 @@ def make_training_env(
 
         return make_vec_env(env_id, 1, seed=seed, env_kwargs=env_kwargs)
     return make_batched_vec_env(
-        env_id, n_envs, seed, num_workers=num_workers, env_kwargs=env_kwargs
+        env_id, n_envs, seed, num_workers=num_workers, env_kwargs=env_kwargs, context=context
     )
