@@ -9,6 +9,7 @@ from pathlib import Path
 BENCHES = (
     "bench_internal_forces.py",
     "bench_envs.py",
+    "bench_vector.py",
     "bench_controller.py",
     "bench_glove.py",
     "bench_glove_loop.py",

@@ -40,7 +40,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--bc-lr", type=float, default=1e-3, help="cloning: learning rate")
     parser.add_argument("--steps", type=int, default=100_000, help="PPO environment steps")
-    parser.add_argument("--n-envs", type=int, default=4, help="parallel envs (sequential)")
+    parser.add_argument(
+        "--n-envs",
+        type=int,
+        default=4,
+        help="PPO envs; more than one run batched in worker processes (ias_gym.envs.vector)",
+    )
+    parser.add_argument(
+        "--workers", type=int, default=None, help="worker processes (None: one per core)"
+    )
     parser.add_argument(
         "--lr", type=float, default=None, help="PPO learning rate (default: FINE_TUNE_PPO's)"
     )
@@ -69,7 +77,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     from ias_gym.evaluation import report
     from ias_gym.learning.cloning import behaviour_clone
-    from ias_gym.learning.finetune import KeepBestPolicy, WallClockLimit, fine_tune, make_vec_env
+    from ias_gym.learning.finetune import KeepBestPolicy, WallClockLimit, fine_tune
+    from ias_gym.learning.vec_env import make_training_env
 
     torch.set_num_threads(args.threads)
     out = Path(args.out)
@@ -78,7 +87,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     bc_out.parent.mkdir(parents=True, exist_ok=True)
     demos = demonstrations(args)
 
-    env = make_vec_env(args.env, args.n_envs, seed=args.seed)
+    env = make_training_env(args.env, args.n_envs, seed=args.seed, num_workers=args.workers)
     start = time.perf_counter()
     model = behaviour_clone(
         env,

@@ -296,6 +296,12 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self._lifted = False  # the pen was lifted off its support in this episode
         self._renderer: Any = None
 
+    @property
+    def dt(self) -> float:
+        """Control period [s]: one ``step`` = one glove read (``frame_skip`` physics steps),
+        as Gymnasium's MuJoCo envs have it."""
+        return float(self.model.opt.timestep * self.frame_skip)
+
     # ------------------------------------------------------------------ glove
     def _open_glove(self, seed: int) -> GloveDevice:
         """The glove of a new episode: a fresh device from ``glove_factory`` (the previous

@@ -39,6 +39,13 @@ ANGLE_SCALE = math.radians(5.0)  # [rad]
 _TO_PAPER_INDEX = np.array([0, 2, 1])  # and negate the last
 
 
+def _as_index(ids: NDArray[np.integer[Any]]) -> slice | NDArray[np.integer[Any]]:
+    """``ids`` as a slice when they are consecutive (indexing then gives a view)."""
+    if len(ids) and np.array_equal(ids, np.arange(ids[0], ids[0] + len(ids))):
+        return slice(int(ids[0]), int(ids[0]) + len(ids))
+    return ids
+
+
 class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
     """Base class of the pen tasks (not registered itself).
 
@@ -136,7 +143,27 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         self._rot = np.zeros(9)
         self._rows = np.zeros((4 + p.n_fingers, 3))
         self._warnings = self.data.warning.number  # a view: MuJoCo's warning counters
+        # Views into MjData's fixed buffers, made once: each attribute access of the
+        # bindings builds a new array (about 0.3 us, several per step).
+        d = self.data
+        self._qpos, self._qvel, self._ctrl = d.qpos, d.qvel, d.ctrl
+        self._sensordata, self._site_xpos = d.sensordata, d.site_xpos
+        self._pen_xpos = d.xpos[self._pen_body]
+        self._pen_pos = d.qpos[self._pen_q : self._pen_q + 3]
+        self._pen_quat = d.qpos[self._pen_q + 3 : self._pen_q + 7]
+        self._pen_lin = d.qvel[self._pen_v : self._pen_v + 3]
+        self._pen_ang = d.qvel[self._pen_v + 3 : self._pen_v + 6]
+        self._axis = self._rot[0::3]  # the pen's axis: column 0 of the rotation, a view
+        # Contiguous indices as slices (views instead of fancy-indexed copies).
+        self._hand_q_ix, self._hand_v_ix = _as_index(self._hand_q), _as_index(self._hand_v)
+        self._act_ix, self._tip_ix = _as_index(self._act_ids), _as_index(self._tip_sites)
+        # The force sensors as views when they sit back to back (count, fx, fy, fz each).
+        self._sensor_block: NDArray[np.float64] | None = None
+        if np.all(np.diff(adr) == 4):
+            block = d.sensordata[adr[0] : adr[0] + 4 * len(adr)].reshape(len(adr), 4)
+            self._sensor_block = block
         self.disturbances = self._build_disturbances()
+        self._reward_keys: tuple[str, ...] | None = None
 
         mujoco.mj_resetDataKeyframe(self.model, self.data, self._key)
         mujoco.mj_forward(self.model, self.data)
@@ -210,6 +237,12 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
 
     # ------------------------------------------------------------------ gymnasium API
     @property
+    def dt(self) -> float:
+        """Control period [s]: one ``step`` (``frame_skip`` physics steps), as Gymnasium's
+        MuJoCo envs have it."""
+        return float(self.model.opt.timestep * self.frame_skip)
+
+    @property
     def time(self) -> float:
         """Time since reset [s]."""
         return float(self.data.time)
@@ -247,7 +280,9 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             self.disturbances.reset(self.np_random)
         self._start_episode()
         obs = self._observation()
-        terms = dict.fromkeys(self._reward_terms(), 0.0)
+        if self._reward_keys is None:  # the task's terms, once (not every reset)
+            self._reward_keys = tuple(self._reward_terms())
+        terms = dict.fromkeys(self._reward_keys, 0.0)
         if self.render_mode == "human":
             self.render()
         return obs, self._info(terms)
@@ -272,7 +307,7 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             a = dist.actuate(a)
             push = dist.push(self.time)
             d.xfrc_applied[self._pen_body, :3] = push[_TO_PAPER_INDEX] * (1.0, -1.0, 1.0)
-        d.ctrl[self._act_ids] = a * self._ctrl_max
+        self._ctrl[self._act_ix] = a * self._ctrl_max
         warnings_before = int(self._warnings.sum())
         mujoco.mj_step(m, d, nstep=self.frame_skip)
         self._steps += 1
@@ -282,7 +317,7 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
 
         # A diverging simulation makes MuJoCo warn (and reset its data).
         self._unstable = int(self._warnings.sum()) > warnings_before or not math.isfinite(
-            float(d.qpos.sum()) + float(d.qvel.sum())
+            float(self._qpos.sum()) + float(self._qvel.sum())
         )
         if self._unstable:
             mujoco.mj_resetDataKeyframe(m, d, self._key)
@@ -314,20 +349,24 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         The pen's and hand's state come from ``qpos``/``qvel`` (now); fingertip positions
         and contact sensors from the last forward pass, one physics step (1 ms) earlier.
         """
-        d = self.data
-        a, va = self._pen_q, self._pen_v
-        mujoco.mju_quat2Mat(self._rot, d.qpos[a + 3 : a + 7])
+        mujoco.mju_quat2Mat(self._rot, self._pen_quat)
         rot = self._rot.reshape(3, 3)
         rows = self._rows  # (4 + k, 3) in MuJoCo's frame
-        np.subtract(d.qpos[a : a + 3], self.physics.origin_mj, out=rows[0])
-        rows[1] = rot[:, 0]
-        rows[2] = d.qvel[va : va + 3]
-        np.dot(rot, d.qvel[va + 3 : va + 6], out=rows[3])  # body -> world
-        rows[4:] = d.sensordata[self._force_adr].reshape(-1, 3)
+        np.subtract(self._pen_pos, self.physics.origin_mj, out=rows[0])
+        rows[1] = self._axis
+        rows[2] = self._pen_lin
+        np.dot(rot, self._pen_ang, out=rows[3])  # body -> world
+        block = self._sensor_block
+        if block is not None:
+            rows[4:] = block[:, 1:]
+            found = block[:, 0]
+        else:
+            rows[4:] = self._sensordata[self._force_adr].reshape(-1, 3)
+            found = self._sensordata[self._found_adr]
         paper = rows[:, _TO_PAPER_INDEX]
         paper[:, 2] *= -1.0
-        tips = d.site_xpos[self._tip_sites] - d.xpos[self._pen_body]
-        self.state = PenState(paper.ravel(), d.sensordata[self._found_adr] > 0, tips @ rot[:, 0])
+        tips = self._site_xpos[self._tip_ix] - self._pen_xpos
+        self.state = PenState(paper.ravel(), found > 0, tips @ self._axis)
 
     def _start_episode(self) -> None:
         """Zero the episode's statistics for the current (just reset) state."""
@@ -342,15 +381,15 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         self._task_update()
 
     def _observation(self) -> FloatArray:
-        d = self.data
+        qpos, qvel = self._qpos, self._qvel
         noise = self.sensor_noise
         if noise is not None:
             vector = self.state.vector.copy()
             vector[12:] += noise.force.ravel()
             return np.concatenate(
                 [
-                    d.qpos[self._hand_q] + noise.qpos,
-                    d.qvel[self._hand_v] + noise.qvel,
+                    qpos[self._hand_q_ix] + noise.qpos,
+                    qvel[self._hand_v_ix] + noise.qvel,
                     vector,
                     (self._steps / self.max_steps,),
                     self._task_observation(),
@@ -358,8 +397,8 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             )
         return np.concatenate(
             [
-                d.qpos[self._hand_q],
-                d.qvel[self._hand_v],
+                qpos[self._hand_q_ix],
+                qvel[self._hand_v_ix],
                 self.state.vector,
                 (self._steps / self.max_steps,),
                 self._task_observation(),

@@ -8,11 +8,14 @@ touches the pen at a given distance along its axis, with a given penetration.
 
 from __future__ import annotations
 
+import weakref
+
 import mujoco
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ias_gym.sim.pen_hand import PenHandPhysics, paper_to_mj, rpy_to_matrix
+from ias_gym.sim.pen import R_PAPER_TO_MJ
+from ias_gym.sim.pen_hand import GRASP_KEYFRAME, PenHandPhysics, rpy_to_matrix
 
 FloatArray = np.ndarray
 
@@ -44,37 +47,113 @@ def place_grasp(
         The largest remaining tip position error [m].
     """
     m, d = physics.model, physics.data
+    c = _ik_constants(physics)
     qa = physics._pen_qadr
     rot = rpy_to_matrix(pen_rpy)  # pen frame -> paper frame
     centre = np.asarray(pen_position, dtype=float)
-    d.qpos[qa : qa + 3] = physics.origin_mj + paper_to_mj(centre)
-    rot_mj = paper_to_mj(paper_to_mj(rot).T).T  # R_PAPER_TO_MJ @ rot @ R_PAPER_TO_MJ^T
+    d.qpos[qa : qa + 3] = physics.origin_mj + R_PAPER_TO_MJ @ centre
+    rot_mj = R_PAPER_TO_MJ @ rot @ R_PAPER_TO_MJ.T
     mujoco.mju_mat2Quat(d.qpos[qa + 3 : qa + 7], rot_mj.reshape(-1))
     d.qvel[:] = 0.0
 
-    tip_radius = m.geom_size[physics._tip_geoms, 0]
-    pen_radius = m.geom_size[physics._pen_geom, 0]
+    tip_radius = c.tip_radius
+    pen_radius = c.pen_radius
     offset = physics.finger_sides * (pen_radius + tip_radius - penetration)
-    local = np.stack([np.asarray(contact_x, dtype=float), offset, np.zeros(len(offset))], axis=1)
-    targets = physics.origin_mj + paper_to_mj(centre + local @ rot.T)
+    local = np.zeros((len(offset), 3))
+    local[:, 0] = contact_x
+    local[:, 1] = offset
+    targets = physics.origin_mj + (centre + local @ rot.T) @ R_PAPER_TO_MJ.T
 
-    qadr, dadr = physics.hand_qpos_ids, physics.hand_dof_ids
-    lo, hi = m.jnt_range[m.dof_jntid[dadr]].T
-    jac = np.zeros((3, m.nv))
+    # The hand's kinematics does not depend on the pen: at the hand's keyframe posture (every
+    # env reset starts there) the first iteration's tips and Jacobians are known already.
+    at_rest = bool((d.qpos[c.q_ix] == c.rest_qpos).all())
     err = np.inf
-    for _ in range(iterations):
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)
-        residual = targets - d.site_xpos[physics._tip_sites]
+    for i in range(iterations):
+        cached = i == 0 and at_rest
+        if cached:
+            tips = c.rest_tips
+        else:
+            mujoco.mj_kinematics(m, d)
+            tips = d.site_xpos[c.tip_sites]
+        residual = targets - tips
         err = float(np.abs(residual).max())
         if err < tolerance:
             break
-        for i, site in enumerate(physics._tip_sites):
-            mujoco.mj_jacSite(m, d, jac, None, int(site))
-            cols = dadr[3 * i : 3 * i + 3]
-            J = jac[:, cols]
-            step = np.linalg.solve(J.T @ J + 1e-8 * np.eye(3), J.T @ residual[i])
-            q = qadr[3 * i : 3 * i + 3]
-            d.qpos[q] = np.clip(d.qpos[q] + step, lo[3 * i : 3 * i + 3], hi[3 * i : 3 * i + 3])
+        jac_t, lhs = (c.rest_jac_t, c.rest_lhs) if cached else _finger_jacobians(c, m, d)
+        # All fingers' damped Gauss-Newton steps in one batched solve (each finger is its
+        # own chain); the same floating-point operations as one solve per finger.
+        # (the matrices are positive definite: J^T J plus damping)
+        step = np.linalg.solve(lhs, jac_t @ residual[:, :, None])
+        # (np.clip's values, without its call overhead; q_ix: a slice when consecutive)
+        d.qpos[c.q_ix] = np.minimum(np.maximum(d.qpos[c.q_ix] + step.ravel(), c.lo), c.hi)
     mujoco.mj_forward(m, d)
     return err
+
+
+def _finger_jacobians(
+    c: _IKConstants, m: mujoco.MjModel, d: mujoco.MjData
+) -> tuple[FloatArray, FloatArray]:
+    """Each fingertip's transposed position Jacobian over its own joints ``(k, n, 3)`` and
+    the damped normal matrices ``J^T J + 1e-8 I`` ``(k, n, n)`` (after ``mj_kinematics``).
+
+    ``J^T`` is kept C-contiguous: then the batched products round exactly as the former
+    per-finger ``J.T @ J`` and ``J.T @ r`` of ``jac[:, cols]`` (an F-ordered copy) did, and
+    the grasp stays the same bit for bit (tests/test_env_speed.py).
+    """
+    mujoco.mj_comPos(m, d)  # the Jacobians' cdof
+    for jac, site in c.jac_rows:
+        mujoco.mj_jacSite(m, d, jac, None, site)
+    jac_t = np.ascontiguousarray(c.jac_buffer[c.finger_rows, :, c.finger_dofs])
+    return jac_t, jac_t @ jac_t.transpose(0, 2, 1) + c.damping
+
+
+class _IKConstants:
+    """What the inverse kinematics reuses across resets of one physics (same model)."""
+
+    def __init__(self, physics: PenHandPhysics) -> None:
+        m = physics.model
+        qadr, dadr = physics.hand_qpos_ids, physics.hand_dof_ids
+        self.joints = m.dof_jntid[dadr].copy()
+        if np.any(m.jnt_type[self.joints] != mujoco.mjtJoint.mjJNT_HINGE):
+            raise ValueError("place_grasp's inverse kinematics needs hinge joints in the hand")
+        self.tip_sites = np.asarray(physics._tip_sites)
+        k = len(self.tip_sites)
+        n = len(qadr) // k
+        self.finger_rows = np.arange(k)[:, None]
+        self.finger_dofs = np.asarray(dadr).reshape(k, n)
+        self.jac_buffer = np.zeros((k, 3, m.nv))
+        self.jac_rows = [(self.jac_buffer[f], int(site)) for f, site in enumerate(self.tip_sites)]
+        consecutive = np.array_equal(qadr, np.arange(qadr[0], qadr[0] + len(qadr)))
+        self.q_ix = slice(int(qadr[0]), int(qadr[0]) + len(qadr)) if consecutive else qadr
+        self.lo, self.hi = m.jnt_range[self.joints].T.copy()
+        self.damping = 1e-8 * np.eye(n)
+        # The hand at its keyframe posture: its tips, joint axes and anchors. Valid whenever
+        # the hand's joints are there, as only they move the tips (checked: no other joint
+        # or mocap body above a finger).
+        for body in m.jnt_bodyid[self.joints]:
+            while body != 0:
+                moving = set(range(m.body_jntadr[body], m.body_jntadr[body] + m.body_jntnum[body]))
+                if moving - set(self.joints.tolist()) or m.body_mocapid[body] >= 0:
+                    raise ValueError("place_grasp needs a hand whose base is fixed to the world")
+                body = m.body_parentid[body]
+        scratch = mujoco.MjData(m)
+        try:
+            mujoco.mj_resetDataKeyframe(m, scratch, m.key(GRASP_KEYFRAME).id)
+        except KeyError:
+            pass  # no such keyframe: the model's qpos0 (the cache is then used less often)
+        mujoco.mj_kinematics(m, scratch)
+        self.rest_qpos = scratch.qpos[qadr].copy()
+        self.rest_tips = scratch.site_xpos[self.tip_sites].copy()
+        self.rest_jac_t, self.rest_lhs = _finger_jacobians(self, m, scratch)
+        self.tip_radius = m.geom_size[physics._tip_geoms, 0].copy()
+        self.pen_radius = float(m.geom_size[physics._pen_geom, 0])
+
+
+_CONSTANTS: weakref.WeakKeyDictionary[PenHandPhysics, _IKConstants] = weakref.WeakKeyDictionary()
+
+
+def _ik_constants(physics: PenHandPhysics) -> _IKConstants:
+    c = _CONSTANTS.get(physics)
+    if c is None:
+        c = _CONSTANTS[physics] = _IKConstants(physics)
+    return c

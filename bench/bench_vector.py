@@ -1,0 +1,215 @@
+"""Vector envs against the cores: random-action steps/s, resets included.
+
+Run: ``python bench/bench_vector.py`` (options: ``--help``). For ``num_envs`` x
+``num_workers``, the env steps per second of random actions (episodes end after a few
+steps, so resets count) in Gymnasium's ``SyncVectorEnv`` and ``AsyncVectorEnv``, SB3's
+``SubprocVecEnv`` and the batched vector env of ``ias_gym.envs.vector``; each as a ratio to
+one plain env (measured right before each row) and to linear scaling (``min(processes,
+cores)`` x one plain env): on a machine that other processes load, no row scales. Then each
+env's reset time [ms] and single-env rate, with Gymnasium-Robotics' ``AdroitHandPen-v1``
+(same 10 ms control period) measured in the same run (skipped with a message if
+``gymnasium-robotics`` is missing: ``pip install -e .[bench]``). Configurations are measured
+in turn, repeated, medians reported; torch runs one thread; processes start by fork.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+import ias_gym  # noqa: F401  (registers the ids)
+from ias_gym.envs.vector import make_batched_vec
+
+ADROIT = "AdroitHandPen-v1"
+CONTEXT = "fork"
+
+
+def _rate(step: Callable[[], int], seconds: float) -> float:
+    """Env steps per second of calling ``step`` (which returns its env steps) for ``seconds``."""
+    done, t0 = 0, time.perf_counter()
+    while True:
+        done += step()
+        elapsed = time.perf_counter() - t0
+        if elapsed >= seconds:
+            return done / elapsed
+
+
+class Single:
+    """One plain env with random actions, reset when its episode ends."""
+
+    def __init__(self, env_id: str) -> None:
+        self.env = gym.make(env_id)
+        self.env.reset(seed=0)
+        self.env.action_space.seed(0)
+
+    def step(self) -> int:
+        _, _, te, tr, _ = self.env.step(self.env.action_space.sample())
+        if te or tr:
+            self.env.reset()
+        return 1
+
+    def reset_ms(self, n: int = 200) -> float:
+        t0 = time.perf_counter()
+        for _ in range(n):
+            self.env.reset()
+        return (time.perf_counter() - t0) / n * 1e3
+
+    def close(self) -> None:
+        self.env.close()
+
+
+class GymVector:
+    """A Gymnasium vector env (autoreset inside) with random batched actions."""
+
+    def __init__(self, vec: Any) -> None:
+        self.vec = vec
+        self.vec.reset(seed=0)
+        self.vec.action_space.seed(0)
+        self.n = vec.num_envs
+
+    def step(self) -> int:
+        self.vec.step(self.vec.action_space.sample())
+        return int(self.n)
+
+    def close(self) -> None:
+        self.vec.close()
+
+
+class Sb3Vector:
+    """An SB3 VecEnv (resets inside) with random batched actions."""
+
+    def __init__(self, vec: Any) -> None:
+        self.vec = vec
+        self.vec.seed(0)
+        self.vec.reset()
+        self.space = vec.action_space
+        self.space.seed(0)
+        self.n = vec.num_envs
+
+    def step(self) -> int:
+        self.vec.step(np.stack([self.space.sample() for _ in range(self.n)]))
+        return int(self.n)
+
+    def close(self) -> None:
+        self.vec.close()
+
+
+def build(kind: str, env_id: str, n: int, workers: int) -> Any:
+    """The runner of one configuration."""
+    if kind == "gym sync":
+        return GymVector(gym.make_vec(env_id, n, vectorization_mode="sync"))
+    if kind == "gym async":
+        kwargs = {"context": CONTEXT}
+        return GymVector(gym.make_vec(env_id, n, vectorization_mode="async", vector_kwargs=kwargs))
+    if kind == "SB3 SubprocVecEnv":
+        from stable_baselines3.common.vec_env import SubprocVecEnv
+
+        return Sb3Vector(SubprocVecEnv([lambda: gym.make(env_id)] * n, start_method=CONTEXT))
+    if kind == "batched (ours)":
+        return GymVector(make_batched_vec(env_id, n, workers, context=CONTEXT))
+    raise ValueError(kind)
+
+
+def configurations(envs: list[int], workers: list[int]) -> list[tuple[str, int, int]]:
+    """(kind, num_envs, processes) in the order measured."""
+    out = []
+    for n in envs:
+        out.append(("gym sync", n, 1))
+        out.append(("gym async", n, n))
+        out.append(("SB3 SubprocVecEnv", n, n))
+        out += [("batched (ours)", n, w) for w in workers if w <= n]
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
+    parser.add_argument("--env", default="IAS-PenSlide-v0", help="env id of the vector rows")
+    parser.add_argument("--envs", default="1,2,4,8", help="num_envs values")
+    parser.add_argument("--workers", default="1,2", help="num_workers values of ours")
+    parser.add_argument("--seconds", type=float, default=0.5, help="per measurement [s]")
+    parser.add_argument("--repeats", type=int, default=5, help="measurements per row")
+    args = parser.parse_args()
+    try:
+        import torch
+
+        torch.set_num_threads(1)
+    except ImportError:
+        pass
+    cores = os.cpu_count() or 1
+    envs = [int(v) for v in args.envs.split(",")]
+    workers = [int(v) for v in args.workers.split(",")]
+    print(
+        f"machine: {platform.processor() or platform.machine()}, {cores} cores, python "
+        f"{platform.python_version()}, mujoco {mujoco.__version__}, gymnasium {gym.__version__}"
+    )
+
+    # One plain env, the unit of the ratios, is measured right before every vector row (the
+    # ratio of each pair, then the median over the repeats: load that changes between
+    # rows, e.g. other processes on the machine, cancels out as far as it can).
+    single = Single(args.env)
+    configs = configurations(envs, workers)
+    runners = {c: build(c[0], args.env, c[1], c[2]) for c in configs}
+    rates: dict[tuple[str, int, int], list[float]] = {c: [] for c in configs}
+    ratios: dict[tuple[str, int, int], list[float]] = {c: [] for c in configs}
+    single_rates = []
+    for _ in range(args.repeats):
+        for c, runner in runners.items():
+            base = _rate(single.step, args.seconds)
+            rate = _rate(runner.step, args.seconds)
+            single_rates.append(base)
+            rates[c].append(rate)
+            ratios[c].append(rate / base)
+    for runner in runners.values():
+        runner.close()
+    base = float(np.median(single_rates))
+
+    print(f"\n{args.env}, random actions, resets included; one plain env: {base:.0f} steps/s\n")
+    print("| vector env | envs | processes | steps/s | x one env | / linear |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for c, values in rates.items():
+        kind, n, procs = c
+        ratio = float(np.median(ratios[c]))
+        linear = min(procs, cores, n)
+        print(
+            f"| {kind} | {n} | {procs} | {np.median(values):.0f} | {ratio:.2f} "
+            f"| {ratio / linear:.2f} |"
+        )
+
+    print("\n| env | reset [ms] | one env, random [steps/s] |")
+    print("|---|---:|---:|")
+    ids = ["IAS-PenSlide-v0", "IAS-PenRotate-v0"]
+    try:
+        import gymnasium_robotics
+
+        gym.register_envs(gymnasium_robotics)
+        ids.append(ADROIT)
+    except ImportError:
+        print(f"({ADROIT} skipped: gymnasium-robotics is not installed; pip install -e .[bench])")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        singles = {e: Single(e) for e in ids}
+    resets: dict[str, list[float]] = {e: [] for e in ids}
+    randoms: dict[str, list[float]] = {e: [] for e in ids}
+    for _ in range(args.repeats):  # in turn, so that load changes hit every row alike
+        for e, s in singles.items():
+            resets[e].append(s.reset_ms())
+            randoms[e].append(_rate(s.step, args.seconds))
+    for e in ids:
+        print(f"| {e} | {np.median(resets[e]):.3f} | {np.median(randoms[e]):.0f} |")
+        singles[e].close()
+    single.close()
+
+
+if __name__ == "__main__":
+    main()
