@@ -9,6 +9,7 @@ ENV_SPECS: dict[str, tuple[str, int]] = {
     "IAS-PenSlide-v0": ("ias_gym.envs.pen_slide:PenSlideEnv", 475),
     "IAS-PenRotate-v0": ("ias_gym.envs.pen_rotate:PenRotateEnv", 400),
     "IAS-GloveGrasp-v0": ("ias_gym.envs.glove_grasp:GloveGraspEnv", 400),
+    "IAS-PenSkill-v0": ("ias_gym.skills.transfer:PenSkillDBEnv", 300),
 }
 #: Envs that need a device (a glove on a CAN bus, or its emulator): same layout.
 HARDWARE_ENV_SPECS: dict[str, tuple[str, int]] = {

@@ -57,6 +57,7 @@ import numpy as np
 from ias_gym.baselines import law
 from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv, PenReference
 from ias_gym.grasp.contacts import cross3
+from ias_gym.grasp.grasp_margin import scale_to_margin
 from ias_gym.grasp.grip_transform import null_space_basis, pseudo_inverse
 from ias_gym.grasp.internal_forces import (
     Cone,
@@ -234,6 +235,11 @@ class GripTransformController:
         dW = np.zeros_like(W) if self._prev_W is None else (W - self._prev_W) / dt
         c_p = W_pinv @ wrench
         c_h_d = law.internal_part(c_ref, W, W_pinv)
+        margin_reference = getattr(env, "grasp_margin_reference", None)
+        if margin_reference is not None and bool(active.all()):
+            # A skill's grasp margin (IAS-PenSkill-v0, docs/transfer.md): the hand's own
+            # internal forces, scaled so that c_p + c_h^d has the demonstrated margin.
+            c_h_d = scale_to_margin(c_p, c_h_d, float(margin_reference()), self.gains.mu)
         settings = self._solver.settings
         offset_scale = 1.0
         if internal_offset is not None and np.any(internal_offset):
