@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from ias_gym.cli.args import env_kwargs_argument, parse_env_kwargs
+from ias_gym.cli.transfer import add_transfer_command
 from ias_gym.errors import IasGymError, InputError
 
 #: Exit code of ``skills check`` when a skill is corrupt.
@@ -335,4 +336,5 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
     )
     db_argument(migrate)
     migrate.set_defaults(run=_migrate)
+    add_transfer_command(commands)
     return skills

@@ -409,3 +409,164 @@ class PenSkillDBEnv(PenSkillEnv):
             )
         self.skill_db = skill_db
         super().__init__(render_mode=render_mode, references=references, **config)
+
+
+#: Methods of executing a transferred skill: the grip-transform expert (Theorem 1 on the
+#: skill's reference and margin) and the kinematic baseline.
+METHODS: tuple[str, ...] = ("gt", "kinematic")
+
+
+@dataclass
+class TransferRun:
+    """One execution of a transferred skill by one hand, with its traces.
+
+    Attributes:
+        hand, method: which hand, which method (``gt`` or ``kinematic``).
+        skill_id: the skill's id in its database; person, name: its provenance.
+        success: the env's ``is_success`` (held and tracked within tolerance).
+        held_s: how long the pen was held [s] (the episode's length unless dropped; the
+            RMS errors are over that time).
+        rot_rms_deg: RMS angle between the pen's axis and the reference's [deg].
+        pos_rms_mm: RMS distance of the pen's centre from the reference's [mm].
+        margin_err_rel: mean ``|m - m_ref| / m_ref`` of the grasp margin [-].
+        scale, scale_rotation: the reference's translation and rotation scales [-].
+        time: ``(T,)`` [s]; position, reference_position: ``(T, 3)`` [m]; axis,
+        reference_axis: ``(T, 3)``; margin, margin_reference: ``(T,)`` [-];
+        internal_forces: ``(T, n)`` measured ``c_h`` [N]; contact_forces: ``(T, k, 3)`` [N].
+    """
+
+    hand: str
+    method: str
+    skill_id: int
+    person: str
+    name: str
+    success: bool
+    held_s: float
+    rot_rms_deg: float
+    pos_rms_mm: float
+    margin_err_rel: float
+    scale: float
+    scale_rotation: float
+    time: FloatArray
+    position: FloatArray
+    reference_position: FloatArray
+    axis: FloatArray
+    reference_axis: FloatArray
+    margin: FloatArray
+    margin_reference: FloatArray
+    internal_forces: FloatArray
+    contact_forces: FloatArray
+
+    def to_json(self) -> dict[str, Any]:
+        """The metrics as a JSON-ready dict (units in the keys; NaN becomes ``None``)."""
+
+        def number(x: float) -> float | None:
+            return float(x) if math.isfinite(x) else None
+
+        return {
+            "hand": self.hand,
+            "method": self.method,
+            "skill_id": self.skill_id,
+            "person": self.person,
+            "skill": self.name,
+            "success": self.success,
+            "held_s": self.held_s,
+            "rot_rms_deg": number(self.rot_rms_deg),
+            "pos_rms_mm": number(self.pos_rms_mm),
+            "margin_err_rel": number(self.margin_err_rel),
+            "scale": self.scale,
+            "scale_rot": self.scale_rotation,
+        }
+
+
+def run_transfer(
+    reference: SkillReference,
+    hand: str = "ias4f",
+    method: str = "gt",
+    seed: int = 0,
+    render: bool = False,
+    **config: Any,
+) -> tuple[TransferRun, list[NDArray[Any]]]:
+    """Execute a transferred skill on a hand and measure it.
+
+    Args:
+        reference: from :func:`transfer_reference` for this hand.
+        hand: the hand.
+        method: ``"gt"`` (the grip-transform expert: Theorem 1 with the skill's margin) or
+            ``"kinematic"`` (:class:`~ias_gym.baselines.kinematic.KinematicPolicy`).
+        seed: the reset seed.
+        render: also return ``rgb_array`` frames (every other step: 50 fps).
+        **config: further :class:`PenSkillConfig` fields.
+
+    Returns:
+        ``(run, frames)``; ``frames`` is empty unless ``render``.
+
+    Raises:
+        InputError: an unknown method.
+    """
+    # the policies: imported here, so that reading references does not load them
+    from ias_gym.baselines.expert import ExpertPolicy
+    from ias_gym.baselines.kinematic import KinematicPolicy
+
+    if method not in METHODS:
+        raise InputError(f"unknown method {method!r}; methods: {list(METHODS)}")
+    kwargs = {} if hand == "ias4f" else {"hand": hand}
+    env = PenSkillEnv(
+        render_mode="rgb_array" if render else None, references=[reference], **kwargs, **config
+    )
+    try:
+        policy: Any = ExpertPolicy(env) if method == "gt" else KinematicPolicy(env)
+        obs, info = env.reset(seed=seed, options={"skill": 0})
+        rows: dict[str, list[Any]] = {
+            k: [] for k in ("t", "p", "pr", "a", "ar", "m", "mr", "ch", "cf")
+        }
+        frames: list[NDArray[Any]] = []
+
+        def sample(info: dict[str, Any]) -> None:
+            ref = env.reference()
+            rows["t"].append(env.time)
+            rows["p"].append(env.state.position.copy())
+            rows["pr"].append(ref.position)
+            rows["a"].append(env.state.axis.copy())
+            rows["ar"].append(ref.axis)
+            rows["m"].append(info["margin"])
+            rows["mr"].append(info["margin_reference"])
+            rows["ch"].append(info["internal_forces"])
+            rows["cf"].append(info["contact_forces"])
+            if render and env._steps % 2 == 0:
+                frame = env.render()
+                if frame is not None:
+                    frames.append(frame)
+
+        sample(info)
+        done = False
+        while not done:
+            obs, _, terminated, truncated, info = env.step(policy.predict(obs)[0])
+            sample(info)
+            done = terminated or truncated
+    finally:
+        env.close()
+    run = TransferRun(
+        hand=hand,
+        method=method,
+        skill_id=reference.skill_id,
+        person=reference.person,
+        name=reference.name,
+        success=bool(info["is_success"]),
+        held_s=float(rows["t"][-1]),
+        rot_rms_deg=math.degrees(info["rms_rotation_error"]),
+        pos_rms_mm=1000.0 * info["rms_position_error"],
+        margin_err_rel=float(info["margin_error"]),
+        scale=reference.scale,
+        scale_rotation=reference.scale_rotation,
+        time=np.array(rows["t"]),
+        position=np.array(rows["p"]),
+        reference_position=np.array(rows["pr"]),
+        axis=np.array(rows["a"]),
+        reference_axis=np.array(rows["ar"]),
+        margin=np.array(rows["m"], dtype=float),
+        margin_reference=np.array(rows["mr"], dtype=float),
+        internal_forces=np.array(rows["ch"], dtype=float),
+        contact_forces=np.array(rows["cf"], dtype=float),
+    )
+    return run, frames
