@@ -2,14 +2,22 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import gymnasium as gym
 
 #: id -> (entry point, max_episode_steps at the default control_dt of 10 ms).
 ENV_SPECS: dict[str, tuple[str, int]] = {
     "IAS-PenSlide-v0": ("ias_gym.envs.pen_slide:PenSlideEnv", 475),
     "IAS-PenRotate-v0": ("ias_gym.envs.pen_rotate:PenRotateEnv", 400),
+    "IAS-PenRotate3F-v0": ("ias_gym.envs.pen_rotate:PenRotateEnv", 400),
     "IAS-GloveGrasp-v0": ("ias_gym.envs.glove_grasp:GloveGraspEnv", 400),
     "IAS-PenSkill-v0": ("ias_gym.skills.transfer:PenSkillDBEnv", 300),
+}
+#: The keyword arguments an id passes to its entry point (its defaults; ``gym.make`` kwargs
+#: override them): the three-finger hand's ids are the same tasks on ``hand="ias3f"``.
+ENV_KWARGS: dict[str, dict[str, Any]] = {
+    "IAS-PenRotate3F-v0": {"hand": "ias3f"},
 }
 #: Envs that need a device (a glove on a CAN bus, or its emulator): same layout.
 HARDWARE_ENV_SPECS: dict[str, tuple[str, int]] = {
@@ -25,6 +33,7 @@ def register_envs() -> None:
                 id=env_id,
                 entry_point=entry_point,
                 max_episode_steps=max_steps,
+                kwargs=ENV_KWARGS.get(env_id, {}),
                 # a live glove is a person: the same seed does not give the same readings
                 nondeterministic=env_id in HARDWARE_ENV_SPECS,
             )

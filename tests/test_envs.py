@@ -128,8 +128,9 @@ def test_out_of_range_actions_are_clipped(env_id: str) -> None:
     env = gym.make(env_id)
     env.reset(seed=0)
     # Out-of-range actions are clipped to the motors' limits, not rejected.
-    env.step(np.full(12, 5.0))
-    np.testing.assert_allclose(env.unwrapped.data.ctrl, 0.5)
+    env.step(np.full(env.action_space.shape, 5.0))
+    ctrl_max = env.unwrapped.model.actuator_ctrlrange[:, 1]
+    np.testing.assert_allclose(env.unwrapped.data.ctrl, ctrl_max)
 
 
 @pytest.mark.parametrize("env_id", PEN_IDS)
@@ -137,7 +138,7 @@ def test_reset_options_start_from_a_given_state(env_id: str) -> None:
     env = gym.make(env_id)
     env.reset(seed=5)
     for _ in range(3):
-        env.step(np.zeros(12))
+        env.step(np.zeros(env.action_space.shape))
     qpos = env.unwrapped.data.qpos.copy()
     qvel = env.unwrapped.data.qvel.copy()
     env.reset(seed=6, options={"qpos": qpos, "qvel": qvel})
@@ -153,7 +154,7 @@ def test_zero_torque_drops_the_pen(env_id: str) -> None:
     env = gym.make(env_id)
     env.reset(seed=0)
     for _ in range(100):
-        _, _, terminated, truncated, info = env.step(np.zeros(12))
+        _, _, terminated, truncated, info = env.step(np.zeros(env.action_space.shape))
         if terminated or truncated:
             break
     assert terminated and info["dropped"] and not info["is_success"]
@@ -163,7 +164,7 @@ def test_diverging_simulation_is_truncated_not_raised() -> None:
     env = gym.make("IAS-PenSlide-v0")
     env.reset(seed=0)
     env.unwrapped.data.qvel[:] = 1e12  # a state no integrator survives
-    _, _, terminated, truncated, info = env.step(np.zeros(12))
+    _, _, terminated, truncated, info = env.step(np.zeros(env.action_space.shape))
     assert truncated and not terminated and info["sim_unstable"]
 
 

@@ -192,6 +192,10 @@ class GripTransformController:
         """
         g = self.gains
         p = env.physics
+        if p.n_fingers != self._solver.n_contacts:  # a hand other than the four-finger one
+            self._solver = InternalForceSolver(p.n_fingers, self._solver.settings, 1e-2)
+            self._last_c = np.tile([self.f0, 0.0, 0.0], p.n_fingers)
+            self._extra = np.zeros(3 * p.n_fingers)
         dt = env.config.control_dt
         ref = _ahead(env.reference(), g.lead)
         contacts = p.fingertip_contacts()
@@ -345,7 +349,7 @@ class GripTransformController:
         assert ref.contact_x is not None and ref.contact_vx is not None
         g = self.gains
         s = env.state
-        mask = np.zeros(4)
+        mask = np.zeros(len(tip_x))
         mask[list(sliding)] = 1.0
         # Velocity of each tip along the pen relative to the pen's centre, from J.
         vx = J[1::3] @ qvel - s.velocity @ s.axis

@@ -38,7 +38,8 @@ FloatArray = NDArray[np.float64]
 PUSH_MARGIN = 0.5
 #: How long each internal-force reference step holds [s]; the first starts after one period.
 INTERNAL_STEP_PERIOD = 0.5
-#: Internal-force directions of a grasp with four point contacts (12 - 6).
+#: Internal-force directions of a grasp with four point contacts (12 - 6); k contacts have
+#: 3k - 6 (``DisturbanceState.n_internal``).
 N_INTERNAL = 6
 
 
@@ -116,7 +117,7 @@ class SensorNoise:
     """The measurement noise of one control step (zeros when there is none).
 
     Attributes:
-        force: ``(4, 3)`` added to each fingertip's measured force on the pen [N], paper frame.
+        force: ``(k, 3)`` added to each fingertip's measured force on the pen [N], paper frame.
         qpos: ``(n,)`` added to the measured hand joint angles [rad].
         qvel: ``(n,)`` added to the measured hand joint velocities [rad/s].
     """
@@ -171,7 +172,9 @@ class DisturbanceState:
         self._rng = np.random.default_rng(0)
         self._push_start = np.inf
         self._push_direction = np.zeros(3)
-        self._internal_steps = np.zeros((0, N_INTERNAL))
+        #: Internal-force directions of the hand's grasp (3 k - 6 for k point contacts).
+        self.n_internal = 3 * n_fingers - 6
+        self._internal_steps = np.zeros((0, self.n_internal))
         self._pending: list[FloatArray] = []
 
     def reset(self, np_random: np.random.Generator) -> None:
@@ -184,11 +187,11 @@ class DisturbanceState:
             direction = self._rng.normal(size=3)
             self._push_direction = direction / np.linalg.norm(direction)
         n_steps = int(self._duration / INTERNAL_STEP_PERIOD) + 1
-        steps = np.zeros((n_steps, N_INTERNAL))
+        steps = np.zeros((n_steps, self.n_internal))
         if s.internal_force_step > 0:
             for k in range(1, n_steps):
-                steps[k, self._rng.integers(N_INTERNAL)] = s.internal_force_step * self._rng.choice(
-                    (-1.0, 1.0)
+                steps[k, self._rng.integers(self.n_internal)] = (
+                    s.internal_force_step * self._rng.choice((-1.0, 1.0))
                 )
         self._internal_steps = steps
         self._pending = [np.zeros(self._n_dofs)] * s.action_delay

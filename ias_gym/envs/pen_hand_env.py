@@ -26,10 +26,12 @@ from ias_gym.envs.pen_hand_types import FloatArray, PenHandConfig, PenReference,
 from ias_gym.envs.window import check_window_possible
 from ias_gym.errors import InputError
 from ias_gym.sim.grasp_pose import place_grasp
-from ias_gym.sim.pen_hand import FINGERS, PenHandPhysics, load_pen_hand_model
+from ias_gym.sim.hands import HANDS, get_hand
+from ias_gym.sim.pen_hand import PenHandPhysics, load_pen_hand_model
 
-#: The paper's contact layout along the pen, ``[-phi1, -phi2, +phi3, +phi4]`` at t = 0 [m].
-NOMINAL_CONTACT_X = np.array([-0.03, -0.02, 0.02, 0.03])
+#: The paper's contact layout along the pen, ``[-phi1, -phi2, +phi3, +phi4]`` at t = 0 [m]
+#: (the four-finger hand's; each hand's is ``HandSpec.contact_x``).
+NOMINAL_CONTACT_X = np.array(HANDS["ias4f"].contact_x)
 #: Shaping scales (reward terms are exp(-(error / scale)^2), bounded in [0, 1]).
 POSITION_SCALE = 0.005  # [m]
 ANGLE_SCALE = math.radians(5.0)  # [rad]
@@ -40,10 +42,11 @@ _TO_PAPER_INDEX = np.array([0, 2, 1])  # and negate the last
 class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
     """Base class of the pen tasks (not registered itself).
 
-    Action: ``Box(-1, 1, (12,))``, joint torques normalised by each motor's limit (0.5 N m),
-    fingers 1-4 with joints (abd, mcp, pip). Out-of-range values are clipped; NaN or inf
-    raise ``ValueError``. Contacts are sampled once per step (``control_dt``): a contact
-    gap is measured in whole control periods.
+    Action: ``Box(-1, 1, (n,))``, joint torques normalised by each motor's limit, the hand's
+    joints in order (``config.hand``, :mod:`ias_gym.sim.hands`; four-finger hand: n = 12,
+    0.5 N m motors). Out-of-range values are clipped; NaN or inf raise ``ValueError``.
+    Contacts are sampled once per step (``control_dt``): a contact gap is measured in whole
+    control periods.
     """
 
     metadata = {  # noqa: RUF012  (gymnasium's convention)
@@ -95,9 +98,13 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             check_window_possible()
         self.render_mode = render_mode
 
-        self.model = load_pen_hand_model()
+        #: The robot hand's layout (:mod:`ias_gym.sim.hands`).
+        self.hand = get_hand(self.config.hand)
+        self.model = load_pen_hand_model(self.hand.scene)
         self.data = mujoco.MjData(self.model)
-        self.physics = PenHandPhysics(self.model, self.data)
+        self.physics = PenHandPhysics(
+            self.model, self.data, self.hand.fingers, finger_joints=self.hand.joints
+        )
         timestep = self.model.opt.timestep
         self.frame_skip = round(self.config.control_dt / timestep)
         if self.frame_skip < 1 or not math.isclose(
@@ -121,12 +128,13 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         self._pen_body = p.pen_body_id
         self._tip_sites = p.tip_site_ids
         # fN_pen_force sensors: number of contacts, net force of the tip on the pen (world).
-        adr = np.array([self.model.sensor(f"{f}_pen_force").adr[0] for f in FINGERS])
+        adr = np.array([self.model.sensor(f"{f}_pen_force").adr[0] for f in p.fingers])
         self._found_adr = adr
         self._force_adr = (adr[:, None] + np.arange(1, 4)).ravel()
         self._key = self.model.key("grasp").id
+        self._nominal_contact_x = np.array(self.hand.contact_x)
         self._rot = np.zeros(9)
-        self._rows = np.zeros((8, 3))
+        self._rows = np.zeros((4 + p.n_fingers, 3))
         self._warnings = self.data.warning.number  # a view: MuJoCo's warning counters
         self.disturbances = self._build_disturbances()
 
@@ -145,7 +153,8 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         return (
             rng.uniform(-cfg.pen_position_noise, cfg.pen_position_noise, 3),
             np.zeros(3),
-            NOMINAL_CONTACT_X + rng.uniform(-cfg.contact_noise, cfg.contact_noise, 4),
+            self._nominal_contact_x
+            + rng.uniform(-cfg.contact_noise, cfg.contact_noise, self.physics.n_fingers),
         )
 
     def reference(self) -> PenReference:
@@ -179,7 +188,7 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         m.body_mass[p.pen_body_id] *= settings.mass_scale
         m.body_inertia[p.pen_body_id] *= settings.mass_scale
         return DisturbanceState(
-            settings, len(FINGERS), p.n_hand_dofs, self.config.control_dt, self.config.duration
+            settings, p.n_fingers, p.n_hand_dofs, self.config.control_dt, self.config.duration
         )
 
     @property
@@ -309,12 +318,12 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         a, va = self._pen_q, self._pen_v
         mujoco.mju_quat2Mat(self._rot, d.qpos[a + 3 : a + 7])
         rot = self._rot.reshape(3, 3)
-        rows = self._rows  # (8, 3) in MuJoCo's frame
+        rows = self._rows  # (4 + k, 3) in MuJoCo's frame
         np.subtract(d.qpos[a : a + 3], self.physics.origin_mj, out=rows[0])
         rows[1] = rot[:, 0]
         rows[2] = d.qvel[va : va + 3]
         np.dot(rot, d.qvel[va + 3 : va + 6], out=rows[3])  # body -> world
-        rows[4:] = d.sensordata[self._force_adr].reshape(4, 3)
+        rows[4:] = d.sensordata[self._force_adr].reshape(-1, 3)
         paper = rows[:, _TO_PAPER_INDEX]
         paper[:, 2] *= -1.0
         tips = d.site_xpos[self._tip_sites] - d.xpos[self._pen_body]
@@ -323,8 +332,8 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
     def _start_episode(self) -> None:
         """Zero the episode's statistics for the current (just reset) state."""
         self._steps = 0
-        self._gap = np.zeros(4)  # current time without contact, per finger [s]
-        self._max_gap = np.zeros(4)
+        self._gap = np.zeros(self.physics.n_fingers)  # time without contact, per finger [s]
+        self._max_gap = np.zeros(self.physics.n_fingers)
         self._max_position_error = 0.0
         self._dropped = False
         self._unstable = False
@@ -337,7 +346,7 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         noise = self.sensor_noise
         if noise is not None:
             vector = self.state.vector.copy()
-            vector[12:24] += noise.force.ravel()
+            vector[12:] += noise.force.ravel()
             return np.concatenate(
                 [
                     d.qpos[self._hand_q] + noise.qpos,

@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ias_gym.envs.disturbances import DisturbanceSettings
+from ias_gym.sim.hands import DEFAULT_HAND, get_hand
 
 FloatArray = NDArray[np.float64]
 
@@ -48,11 +49,11 @@ class PenState:
     """The measurements one env step uses (paper frame, SI units).
 
     Attributes:
-        vector: ``(24,)`` the observation block: pen position relative to its nominal
-            centre [m] (3), unit axis (3), velocity [m/s] (3), angular velocity [rad/s] (3),
-            net force of each fingertip on the pen [N] (4 x 3).
-        touching: ``(4,)`` bool, fingertip touches the pen.
-        tip_x: ``(4,)`` each fingertip's position along the pen's axis from its centre [m].
+        vector: ``(12 + 3k,)`` the observation block (k fingers): pen position relative to
+            its nominal centre [m] (3), unit axis (3), velocity [m/s] (3), angular velocity
+            [rad/s] (3), net force of each fingertip on the pen [N] (k x 3).
+        touching: ``(k,)`` bool, fingertip touches the pen.
+        tip_x: ``(k,)`` each fingertip's position along the pen's axis from its centre [m].
         position_error: ``|position|`` [m].
         tilt: angle between the pen's axis and its nominal direction (paper x) [rad].
     """
@@ -89,8 +90,8 @@ class PenState:
 
     @property
     def tip_force(self) -> FloatArray:
-        """``(4, 3)`` net force of each fingertip on the pen [N]."""
-        return self.vector[12:24].reshape(4, 3)
+        """``(k, 3)`` net force of each fingertip on the pen [N]."""
+        return self.vector[12:].reshape(-1, 3)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,8 +123,10 @@ class PenHandConfig:
     action_noise: float = 0.0  # sigma of the noise on the normalised action [-]
     action_delay: int = 0  # control steps between an action and its effect [-]
     internal_force_step: float = 0.0  # internal-force reference steps of +- this [N]
+    hand: str = DEFAULT_HAND  # the robot hand: a name of ias_gym.sim.hands.HANDS
 
     def __post_init__(self) -> None:
+        get_hand(self.hand)  # InputError naming the known hands
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
             if isinstance(value, float) and not math.isfinite(value):

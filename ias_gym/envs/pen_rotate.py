@@ -22,6 +22,7 @@ from ias_gym.envs.pen_hand_env import (
     PenHandEnv,
     PenReference,
 )
+from ias_gym.sim.hands import get_hand
 
 ORIENTATION_SCALE = 0.02  # [rad] scale of the tracking term
 
@@ -40,10 +41,11 @@ class PenRotateConfig(PenHandConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if not 0 < self.amplitude <= 0.35:
+        max_tilt = get_hand(self.hand).max_tilt
+        if not 0 < self.amplitude <= max_tilt:
             raise ValueError(
-                f"amplitude={self.amplitude} rad is outside (0, 0.35]: the fingertips reach "
-                "+-1 cm at the contacts, about 0.3 rad of tilt"
+                f"amplitude={self.amplitude} rad is outside (0, {max_tilt}] for hand "
+                f"{self.hand!r}: the fingertips reach about +-1 cm at the contacts"
             )
         if not (self.frequency > 0 and self.max_rms_error > 0):
             raise ValueError("frequency [rad/s] and max_rms_error [-] must be > 0")
@@ -60,21 +62,27 @@ class PenRotateEnv(PenHandEnv):
     """Track a sinusoidal tilt of the pen about the paper's z-axis with its centre at rest.
 
     ## Description
-    ``IAS-PenRotate-v0``: four fingers hold a pen and tilt it about the paper's z-axis
-    along the target ``A sin(w t)`` (``amplitude``, ``frequency``) while its centre stays
-    at rest.
+    ``IAS-PenRotate-v0``: the fingers of a robot hand hold a pen and tilt it about the
+    paper's z-axis along the target ``A sin(w t)`` (``amplitude``, ``frequency``) while its
+    centre stays at rest. The hand (``hand``, :mod:`ias_gym.sim.hands`) is the four-finger
+    ``"ias4f"`` (two fingers above the pen at -3 and +3 cm, two below at -2 and +2 cm) or
+    the three-finger ``"ias3f"`` (two short fingers above at -3 and +3 cm, a long thumb
+    below the centre); ``IAS-PenRotate3F-v0`` is this task with ``hand="ias3f"``.
 
     ## Action Space
-    ``Box(-1, 1, (12,))``: joint torques of fingers 1-4 (abd, mcp, pip), normalised by the
-    motors' limit (0.5 N m). Values outside [-1, 1] are clipped; NaN/inf raise ValueError.
+    ``Box(-1, 1, (3k,))`` for a hand of k fingers: joint torques of its fingers in order
+    (abd, mcp, pip each), normalised by each motor's limit. ``"ias4f"``: ``(12,)``, fingers
+    1-4, 0.5 N m motors; ``"ias3f"``: ``(9,)``, fingers 1 (top left), 2 (the thumb, 0.8 N m
+    motors) and 3 (top right; 0.35 N m motors on fingers 1 and 3). Values outside [-1, 1]
+    are clipped; NaN/inf raise ValueError.
 
     ## Observation Space
-    ``Box(-inf, inf, (55,))``, float64, paper frame, SI: hand joint angles (12) and
-    velocities (12); pen centre relative to nominal (3), the pen's axis as a unit vector
-    (3), its linear (3) and angular velocity (3); the net force of each fingertip on the
-    pen (4 x 3); episode time fraction (1); the tilt error, target tilt and target tilt
-    rate about z (3); the pen's rotation error about the vertical y (1); sin and cos of
-    w t (2).
+    ``Box(-inf, inf, (12k + 19,))``, float64, paper frame, SI (``"ias4f"``: ``(55,)``,
+    ``"ias3f"``: ``(46,)``): hand joint angles (3k) and velocities (3k); pen centre
+    relative to nominal (3), the pen's axis as a unit vector (3), its linear (3) and
+    angular velocity (3); the net force of each fingertip on the pen (k x 3); episode time
+    fraction (1); the tilt error, target tilt and target tilt rate about z (3); the pen's
+    rotation error about the vertical y (1); sin and cos of w t (2).
 
     ## Rewards
     Sum of named terms, each in ``info["reward_<name>"]``: ``track`` =
@@ -85,7 +93,8 @@ class PenRotateEnv(PenHandEnv):
     ## Starting State
     A stable grasp, perturbed: the pen centre uniform within +-``pen_position_noise`` per
     axis of nominal, tilted about z by a tilt error of random sign and size uniform in
-    ``initial_error``, the contacts at [-3, -2, 2, 3] cm along the pen, each uniform within
+    ``initial_error``, the contacts at the hand's nominal positions along the pen
+    (``"ias4f"``: [-3, -2, 2, 3] cm, ``"ias3f"``: [-3, 0, 3] cm), each uniform within
     +-``contact_noise``, the tips pressed ``penetration`` into the pen.
     ``reset(options={"qpos": ..., "qvel": ...})`` starts from that exact MuJoCo state instead.
 
@@ -117,14 +126,18 @@ class PenRotateEnv(PenHandEnv):
       the measurement noise; ``action_noise`` [0, -] the sigma of the noise on the
       normalised action; ``action_delay`` [0 control steps] delays every action;
       ``internal_force_step`` [0 N] steps the internal-force reference by +- this.
-    - PenRotate's own: ``duration`` [4.0 s]; ``amplitude`` A [0.2 rad, at most 0.35];
+    - ``hand`` [``"ias4f"``; ``"ias3f"``]: the robot hand (:mod:`ias_gym.sim.hands`); an
+      unknown name raises InputError listing the known ones.
+    - PenRotate's own: ``duration`` [4.0 s]; ``amplitude`` A [0.2 rad, at most the hand's
+      ``max_tilt``: 0.35 for both hands];
       ``frequency`` w [2.0 rad/s]; ``initial_error`` [(0.03, 0.08) rad]: the range of the
       reset's tilt error; ``settle_time`` [1.0 s] and ``max_rms_error`` [0.05, fraction of
       A]: the success test ignores the first ``settle_time``; ``track_weight`` [1.0] and
       ``position_weight`` [1.0]: reward weights [-].
 
     ## Version History
-    - v0: initial release.
+    - v0: initial release; the ``hand`` argument and ``IAS-PenRotate3F-v0`` added later
+      (the four-finger default is unchanged).
     """
 
     config_class: ClassVar[type[PenHandConfig]] = PenRotateConfig

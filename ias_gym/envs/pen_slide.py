@@ -23,6 +23,7 @@ from ias_gym.envs.pen_hand_env import (
     PenHandEnv,
     PenReference,
 )
+from ias_gym.errors import InputError
 from ias_gym.grasp.pen_skill import (
     OUTWARD,
     PenSkillParams,
@@ -30,6 +31,7 @@ from ias_gym.grasp.pen_skill import (
     finger_velocities,
     sliding_directions,
 )
+from ias_gym.sim.hands import get_hand
 
 #: The paper's skill (section 4.2); the task's schedule.
 SKILL = PenSkillParams()
@@ -50,6 +52,16 @@ class PenSlideConfig(PenHandConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        hand = get_hand(self.hand)
+        if hand.contact_x != get_hand("ias4f").contact_x:
+            # The schedule of eq. (17) names four contacts (l = [3, 2, 2, 3] cm, each sliding
+            # outward in its own phase); on a hand with other contacts it is another skill.
+            raise InputError(
+                f"PenSlide runs the paper's four-finger sliding schedule (eq. 17); hand "
+                f"{self.hand!r} has contacts at {list(hand.contact_x)} m, not the schedule's "
+                "[-0.03, -0.02, 0.02, 0.03]: use hand='ias4f' (a skill moves to another hand "
+                "through its grip transform, docs/DESIGN.md 'The second hand')"
+            )
         if self.hold_time < 0:
             raise ValueError(f"hold_time must be >= 0 [s], got {self.hold_time}")
         end = self.hold_time + SKILL.phase_times[-1]
@@ -127,6 +139,10 @@ class PenSlideEnv(PenHandEnv):
       the measurement noise; ``action_noise`` [0, -] the sigma of the noise on the
       normalised action; ``action_delay`` [0 control steps] delays every action;
       ``internal_force_step`` [0 N] steps the internal-force reference by +- this.
+    - ``hand`` [``"ias4f"``]: the robot hand (:mod:`ias_gym.sim.hands`). The sliding
+      schedule is the paper's four-finger one, so only ``"ias4f"`` is accepted; another name
+      raises InputError (docs/DESIGN.md, "The second hand", says why there is no
+      three-finger PenSlide).
     - PenSlide's own: ``hold_time`` [0.25 s] before phase 1; ``duration`` [4.75 s]: hold +
       4 s of sliding + 0.5 s settling; ``target_tolerance`` [0.002 m] and ``max_tilt``
       [5 deg, in rad]: success limits; ``track_weight`` [1.0] and ``pose_weight`` [1.0]:

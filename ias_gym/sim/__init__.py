@@ -1,5 +1,6 @@
 """ias_gym.sim: the physics side (MuJoCo models answering the paper's named questions)."""
 
+from ias_gym.sim.hands import HANDS, HandSpec, get_hand, hand_names
 from ias_gym.sim.pen_hand import (
     FINGER_JOINTS,
     FINGERS,
@@ -21,10 +22,14 @@ __all__ = [
     "FINGERS",
     "FINGER_JOINTS",
     "GRASP_KEYFRAME",
+    "HANDS",
     "R_PAPER_TO_MJ",
     "FingertipContacts",
+    "HandSpec",
     "NameNotFoundError",
     "PenHandPhysics",
+    "get_hand",
+    "hand_names",
     "load_pen_hand_model",
     "matrix_to_rpy",
     "mj_to_paper",

@@ -16,9 +16,6 @@ from ias_gym.sim.pen_hand import PenHandPhysics, paper_to_mj, rpy_to_matrix
 
 FloatArray = np.ndarray
 
-#: Which side of the pen each finger touches (+1 top, -1 bottom), paper order.
-_SIDE = np.array([1.0, -1.0, -1.0, 1.0])
-
 
 def place_grasp(
     physics: PenHandPhysics,
@@ -35,8 +32,9 @@ def place_grasp(
         physics: the pen-hand physics (its data is modified; ``mj_forward`` is run at the end).
         pen_position: pen centre [m], paper frame, relative to the nominal centre.
         pen_rpy: pen roll, pitch, yaw [rad], paper frame (as :meth:`PenHandPhysics.pen_pose`).
-        contact_x: ``(4,)`` signed contact positions along the pen's axis [m] (pen frame;
-            the paper's ``[-phi1, -phi2, +phi3, +phi4]``).
+        contact_x: ``(k,)`` signed contact positions along the pen's axis [m] (pen frame;
+            the paper's ``[-phi1, -phi2, +phi3, +phi4]`` on the four-finger hand). Each tip
+            touches the side of the pen its base is on (``physics.finger_sides``).
         penetration: how far each tip sphere overlaps the pen [m].
         iterations: Gauss-Newton iterations of the inverse kinematics.
         tolerance: stop when every tip is this close to its target [m].
@@ -55,12 +53,13 @@ def place_grasp(
 
     tip_radius = m.geom_size[physics._tip_geoms, 0]
     pen_radius = m.geom_size[physics._pen_geom, 0]
-    offset = _SIDE * (pen_radius + tip_radius - penetration)
-    local = np.stack([np.asarray(contact_x, dtype=float), offset, np.zeros(4)], axis=1)
+    offset = physics.finger_sides * (pen_radius + tip_radius - penetration)
+    local = np.stack([np.asarray(contact_x, dtype=float), offset, np.zeros(len(offset))], axis=1)
     targets = physics.origin_mj + paper_to_mj(centre + local @ rot.T)
 
     qadr, dadr = physics.hand_qpos_ids, physics.hand_dof_ids
     lo, hi = m.jnt_range[m.dof_jntid[dadr]].T
+    n = physics.n_hand_dofs // physics.n_fingers  # joints per finger
     jac = np.zeros((3, m.nv))
     err = np.inf
     for _ in range(iterations):
@@ -72,10 +71,10 @@ def place_grasp(
             break
         for i, site in enumerate(physics._tip_sites):
             mujoco.mj_jacSite(m, d, jac, None, int(site))
-            cols = dadr[3 * i : 3 * i + 3]
+            cols = dadr[n * i : n * i + n]
             J = jac[:, cols]
-            step = np.linalg.solve(J.T @ J + 1e-8 * np.eye(3), J.T @ residual[i])
-            q = qadr[3 * i : 3 * i + 3]
-            d.qpos[q] = np.clip(d.qpos[q] + step, lo[3 * i : 3 * i + 3], hi[3 * i : 3 * i + 3])
+            step = np.linalg.solve(J.T @ J + 1e-8 * np.eye(n), J.T @ residual[i])
+            q = qadr[n * i : n * i + n]
+            d.qpos[q] = np.clip(d.qpos[q] + step, lo[n * i : n * i + n], hi[n * i : n * i + n])
     mujoco.mj_forward(m, d)
     return err

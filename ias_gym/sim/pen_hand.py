@@ -40,6 +40,7 @@ from ias_gym.sim.contacts import (
     cross,
     masked_wrench_matrix,
 )
+from ias_gym.sim.hands import DEFAULT_HAND, get_hand
 from ias_gym.sim.pen import (
     R_PAPER_TO_MJ,
     FreePenPhysics,
@@ -130,9 +131,13 @@ class PenHandPhysics(FreePenPhysics):
             ``f_pip`` (each driven by one actuator), site ``f_tip``, geom ``f_tip_collision``
             and touch sensor ``f_touch``.
         pen: name of the pen's body, free joint and geom.
+        finger_joints: joint suffixes per finger, proximal to distal (the same for every
+            finger).
 
     Attributes:
-        n_fingers, n_hand_dofs: k fingers and their 3k hinge dofs.
+        n_fingers, n_hand_dofs: k fingers and their hinge dofs (3k for abd, mcp, pip).
+        finger_sides: ``(k,)`` the side of the pen each finger's base is on: +1 above the
+            pen's centre (pushes down), -1 below.
         hand_qpos_ids, hand_dof_ids, hand_actuator_ids: ``(3k,)`` indices into ``qpos``,
             ``qvel``/``qfrc_*`` and ``ctrl``, in the order f1 abd, mcp, pip, f2 ...
         tip_site_ids, tip_geom_ids: ``(k,)`` fingertip sites and collision spheres.
@@ -149,6 +154,7 @@ class PenHandPhysics(FreePenPhysics):
         data: mujoco.MjData,
         fingers: Sequence[str] = FINGERS,
         pen: str = "pen",
+        finger_joints: Sequence[str] = FINGER_JOINTS,
     ) -> None:
         super().__init__(model, data, pen)
         self.fingers: tuple[str, ...] = tuple(fingers)
@@ -156,7 +162,7 @@ class PenHandPhysics(FreePenPhysics):
         obj = mujoco.mjtObj
 
         joints = [
-            lookup(model, obj.mjOBJ_JOINT, f"{f}_{j}") for f in fingers for j in FINGER_JOINTS
+            lookup(model, obj.mjOBJ_JOINT, f"{f}_{j}") for f in fingers for j in finger_joints
         ]
         self.hand_qpos_ids = np.array([model.jnt_qposadr[j] for j in joints])
         self.hand_dof_ids = np.array([model.jnt_dofadr[j] for j in joints])
@@ -196,8 +202,9 @@ class PenHandPhysics(FreePenPhysics):
         # that t2 = +z (paper) for all fingers at the untilted pen (eq. 16).
         scratch = mujoco.MjData(model)
         mujoco.mj_kinematics(model, scratch)
-        base_z = scratch.xpos[model.jnt_bodyid[joints[::3]], 2]
+        base_z = scratch.xpos[model.jnt_bodyid[joints[:: len(joints) // k]], 2]
         self._t2_sign = np.where(base_z > self.origin_mj[2], -1.0, 1.0)
+        self.finger_sides = -self._t2_sign
         # Geoms of the hand (same kinematic tree as the fingertips), for link-contact checks.
         hand_root = model.body_rootid[self._tip_bodies[0]]
         self._hand_geom = model.body_rootid[model.geom_bodyid] == hand_root
@@ -213,10 +220,21 @@ class PenHandPhysics(FreePenPhysics):
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_assets(cls, keyframe: str | None = GRASP_KEYFRAME) -> PenHandPhysics:
-        """Load the pen-hand scene, make its data, reset to ``keyframe`` (if given)."""
-        model = load_pen_hand_model()
-        physics = cls(model, mujoco.MjData(model))
+    def from_assets(
+        cls, keyframe: str | None = GRASP_KEYFRAME, hand: str = DEFAULT_HAND
+    ) -> PenHandPhysics:
+        """Load a hand's pen scene, make its data, reset to ``keyframe`` (if given).
+
+        Args:
+            keyframe: keyframe to reset to (``None``: ``qpos0``).
+            hand: a name of :data:`ias_gym.sim.hands.HANDS`.
+
+        Raises:
+            InputError: an unknown hand (the message lists the known ones).
+        """
+        spec = get_hand(hand)
+        model = load_pen_hand_model(spec.scene)
+        physics = cls(model, mujoco.MjData(model), spec.fingers, finger_joints=spec.joints)
         physics.reset(keyframe)
         return physics
 

@@ -1,0 +1,125 @@
+"""The robot hands that hold the pen: a registry of their layouts (:data:`HANDS`).
+
+A skill stored as the time behaviour of the grip transform G(t) should run on a hand whose
+structure differs from the demonstrator's (the paper's Flow 2). Two hands share the pen,
+the scene's conventions and the sensor names (``fN_abd``/``mcp``/``pip``, ``fN_tip``,
+``fN_tip_collision``, ``fN_touch``, ``fN_pen_contact``, ``fN_pen_force``); a
+:class:`HandSpec` names what differs: the scene, the fingers and their sides of the pen,
+the nominal contacts, how far the tips reach and the largest tilt the expert handles.
+
+- ``"ias4f"``: the four-finger hand of the paper's skill example (``scene_pen.xml``), the
+  default everywhere;
+- ``"ias3f"``: a three-finger hand (``scene_pen3f.xml``): two short fingers above the pen at
+  -3 and +3 cm pushing down and a long opposed "thumb" below its centre
+  (``ias_gym/assets/README.md``, docs/DESIGN.md "The second hand").
+
+Paper frame (x along the pen, y up, z lateral), SI units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ias_gym.errors import InputError
+
+__all__ = ["DEFAULT_HAND", "HANDS", "HandSpec", "get_hand", "hand_names"]
+
+
+@dataclass(frozen=True)
+class HandSpec:
+    """The layout of one robot hand holding the pen (paper frame, SI units).
+
+    Attributes:
+        name: the registry key (``"ias4f"``, ``"ias3f"``).
+        scene: the MJCF scene in ``ias_gym.assets`` (hand + pen + sensors + keyframe).
+        fingers: finger name prefixes in the MJCF, in the hand's order.
+        joints: joint suffixes of every finger, proximal to distal.
+        sides: per finger, the side of the pen it touches: +1 top (pushes down), -1 bottom.
+        contact_x: per finger, the nominal contact position along the pen's axis from its
+            centre [m] (the ``grasp`` keyframe's).
+        reach: how far every tip reaches along the pen from its nominal contact, both ways,
+            with the pen at rest [m] (inverse kinematics within the joint ranges).
+        max_tilt: the largest see-saw amplitude about the paper's z the Theorem-1 expert
+            tracks on this hand [rad] (measured, docs/DESIGN.md).
+        description: one line for listings.
+    """
+
+    name: str
+    scene: str
+    fingers: tuple[str, ...]
+    joints: tuple[str, ...]
+    sides: tuple[float, ...]
+    contact_x: tuple[float, ...]
+    reach: float
+    max_tilt: float
+    description: str
+
+    def __post_init__(self) -> None:
+        k = len(self.fingers)
+        if len(self.sides) != k or len(self.contact_x) != k:
+            raise ValueError(f"hand {self.name!r}: sides and contact_x need one entry per finger")
+        if not ({1.0, -1.0} <= set(self.sides) <= {1.0, -1.0}):
+            raise ValueError(f"hand {self.name!r}: sides must be +1 or -1, on both sides")
+
+    @property
+    def n_fingers(self) -> int:
+        """Number of fingers k."""
+        return len(self.fingers)
+
+    @property
+    def n_dofs(self) -> int:
+        """Number of hand joints (and motors)."""
+        return len(self.fingers) * len(self.joints)
+
+
+#: The four-finger hand is the default of every pen task.
+DEFAULT_HAND = "ias4f"
+
+#: The registered hands, by name.
+HANDS: dict[str, HandSpec] = {
+    "ias4f": HandSpec(
+        name="ias4f",
+        scene="scene_pen.xml",
+        fingers=("f1", "f2", "f3", "f4"),
+        joints=("abd", "mcp", "pip"),
+        sides=(1.0, -1.0, -1.0, 1.0),
+        contact_x=(-0.03, -0.02, 0.02, 0.03),
+        reach=0.015,
+        max_tilt=0.35,
+        description="four fingers, two above and two below the pen (the paper's skill example)",
+    ),
+    "ias3f": HandSpec(
+        name="ias3f",
+        scene="scene_pen3f.xml",
+        fingers=("f1", "f2", "f3"),
+        joints=("abd", "mcp", "pip"),
+        sides=(1.0, -1.0, 1.0),
+        contact_x=(-0.03, 0.0, 0.03),
+        reach=0.015,
+        max_tilt=0.35,
+        description="three fingers: two short ones above the pen, a long thumb below its centre",
+    ),
+}
+
+
+def hand_names() -> list[str]:
+    """The registered hands' names, sorted."""
+    return sorted(HANDS)
+
+
+def get_hand(name: str) -> HandSpec:
+    """The :class:`HandSpec` registered as ``name``.
+
+    Args:
+        name: a key of :data:`HANDS`.
+
+    Returns:
+        The hand's spec.
+
+    Raises:
+        InputError: no hand of that name; the message lists the known hands.
+    """
+    try:
+        return HANDS[name]
+    except (KeyError, TypeError):
+        raise InputError(f"unknown hand {name!r}; known hands: {', '.join(hand_names())}") from None
