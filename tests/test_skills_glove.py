@@ -72,10 +72,11 @@ def test_glove_sessions_are_stored_with_their_provenance(
             demo, model = skill.demonstration, skill.model
             assert demo.observations.shape == (STEPS + 1, 39)
             assert not demo.actions.any()  # teleop: the glove alone drives the hand
-            assert model.is_pinch
+            # Soft fingers: 4 intensities each, G exists, two internal forces.
+            assert not model.is_pinch
             assert model.touching.shape == model.sliding.shape == (STEPS + 1, 2)
-            assert model.c.shape == model.c_h.shape == (STEPS + 1, 6)
-            assert model.f_int.shape == (STEPS + 1, 1) and model.f_ext.shape == (STEPS + 1, 6)
+            assert model.c.shape == model.c_h.shape == (STEPS + 1, 8)
+            assert model.f_int.shape == (STEPS + 1, 2) and model.f_ext.shape == (STEPS + 1, 6)
             assert not model.sliding.any()
             np.testing.assert_allclose(np.diff(model.time), 0.01, atol=1e-9)
 
@@ -121,9 +122,9 @@ def test_contact_schedule_and_intensities(recorded: tuple[Path, list[int]]) -> N
             assert not model.touching[0].any()
             # c: finite, zero for a finger that does not touch, pushing when it does.
             assert np.isfinite(model.c).all()
-            touching = np.repeat(model.touching, 3, axis=1)
+            touching = np.repeat(model.touching, 4, axis=1)
             assert not model.c[~touching].any()
-            normals = model.c[:, 0::3]
+            normals = model.c[:, 0::4]
             assert (normals[model.touching] >= 0).all()
             assert normals[both].sum(axis=1).min() > 0.5  # [N]: a squeeze, not a graze
 
@@ -152,7 +153,8 @@ def test_held_pen_is_in_equilibrium(recorded: tuple[Path, list[int]]) -> None:
 
 
 def test_squeeze_is_the_pinch_force(recorded: tuple[Path, list[int]]) -> None:
-    """f_int = N^T c (eqs. 7, 10) of the rank-5 pinch: positive, of the operator's pinch force.
+    """f_int[0] = N_1^T c (eqs. 7, 10), the soft pinch's squeeze: positive, of the operator's
+    pinch force; f_int[1] (the opposed torsions) is small [N m].
 
     Measured while held: f_int 0.60-1.18 N, 0.52-0.65 of the env's pinch force (the sum
     of the pads' normal forces, 1.4-1.8 N).
@@ -164,12 +166,17 @@ def test_squeeze_is_the_pinch_force(recorded: tuple[Path, list[int]]) -> None:
             model, infos = skill.model, skill.demonstration.infos
             both = model.touching.all(axis=1)
             f_int = model.f_int[:, 0]
-            # Defined exactly where both fingers touch; c_h = N f_int with a unit N.
-            np.testing.assert_array_equal(np.isfinite(f_int), both)
+            # Defined exactly where both fingers touch; c_h = N f_int with an orthonormal N.
+            np.testing.assert_array_equal(np.isfinite(model.f_int).all(axis=1), both)
             np.testing.assert_array_equal(np.isfinite(model.c_h).all(axis=1), both)
             np.testing.assert_allclose(
-                np.linalg.norm(model.c_h[both], axis=1), np.abs(f_int[both]), rtol=1e-12
+                np.linalg.norm(model.c_h[both], axis=1),
+                np.linalg.norm(model.f_int[both], axis=1),
+                rtol=1e-12,
             )
+            # The second internal force (opposed torsions with the axial shear that balances
+            # them in the glove's 110-degree pinch): measured |f_int[1]| <= 0.43.
+            assert np.abs(model.f_int[both, 1]).max() < 1.0
             assert (f_int[both] > 0).all()  # squeezing is positive, from the first touch on
             held = _held(model, dict(infos))
             assert 0.4 < f_int[held].min() and f_int[held].max() < 2.5  # [N]
@@ -182,8 +189,9 @@ def test_squeeze_is_the_pinch_force(recorded: tuple[Path, list[int]]) -> None:
 
 def test_sampler_matches_mujoco_at_every_step() -> None:
     """The sampled f_ext is the fingers' net force on the pen to 1e-3 N, the moment of W c
-    is the exact one (MuJoCo's, incl. the pads' torsion) to 2.5e-3 N m, and the exact
-    moment obeys Euler's equation (measured: 3e-4 N, 1.8e-3 N m, 2.4e-5 N m)."""
+    is the exact one (MuJoCo's, incl. the pads' torsion, now a column of the soft-finger W)
+    to 1e-9 N m, and the exact moment obeys Euler's equation (measured: 3e-4 N, 2e-17 N m,
+    2.4e-5 N m; the hard-finger W missed the moment by up to 1.8e-3 N m)."""
     env = gym.make(ENV_ID)
     unwrapped = env.unwrapped
     assert isinstance(unwrapped, GloveGraspEnv)
@@ -230,7 +238,7 @@ def test_sampler_matches_mujoco_at_every_step() -> None:
     assert np.linalg.norm(force, axis=1).max() < 1e-3  # [N]
     exact_moment = np.array(exact)[mask]
     assert np.linalg.norm(exact_moment - np.array(euler)[mask], axis=1).max() < 1e-4  # [N m]
-    assert np.linalg.norm(f_ext[:, 3:] - exact_moment, axis=1).max() < 2.5e-3  # [N m]
+    assert np.linalg.norm(f_ext[:, 3:] - exact_moment, axis=1).max() < 1e-9  # [N m]
 
 
 def _pinch(points: np.ndarray, normals: np.ndarray, active: tuple[bool, bool]) -> FingerContacts:
@@ -247,6 +255,8 @@ def _pinch(points: np.ndarray, normals: np.ndarray, active: tuple[bool, bool]) -
         force=np.zeros((2, 3)),
         moment=np.zeros((2, 3)),
         count=np.array(active, dtype=np.int64),
+        torsion=np.zeros(2),
+        friction=np.array([[0.25, 0.03], [0.25, 0.03]]),
     )
 
 
@@ -329,11 +339,11 @@ def test_cli_records_and_shows_a_glove_session(
     assert _run(["skills", "show", "--db", db, "--id", "1"]) == 0
     text = capsys.readouterr().out
     assert "person p1" in text and "finger 2: touching" in text
-    assert "pinch squeeze f_int defined" in text and "f_int[1] [+" in text
+    assert "grip transform defined (rank W = 6)" in text and "f_int[2] [" in text
     assert _run(["skills", "show", "--db", db, "--id", "1", "--json"]) == 0
     shown = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert shown["person_id"] == "p1" and shown["seed"] == 4
-    assert len(shown["model"]["fingers"]) == 2 and len(shown["model"]["f_int_range"]) == 1
+    assert len(shown["model"]["fingers"]) == 2 and len(shown["model"]["f_int_range"]) == 2
     assert shown["model"]["max_pen_excursion"] >= 0.03
 
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "datasets"))
@@ -348,6 +358,6 @@ def test_cli_records_and_shows_a_glove_session(
               "--db", db, "--no-progress"])  # fmt: skip
     with pytest.raises(InputError, match="belong to 'p1'"):
         _run(["skills", "record", "--env", ENV_ID, "--policy", "teleop", "--person", "p2",
-              "--db", db, "--no-progress"])  # fmt: skip
+              "--env-kwargs", '{"person_id": "p1"}', "--db", db, "--no-progress"])  # fmt: skip
     with SkillDB(db) as database:
         assert len(database) == 1  # the refused runs stored nothing

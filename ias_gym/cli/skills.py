@@ -24,6 +24,7 @@ from typing import Any
 from ias_gym.cli.args import env_kwargs_argument, parse_env_kwargs
 from ias_gym.cli.transfer import add_transfer_command
 from ias_gym.errors import IasGymError, InputError
+from ias_gym.glove.skills import SKILLS
 
 #: Exit code of ``skills check`` when a skill is corrupt.
 EXIT_CORRUPT = 2
@@ -61,6 +62,7 @@ def _record(args: argparse.Namespace) -> int:
             progress=not args.no_progress,
             env_kwargs=env_kwargs,
             person_id=args.person,
+            skill=args.skill,
         )
     print(f"stored {len(ids)} skills (ids {', '.join(map(str, ids))}) in {args.db}")
     return 0
@@ -249,8 +251,14 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
         "--person",
         metavar="ID",
         help="person id stored with the skills: letters, digits, '.', '_', '-' (glove envs: "
-        "the env's person, the default; choose it with --env-kwargs "
-        "'{\"person_id\": ...}') (default: none)",
+        "the simulated person wearing the glove, any id; default: the env's, p1) "
+        "(default: none)",
+    )
+    record.add_argument(
+        "--skill",
+        metavar="NAME",
+        help="glove envs: the skill the person performs after the pinch-lift, one of "
+        f"{', '.join(SKILLS)} (stored as the skills' name) (default: none, the pinch-lift)",
     )
     record.add_argument("--no-progress", action="store_true", help="no progress bar")
     record.set_defaults(run=_record)

@@ -30,9 +30,10 @@ from ias_gym.glove.calibration import Calibration
 from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, SimulatedGlove
 from ias_gym.glove.hand import JOINT_HIGH, JOINT_LOW, JOINT_NAMES, PersonParams
 from ias_gym.glove.ids import check_id
-from ias_gym.glove.operator import FromPreShape
+from ias_gym.glove.operator import FromPreShape, skill_operator
 from ias_gym.glove.operator import pen_operator as _pen_operator
 from ias_gym.glove.profile_cache import default_calibration
+from ias_gym.glove.skills import check_skill, skill_start_time
 from ias_gym.sim.glove_contacts import GlovePenPhysics, PenContactPass
 from ias_gym.sim.glove_scene import (
     FINGER_ABOVE,
@@ -69,6 +70,7 @@ class GloveGraspConfig:
     """Settings of :class:`GloveGraspEnv` (units in the comments)."""
 
     person_id: str = "p1"  # simulated person wearing the glove (PersonParams.sample)
+    skill: str | None = None  # object skill after the pinch-lift (glove.skills.SKILLS)
     control_dt: float = 0.01  # one env step = one glove read [s]; a multiple of 1 ms
     duration: float = 4.0  # episode length [s] (registered max_episode_steps = 400)
     action_scale: float = 0.2  # joint offset of a full action [rad]
@@ -83,6 +85,8 @@ class GloveGraspConfig:
     def __post_init__(self) -> None:
         # person_id names the cached profile file: checked before anything is built.
         check_id(self.person_id, "person_id")
+        if self.skill is not None:
+            check_skill(self.skill, "skill")
         if self.control_dt <= 0 or self.duration <= 0:
             raise ValueError("control_dt and duration must be positive [s]")
 
@@ -90,6 +94,10 @@ class GloveGraspConfig:
 #: ``info["fault"]`` when the calibration turns the glove's readings into NaN or inf (a
 #: broken calibration): the step keeps the last finite targets and ends the episode.
 NONFINITE_THETA_FAULT = "calibration gave non-finite joint angles (check the glove profile)"
+
+#: ``lift_place`` succeeds when the pen, lifted before, is back within this height of its
+#: start [m] (on its support) and both fingers still hold it.
+PLACE_TOLERANCE = 0.005
 
 #: Reward term names (info keys ``reward_<name>``).
 REWARD_TERMS = ("lift", "pinch", "effort")
@@ -212,13 +220,23 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         if glove_factory is None:
             person_ = self.person
             # The operator pinches the scene's pen: its radius read from the compiled model.
-            operator = _pen_operator(person_, float(m.geom_size[m.geom("pen").id, 0]))
+            radius = float(m.geom_size[m.geom("pen").id, 0])
+            skill = self.config.skill
+            operator = (
+                _pen_operator(person_, radius)
+                if skill is None
+                else skill_operator(person_, radius, skill)
+            )
 
             def glove_factory(seed: int) -> GloveDevice:
                 return SimulatedGlove(person_, FromPreShape(operator), seed)
 
         self.glove_factory = glove_factory
         self.glove: GloveDevice | None = None
+        #: Episode time [s] where the skill's own motion begins (None: no skill).
+        self.skill_start: float | None = (
+            None if self.config.skill is None else skill_start_time(self.config.skill, self.person)
+        )
         self.frame_skip = round(self.config.control_dt / m.opt.timestep)
         if self.frame_skip < 1 or not math.isclose(
             self.frame_skip * m.opt.timestep, self.config.control_dt
@@ -262,6 +280,7 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self._feedback = np.zeros(len(ACTUATED_JOINTS))
         self._touch = (False, False)
         self._pinch_force = 0.0
+        self._lifted = False  # the pen was lifted off its support in this episode
         self._renderer: Any = None
 
     # ------------------------------------------------------------------ glove
@@ -299,6 +318,21 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         d.ctrl[self._act] = theta
         mujoco.mj_forward(m, d)
 
+    def _set_state(self, options: dict[str, Any]) -> None:
+        """Put MuJoCo's state to ``options["qpos"]`` and ``options.get("qvel", 0)``."""
+        m, d = self.model, self.data
+        qpos = np.asarray(options["qpos"], dtype=float)
+        qvel = np.asarray(options.get("qvel", np.zeros(m.nv)), dtype=float)
+        if qpos.shape != (m.nq,) or qvel.shape != (m.nv,):
+            raise ValueError(
+                f"options qpos/qvel need shapes ({m.nq},)/({m.nv},), got {qpos.shape}/{qvel.shape}"
+            )
+        if not (np.isfinite(qpos).all() and np.isfinite(qvel).all()):
+            raise ValueError("options qpos/qvel contain NaN or inf")
+        d.qpos[:] = qpos
+        d.qvel[:] = qvel
+        mujoco.mj_forward(m, d)
+
     # ------------------------------------------------------------------ physics
     def _force_display(self) -> tuple[FloatArray, tuple[bool, bool], float, bool]:
         """(tau on ACTUATED_JOINTS [N m], (index, thumb) touch, pinch normal force [N],
@@ -330,13 +364,22 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             ]
         )
 
+    def _success(self, dz: float, rest: bool) -> bool:
+        """The pen is lifted (``lift_height``, off the support); ``lift_place``: it was lifted
+        and now rests within ``PLACE_TOLERANCE`` of its start, still pinched by both."""
+        lifted = dz >= self.config.lift_height and not rest
+        self._lifted = self._lifted or lifted
+        if self.config.skill == "lift_place":
+            return self._lifted and abs(dz) <= PLACE_TOLERANCE and all(self._touch)
+        return lifted
+
     def _info(self, terms: dict[str, float], rest: bool, fault: str) -> dict[str, Any]:
         dz = float(self.data.xpos[self._pen_body][2] - self._pen_start[2])
         return {
             "fault": fault,
             "sim_unstable": self._unstable,
             **{f"reward_{k}": v for k, v in terms.items()},
-            "is_success": bool(dz >= self.config.lift_height and not rest),
+            "is_success": self._success(dz, rest),
             "pen_height": dz,
             "feedback_torques": self._feedback.copy(),
             "pinch_force": self._pinch_force,
@@ -362,6 +405,17 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[FloatArray, dict[str, Any]]:
+        """Start an episode (see the class docstring, "Starting State").
+
+        Args:
+            seed: seeds ``self.np_random`` (the glove's noise seed is drawn from it).
+            options: ``{"qpos": ..., "qvel": ...}`` starts from that exact MuJoCo state
+                after the glove's first reading (e.g. a perturbed start,
+                ``tests/closed_loop.py``); default: the hand at the reading, the pen at rest.
+
+        Raises:
+            ValueError: ``options`` qpos/qvel of the wrong shape or not finite.
+        """
         super().reset(seed=seed)
         self.glove = self._open_glove(int(self.np_random.integers(2**31)))
         rest_pose = np.clip(np.zeros(len(JOINT_NAMES)), JOINT_LOW, JOINT_HIGH)
@@ -370,6 +424,9 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self._fault = "" if ok else NONFINITE_THETA_FAULT  # the first step ends the episode
         self._unstable = False
         self._place_hand(theta)
+        if options and "qpos" in options:
+            self._set_state(options)
+        self._lifted = False
         self._pen_start = self.data.xpos[self._pen_body].copy()
         self._steps = 0
         self._feedback, self._touch, self._pinch_force, rest = self._force_display()

@@ -10,12 +10,14 @@ pen's radius comes from the caller, who reads it from the compiled scene
 from __future__ import annotations
 
 import dataclasses
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.glove.device import ReachPinchLift
+from ias_gym.glove.device import ReachPinchLift, ReachPinchLiftTimings
 from ias_gym.glove.hand import PersonParams
+from ias_gym.glove.skills import SKILL_TIMINGS, SkillOperator
 
 FloatArray = NDArray[np.float64]
 
@@ -36,7 +38,15 @@ PEN_PINCH_POSES: tuple[tuple[float, float, float], ...] = (
 )
 
 
-def pen_operator(person: PersonParams, pen_radius: float) -> ReachPinchLift:
+#: ReachPinchLift's default phase times (the pinch-lift without a skill).
+DEFAULT_TIMINGS = ReachPinchLiftTimings()
+
+
+def pen_operator(
+    person: PersonParams,
+    pen_radius: float,
+    timings: ReachPinchLiftTimings = DEFAULT_TIMINGS,
+) -> ReachPinchLift:
     """The scripted operator pinching the pen: :class:`ReachPinchLift` with the pads apart.
 
     ReachPinchLift puts the index tip ``pad_contact - force / pad_stiffness`` [m] from the
@@ -52,6 +62,7 @@ def pen_operator(person: PersonParams, pen_radius: float) -> ReachPinchLift:
     Args:
         person: the operator's hand.
         pen_radius: the pen's radius [m] (the scene's pen geom, ``model.geom_size[pen, 0]``).
+        timings: the script's phase times [s] (a skill's: :data:`SKILL_TIMINGS`).
 
     Raises:
         ValueError: ``pen_radius`` is not positive, or no pen pinch of
@@ -63,10 +74,35 @@ def pen_operator(person: PersonParams, pen_radius: float) -> ReachPinchLift:
     wide = dataclasses.replace(person, pad_contact=2.0 * pen_radius + PEN_PAD_GAP * s)
     for cmc, flexion, dip in PEN_PINCH_POSES:
         try:
-            return ReachPinchLift(wide, thumb=(cmc, flexion), dip=dip)
+            return ReachPinchLift(wide, timings, thumb=(cmc, flexion), dip=dip)
         except ValueError:  # out of this hand's reach: the next pose
             continue
     raise ValueError(f"no pen pinch of {PEN_PINCH_POSES} is in reach of {person.person_id}")
+
+
+def skill_operator(person: PersonParams, pen_radius: float, skill: str) -> SkillOperator:
+    """The scripted operator of a skill with the pen: the pen's pinch-lift with
+    :data:`~ias_gym.glove.skills.SKILL_TIMINGS`, then ``skill`` in ``person``'s style.
+
+    Args:
+        person: the operator's hand (and, by its id, their style).
+        pen_radius: the pen's radius [m].
+        skill: one of :data:`~ias_gym.glove.skills.SKILLS`.
+
+    Raises:
+        InputError: unknown ``skill``.
+        ValueError: as :func:`pen_operator`.
+    """
+    return SkillOperator(pen_operator(person, pen_radius, SKILL_TIMINGS), skill)
+
+
+class ScriptedOperator(Protocol):
+    """A script Θ(t) [rad] with phase times (:class:`ReachPinchLift`, :class:`SkillOperator`)."""
+
+    @property
+    def timings(self) -> ReachPinchLiftTimings: ...
+
+    def __call__(self, t: float) -> FloatArray: ...
 
 
 class FromPreShape:
@@ -82,7 +118,7 @@ class FromPreShape:
         start: where in it the episode begins [s] (default: the end of its reach).
     """
 
-    def __init__(self, operator: ReachPinchLift, start: float | None = None) -> None:
+    def __init__(self, operator: ScriptedOperator, start: float | None = None) -> None:
         self.operator = operator
         self.start = operator.timings.reach if start is None else float(start)
 

@@ -44,14 +44,13 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym.grasp.contacts import ContactModel, wrench_matrix
 from ias_gym.grasp.grip_transform import RANK_RTOL
 from ias_gym.sim.contacts import (
     PointContacts,
     axis_normals,
     contact_frames,
-    contact_intensities,
     cross,
-    masked_wrench_matrix,
 )
 from ias_gym.sim.pen import R_PAPER_TO_MJ, FreePenPhysics, mj_to_paper
 
@@ -61,6 +60,11 @@ BoolArray = NDArray[np.bool_]
 #: Rank of W for two point contacts with friction at distinct points: the moment about the
 #: line through them cannot be produced (eq. 3), and the null space is the squeeze (eq. 6).
 PINCH_RANK = 5
+#: Wrench intensities per finger of the soft-finger model: normal, t1, t2, torsion.
+SOFT_COLUMNS = ContactModel.SOFT_FINGER.n_wrenches
+#: Largest move of a finger's point from its centre of pressure to make its wrench a soft
+#: finger's [m] (:func:`soft_contact_points`): a quarter of the pads' 6-7 mm radius.
+MAX_POINT_SHIFT = 0.0015
 
 
 @dataclass(frozen=True)
@@ -75,13 +79,19 @@ class FingerContacts(PointContacts):
             not touching, the normal points from the tip site to the pen's axis.
         force: ``(k, 3)`` summed force of finger i on the pen [N] (zero when not touching).
         moment: ``(k, 3)`` exact moment of finger i's contacts about the pen's centre of
-            mass [N m], the pads' torsion included (``(points - com) x force`` approximates
-            it, see the module docstring).
+            mass [N m], the pads' torsion included.
         count: ``(k,)`` number of MuJoCo contacts summed per finger.
+        torsion: ``(k,)`` the soft finger's torsion [N m]: finger i's moment about its
+            point, along its normal (0 when not touching).
+        friction: ``(k, 2)`` the friction of finger i's contact (of its strongest MuJoCo
+            contact): sliding mu [-] and torsional mu [m] (MuJoCo's condim-4 coefficients;
+            the pad geoms' for a finger not touching).
     """
 
     moment: FloatArray
     count: NDArray[np.int64]
+    torsion: FloatArray
+    friction: FloatArray
 
 
 @dataclass(frozen=True)
@@ -99,6 +109,7 @@ class PenContactPass:
         force6: ``(n, 6)`` MuJoCo's contact force and torque in the contact frame.
         frames: ``(n, 3, 3)`` MuJoCo's contact frames (rows normal geom1 -> geom2, t1, t2).
         pos: ``(n, 3)`` contact points [m].
+        friction: ``(n, 2)`` each contact's sliding [-] and torsional [m] friction.
         sign: ``(n, 1)`` +1 where the pen is geom2 (it feels ``force6``), else -1.
         force: ``(n, 3)`` force of the finger on the pen [N].
         count: ``(k,)`` contacts per finger.
@@ -117,6 +128,7 @@ class PenContactPass:
     force6: FloatArray
     frames: FloatArray
     pos: FloatArray
+    friction: FloatArray
     sign: FloatArray
     force: FloatArray
     count: NDArray[np.int64]
@@ -185,6 +197,14 @@ class GlovePenPhysics(FreePenPhysics):
                     raise ValueError(f"geom {name!r} is listed for two fingers")
                 self._finger_of_geom[g] = i
         self.tip_site_ids = np.array([model.site(s).id for s in tips])
+        # A finger not touching gets the friction of its highest-priority geom (the pad's,
+        # which sets the friction of the pad's contacts): sliding [-], torsional [m].
+        friction = []
+        for names in fingers.values():
+            ids = [model.geom(name).id for name in names]
+            top = max(ids, key=lambda g: int(model.geom_priority[g]))
+            friction.append(model.geom_friction[top, :2])
+        self._idle_friction = np.array(friction)
         # t2 = sign * (t1 x n). Fixed per finger, not from the normal's direction: a finger
         # pushing sideways would flip its frame with every wobble.
         self._t2_sign = np.where(above, -1.0, 1.0)
@@ -249,6 +269,7 @@ class GlovePenPhysics(FreePenPhysics):
             force6=force6,
             frames=frames,
             pos=pos,
+            friction=d.contact.friction[sel][:, [0, 2]],
             sign=sign,
             force=force,
             count=np.bincount(finger, minlength=k),
@@ -273,8 +294,8 @@ class GlovePenPhysics(FreePenPhysics):
         k = self.n_fingers
         frames, pos, sign, f = cp.frames, cp.pos, cp.sign, cp.force
         # The pads are soft contacts (condim 4): their torsion counts in the exact moment.
-        torsion = sign * np.einsum("nji,nj->ni", frames, cp.force6[:, 3:])
-        moments = cross(pos - cp.com, f) + torsion
+        torque = sign * np.einsum("nji,nj->ni", frames, cp.force6[:, 3:])
+        moments = cross(pos - cp.com, f) + torque
         normal_into_pen = sign * frames[:, 0]
         w = np.maximum(cp.force6[:, 0], 0.0)
         # Sums per finger: finger i's rows of a (k, n) one-hot matrix.
@@ -297,28 +318,181 @@ class GlovePenPhysics(FreePenPhysics):
                 normals[i] = onehot[i] @ normal_into_pen
         normals /= np.linalg.norm(normals, axis=1, keepdims=True)
         frames_mj = contact_frames(normals, cp.axis, self._t2_sign)
+        force, moment = onehot @ f, onehot @ moments
+        points = soft_contact_points(points, normals, force, moment, cp.com, active)
+        # The soft finger's torsion: the finger's moment about its own point, along its
+        # normal (the part of that moment the point's force columns cannot make).
+        about_point = moment - cross(points - cp.com, force)
+        torsion = np.where(active, np.einsum("ij,ij->i", about_point, normals), 0.0)
+        friction = self._idle_friction.copy()
+        for j in np.flatnonzero(active):
+            mine = np.flatnonzero(cp.finger == j)
+            friction[j] = cp.friction[mine[np.argmax(cp.force6[mine, 0])]]
         return FingerContacts(
             active=active,
             points=mj_to_paper(points - self.origin_mj),
             frames=frames_mj @ R_PAPER_TO_MJ,
-            force=mj_to_paper(onehot @ f),
-            moment=mj_to_paper(onehot @ moments),
+            force=mj_to_paper(force),
+            moment=mj_to_paper(moment),
             count=cp.count,
+            torsion=torsion,
+            friction=friction,
         )
 
     def wrench_matrix(self, contacts: FingerContacts) -> tuple[FloatArray, BoolArray]:
-        """W of eqs. (3)/(16), ``(6, 3k)``, moments about the pen's centre of mass.
+        """W of eqs. (3)/(16) for soft fingers, ``(6, 4k)``, moments about the pen's centre
+        of mass.
 
-        Columns per finger [normal, t1, t2] of :class:`FingerContacts`; zero columns for a
-        finger not touching. Returns ``(W, active)``.
+        Columns per finger [normal, t1, t2] of :class:`FingerContacts` (eq. 16) and the
+        torsion column ``[0; n]``; zero columns for a finger not touching. Returns
+        ``(W, active)``.
         """
-        return masked_wrench_matrix(contacts, self.pen_com()), contacts.active
+        return soft_wrench_matrix(contacts, self.pen_com()), contacts.active
 
     @staticmethod
     def contact_intensities(contacts: FingerContacts) -> FloatArray:
-        """Wrench intensities c of eq. (3), ``(3k,)`` [N]: each finger's force on the pen
-        along its [normal, t1, t2] (normal >= 0 pushes); zeros for a finger not touching."""
-        return contact_intensities(contacts)
+        """Wrench intensities c of eq. (3) for soft fingers, ``(4k,)``: each finger's force
+        on the pen along its [normal, t1, t2] [N] (normal >= 0 pushes) and its torsion
+        about the normal [N m]; zeros for a finger not touching."""
+        return soft_contact_intensities(contacts)
+
+
+def soft_contact_points(
+    points: FloatArray,
+    normals: FloatArray,
+    force: FloatArray,
+    moment: FloatArray,
+    com: FloatArray,
+    active: BoolArray,
+) -> FloatArray:
+    """Each finger's point as a soft finger: where its net wrench is a force plus a torsion.
+
+    A finger's force ``F`` and moment ``M`` about ``com`` [N, N m] are one soft-finger
+    contact at a point ``p`` with normal ``n`` exactly if the moment about ``p`` lies along
+    ``n``: ``M - (p - com) x F = tau n``. Dotting with F gives ``tau = (M . F) / (n . F)``;
+    the points that satisfy it form a line parallel to F, and the one nearest the centre of
+    pressure is used. Where the finger has one MuJoCo contact this is its point (its moment
+    about it is MuJoCo's torsion along the normal). The line moves by the tangential moment
+    / |F| (several contacts of the finger, e.g. pad and distal phalanx), measured below
+    0.5 mm in the held pinch; a finger whose shift would exceed :data:`MAX_POINT_SHIFT`
+    (a grazing contact, n . F near 0) keeps its centre of pressure.
+
+    Args:
+        points, normals, force, moment: ``(k, 3)`` per finger, MuJoCo's frame: centre of
+            pressure [m], unit normal, net force [N], net moment about ``com`` [N m].
+        com: ``(3,)`` the pen's centre of mass [m].
+        active: ``(k,)`` the finger touches (others are returned unchanged).
+
+    Returns:
+        ``(k, 3)`` the points [m].
+    """
+    out = points.copy()
+    for i in np.flatnonzero(active):
+        F, M, n = force[i], moment[i], normals[i]
+        ff, fn = float(F @ F), float(n @ F)
+        if ff <= 0.0 or fn <= 1e-9:
+            continue
+        tangential = M - (float(M @ F) / fn) * n  # = r x F for the points r on the line
+        r0 = cross(F, tangential) / ff
+        q = points[i] - com
+        r = r0 + (float((q - r0) @ F) / ff) * F
+        if float(np.linalg.norm(r - q)) <= MAX_POINT_SHIFT:
+            out[i] = com + r
+    return out
+
+
+def soft_wrench_matrix(contacts: FingerContacts, reference: FloatArray) -> FloatArray:
+    """W of soft-finger contacts, ``(6, 4k)``: per finger ``[n, t1, t2]`` force columns
+    ``[u; p x u]`` (eq. 16) and the torsion column ``[0; n]``, moments about ``reference``
+    [m]; zero columns for a finger not touching."""
+    w = wrench_matrix(
+        contacts.points, contacts.frames, ContactModel.SOFT_FINGER, reference=reference
+    )
+    if not contacts.active.all():
+        w[:, np.repeat(~contacts.active, SOFT_COLUMNS)] = 0.0
+    return w
+
+
+def soft_contact_intensities(contacts: FingerContacts) -> FloatArray:
+    """c of soft-finger contacts, ``(4k,)``: per finger [normal, t1, t2] [N], torsion [N m]."""
+    k = len(contacts.active)
+    c = np.empty((k, SOFT_COLUMNS))
+    c[:, :3] = np.einsum("kij,kj->ki", contacts.frames, contacts.force)
+    c[:, 3] = contacts.torsion
+    return c.reshape(-1)
+
+
+def soft_finger_cone_margin(c: FloatArray, friction: FloatArray) -> FloatArray:
+    """How far inside its friction cone each soft finger's intensities lie, ``(k,)`` [N].
+
+    MuJoCo's elliptic cone of a condim-4 contact (the scene's ``cone="elliptic"``):
+    ``c_n >= sqrt((c_t1 / mu)^2 + (c_t2 / mu)^2 + (c_tau / mu_tau)^2)``; the margin is
+    the left side minus the right side (>= 0 inside the cone, up to the solver's
+    softness).
+
+    Args:
+        c: ``(4k,)`` soft-finger intensities (:func:`soft_contact_intensities`).
+        friction: ``(k, 2)`` sliding mu [-] and torsional mu_tau [m] per finger
+            (:attr:`FingerContacts.friction`).
+
+    Raises:
+        ValueError: the shapes do not match.
+    """
+    cc = np.asarray(c, dtype=float).reshape(-1, SOFT_COLUMNS)
+    mu = np.asarray(friction, dtype=float)
+    if mu.shape != (len(cc), 2):
+        raise ValueError(f"friction must have shape ({len(cc)}, 2), got {mu.shape}")
+    tangential = np.hypot(cc[:, 1], cc[:, 2]) / mu[:, 0]
+    margin: FloatArray = cc[:, 0] - np.hypot(tangential, cc[:, 3] / mu[:, 1])
+    return margin
+
+
+def pinch_null_basis(W: FloatArray, contacts: FingerContacts) -> FloatArray | None:
+    """Orthonormal basis ``(8, 2)`` of null(W) of a soft-finger pinch: squeeze, torsion.
+
+    Two soft fingers (eq. 16 with the torsion column ``[0; n]``) make W ``6 x 8`` of rank 6
+    (the torsions produce the moment about the line through the points that two point
+    contacts with friction cannot), so G of eq. (8) exists and has two internal forces
+    (eq. 6). The basis is named, not an SVD's arbitrary one: column 1 is the squeeze (finger
+    1 pushing towards finger 2 and finger 2 back, ``f_int[0] = sqrt(2) s`` for a squeeze of
+    s [N] each, positive when squeezing; it lies in null(W) exactly), column 2 the opposed
+    torsions (both fingers twisting the pen about their own normals in opposite senses of
+    the world, each +1/sqrt(2); projected onto null(W) and made orthogonal to column 1,
+    signed so that its torsion of finger 1 is positive). Being a function of W and the
+    contacts, N(t) is as continuous as W(t).
+
+    Args:
+        W: ``(6, 8)`` soft-finger wrench matrix (:meth:`GlovePenPhysics.wrench_matrix`).
+        contacts: the contacts W was built from.
+
+    Returns:
+        ``(8, 2)`` N with ``W N = 0`` and ``N^T N = I``, or ``None`` unless both fingers
+        touch and rank W = 6 (judged as in :mod:`ias_gym.grasp.grip_transform`).
+    """
+    if W.shape != (6, 2 * SOFT_COLUMNS) or not contacts.active.all():
+        return None
+    _, s, Vt = np.linalg.svd(W)
+    rank = int(np.sum(s > RANK_RTOL * s[0])) if s[0] > 0 else 0
+    if rank != 6:
+        return None
+    null = Vt[6:].T  # (8, 2) some orthonormal basis of null(W)
+    towards = contacts.points[1] - contacts.points[0]
+    towards = towards / np.linalg.norm(towards)
+    squeeze = np.zeros(2 * SOFT_COLUMNS)
+    squeeze[0:3] = contacts.frames[0] @ towards
+    squeeze[4:7] = -(contacts.frames[1] @ towards)
+    normals = contacts.frames[:, 0]
+    twist = np.zeros(2 * SOFT_COLUMNS)
+    twist[3] = 1.0
+    twist[7] = -1.0 if float(normals[0] @ normals[1]) > 0 else 1.0
+    n1 = null @ (null.T @ squeeze)
+    n1 /= np.linalg.norm(n1)
+    n2 = null @ (null.T @ twist)
+    n2 -= (n1 @ n2) * n1
+    n2 /= np.linalg.norm(n2)
+    if n2[3] < 0:
+        n2 = -n2
+    return np.column_stack([n1, n2])
 
 
 def squeeze_null_vector(W: FloatArray, contacts: FingerContacts) -> FloatArray | None:

@@ -37,6 +37,9 @@ import numpy as np
 from ias_gym.baselines.policies import TELEOP
 from ias_gym.skills.skill import SkillModelSamples
 
+#: Internal forces of the soft-finger pinch: 8 intensities - rank 6 (eq. 6).
+N_INTERNAL = 2
+
 if TYPE_CHECKING:
     from ias_gym.envs.glove_grasp import GloveGraspEnv
 
@@ -58,9 +61,10 @@ def glove_session_source(source: str, glove_id: str) -> str:
 class GloveSkillModelRecorder(SkillModelSamples):
     """Samples the skill model of a glove env, one :meth:`sample` per observation.
 
-    Its :meth:`model` is a pinch: ``f_int`` has one column (the squeeze). The contacts are
-    the env's own (``GloveGraspEnv.contact_pass``): the pass over MuJoCo's contacts that
-    gave the step's force display also gives W and c.
+    Soft-finger pinch (module docstring): ``c`` has 8 columns, W is 6 x 8 of rank 6 while
+    both fingers touch, so G (eq. 8) exists; ``f_int`` has two columns (the squeeze and the
+    opposed torsions). The contacts are the env's own (``GloveGraspEnv.contact_pass``):
+    the pass over MuJoCo's contacts that gave the step's force display also gives W and c.
     """
 
     def sample(self, env: GloveGraspEnv) -> None:
@@ -74,7 +78,7 @@ class GloveSkillModelRecorder(SkillModelSamples):
         """
         # MuJoCo scene code: imported on first use, so that importing the skills package
         # (the database) does not load MuJoCo.
-        from ias_gym.sim.glove_contacts import squeeze_null_vector
+        from ias_gym.sim.glove_contacts import pinch_null_basis
 
         if env.contact_pass is None:
             raise RuntimeError("sample the glove env after reset() or step()")
@@ -82,12 +86,13 @@ class GloveSkillModelRecorder(SkillModelSamples):
         contacts = p.finger_contacts(env.contact_pass)
         W, active = p.wrench_matrix(contacts)
         c = p.contact_intensities(contacts)
-        N = squeeze_null_vector(W, contacts)
+        N = pinch_null_basis(W, contacts)
         if N is not None:
-            f_int = np.array([N @ c])
-            c_h = N * f_int[0]
+            # G (eq. 8) = [W+ N]^T-blocks: c = W+ W c + N N^T c (eqs. 4-7).
+            f_int = N.T @ c
+            c_h = N @ f_int
         else:
-            f_int = np.full(1, np.nan)
+            f_int = np.full(N_INTERNAL, np.nan)
             c_h = np.full(c.shape, np.nan)
         # sliding left out: a glove session has no sliding schedule
         self._append(time=env.data.time, pen=p, W=W, touching=active, c=c, c_h=c_h, f_int=f_int)

@@ -27,7 +27,9 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from ias_gym.baselines.policies import Policy, load_policy, policy_source
+from ias_gym.errors import InputError
 from ias_gym.glove.ids import check_id
+from ias_gym.glove.skills import check_skill
 from ias_gym.grasp.grip_transform import GraspRankError, GripTransform
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.glove_session import GloveSkillModelRecorder, glove_session_source
@@ -212,7 +214,9 @@ def record_episode(
         truncations=np.asarray(truncations, dtype=bool),
         infos=stack_infos(infos),
     )
-    default_name = f"{task} {source} {person_id} seed {seed}" if glove_env is not None else None
+    default_name = None
+    if glove_env is not None:  # a glove skill is named after it
+        default_name = glove_env.config.skill or f"{task} {source} {person_id} seed {seed}"
     return Skill(
         name=name or default_name or f"{task} {source} seed {seed}",
         task=task,
@@ -297,6 +301,18 @@ def record_skills(
     return ids
 
 
+def _is_glove_env(env_id: str) -> bool:
+    """``env_id`` is registered as ``IAS-GloveGrasp-v0``'s env or one built on it."""
+    from ias_gym.envs.glove_grasp import GloveGraspEnv  # as in skill_model_recorder
+
+    try:
+        entry = gym.spec(env_id).entry_point
+        creator = gym.envs.registration.load_env_creator(entry) if isinstance(entry, str) else entry
+    except (gym.error.Error, ImportError, AttributeError, ValueError):
+        return False  # gym.make reports an unknown id
+    return isinstance(creator, type) and issubclass(creator, GloveGraspEnv)
+
+
 def record_skills_spec(
     env_id: str,
     policy_spec: str,
@@ -307,9 +323,14 @@ def record_skills_spec(
     *,
     env_kwargs: Mapping[str, Any] | None = None,
     person_id: str | None = None,
+    skill: str | None = None,
 ) -> list[int]:
     """:func:`record_skills` from strings, for the command line and tests: make the env,
     load ``policy_spec`` for it (seeded with ``seed``), record, close the env.
+
+    On a glove env, ``person_id`` chooses the env's person (``env_kwargs["person_id"]``)
+    unless the env kwargs name one, and ``skill`` the skill the person performs
+    (``env_kwargs["skill"]``; the skills are then named after it).
 
     Args:
         env_id: a registered id, e.g. ``"IAS-PenRotate-v0"`` or ``"IAS-GloveGrasp-v0"``.
@@ -321,13 +342,15 @@ def record_skills_spec(
         progress: show a tqdm progress bar (on stderr).
         env_kwargs: configuration overrides for ``gym.make`` (e.g. ``{"duration": 0.5}``).
         person_id: stored as the skills' person id (glove envs: the env's person).
+        skill: a glove skill (:data:`~ias_gym.glove.skills.SKILLS`; glove envs only).
 
     Returns:
         The new skills' ids, in episode order.
 
     Raises:
-        InputError: ``person_id`` or ``env_kwargs["person_id"]`` is not a valid id,
-            checked before the env is made.
+        InputError: ``person_id`` or ``env_kwargs["person_id"]`` is not a valid id, or
+            ``skill`` is not a glove skill, or is given for an env that is not a glove env,
+            or differs from ``env_kwargs["skill"]``: checked before the env is made.
         ValueError: ``episodes`` < 1, ``expert`` on a glove env, ``teleop`` on a pen env
             (:func:`~ias_gym.baselines.policies.load_policy`), a person other than the glove
             env's (:func:`record_episode`).
@@ -340,6 +363,17 @@ def record_skills_spec(
         check_id(person_id, "person_id")
     if "person_id" in kwargs:
         check_id(kwargs["person_id"], "env kwargs person_id")
+    if _is_glove_env(env_id):
+        if person_id is not None:
+            kwargs.setdefault("person_id", person_id)
+        if skill is not None:
+            check_skill(skill, "--skill")
+            if kwargs.setdefault("skill", skill) != skill:
+                raise InputError(
+                    f"--skill {skill!r} differs from env kwargs skill {kwargs['skill']!r}"
+                )
+    elif skill is not None:
+        raise InputError(f"--skill is for glove envs (IAS-GloveGrasp-v0), not {env_id}")
     env = gym.make(env_id, **kwargs)
     try:
         return record_skills(

@@ -147,10 +147,15 @@ class SkillModel:
         f_int: ``(T + 1, n - 6)`` internal forces ``N^T c`` [N] (eqs. 7, 10); NaN where
             rank W < 6. N is kept continuous along the skill (see ``null_space_basis``).
 
-    A two-finger pinch (glove sessions: k = 2 point contacts with friction, n = 6) is the
-    one exception: its W has rank 5 at best, G (eq. 8) never exists, and null(W) is the
-    one squeeze along the line between the contacts; ``f_int`` is then ``(T + 1, 1)`` and
-    ``c_h``, ``f_int`` are NaN where rank W < 5 (see
+    Glove sessions are a two-finger pinch recorded with soft-finger contacts (k = 2,
+    four intensities per finger: normal, t1, t2 [N] and the torsion about the normal
+    [N m]; n = 8): W (eq. 16 with the torsion column ``[0; n]``) is 6 x 8 of rank 6 while
+    both touch, G exists, and ``f_int`` has two columns, the squeeze and the opposed
+    torsions (:func:`ias_gym.sim.glove_contacts.pinch_null_basis`). The one exception is
+    the hard-finger pinch stored by older versions (k = 2 point contacts with friction,
+    n = 6, :attr:`is_pinch`): its W has rank 5 at best, G (eq. 8) never exists, and null(W)
+    is the one squeeze along the line between the contacts; ``f_int`` is then
+    ``(T + 1, 1)`` and ``c_h``, ``f_int`` are NaN where rank W < 5 (see
     :func:`ias_gym.sim.glove_contacts.squeeze_null_vector`).
     """
 
@@ -173,7 +178,9 @@ class SkillModel:
 
     @property
     def is_pinch(self) -> bool:
-        """Two point contacts with friction (k = 2, n = 6): rank W <= 5, one internal force."""
+        """Two point contacts with friction (k = 2, n = 6, the hard-finger pinch of older
+        glove sessions): rank W <= 5, one internal force. A soft-finger pinch (n = 8) is
+        not: its G exists."""
         return self.touching.shape[1:] == (2,) and self.c.shape[1:] == (6,)
 
     @property
@@ -235,10 +242,10 @@ class SkillModel:
         Returns:
             ``duration`` [s]; per finger ``fingers[i]`` with the fraction of samples
             touching, the touching and sliding intervals ``[t_start, t_end]`` [s] and the
-            normal-force range [N] (column ``3 i`` of c); the range of each internal force
-            ``f_int`` [N] and of ``|c_h|`` [N] over samples where G is defined (for a
-            pinch: where its squeeze is; ``grip_transform_defined_fraction`` then counts
-            those samples); the largest
+            normal-force range [N] (column ``3 i`` of c, ``4 i`` for soft fingers); the
+            range of each internal force ``f_int`` [N] and of ``|c_h|`` [N] over samples
+            where G is defined (for a pinch: where its squeeze is;
+            ``grip_transform_defined_fraction`` then counts those samples); the largest
             pen excursion [m] and the range of roll/pitch/yaw [rad].
         """
         k = self.touching.shape[1]
@@ -251,8 +258,9 @@ class SkillModel:
                 "touching": _intervals(self.time, self.touching[:, i]),
                 "sliding": _intervals(self.time, self.sliding[:, i]),
             }
-            if n == 3 * k:  # three intensities per finger: normal first (eq. 16)
-                normal = self.c[:, 3 * i]
+            per = n // k if n % k == 0 else 0
+            if per in (3, 4):  # 3 (eq. 16) or 4 (soft finger) per finger: normal first
+                normal = self.c[:, per * i]
                 entry["normal_force_range"] = [float(normal.min()), float(normal.max())]
             fingers.append(entry)
         defined = np.all(np.isfinite(self.f_int), axis=1)

@@ -1,0 +1,293 @@
+"""Object-level skills a (simulated) person performs with the pinched pen through the glove.
+
+Issue #13: after the reach-pinch-lift of :class:`~ias_gym.glove.device.ReachPinchLift` the
+scripted operator performs one of :data:`SKILLS` with the held pen, so that a session
+demonstrates a skill a robot hand holding the pen can repeat as an object motion (small
+rotations and translations of the held pen, which the robot scales into its workspace).
+
+Which joints move the pinched pen how (measured in ``IAS-GloveGrasp-v0``, person p1, a
+sine of the joint's target after the lift, period 2 s; ranges of the pen's pose over the
+motion, paper frame: x the pen's axis, y up, yaw = the see-saw tilt of sec. 4.3):
+
+=========================  ==============================================================
+joint (amplitude)          pen motion
+=========================  ==============================================================
+wrist_pronation (0.12 rad)  yaw 12 deg (the see-saw tilt), x 17 mm; 0.3 rad drops the pen
+wrist_deviation (0.15 rad)  pitch 17 deg (a turn about the vertical), x 34 mm
+wrist_flexion (0.2 rad)     height 49 mm, roll 36 deg (the pen rolls between the pads)
+index_mcp - thumb_flexion   roll 39 deg (about the pen's own axis), little translation
+index_mcp + thumb_flexion   roll 76 deg, height 12 mm
+=========================  ==============================================================
+
+The glove hand is planar (index and thumb flex in one plane across the pen, see
+HUMAN_HAND.md): its fingers roll the pen about its own axis and move it across, but cannot
+tilt its axis. The see-saw and the tilts therefore use the wrist's pronation, one of the
+glove's 10 measured joints (the wrist gimbal's potentiometers, paper 2.3): no tracker of the
+forearm is needed. The lift and the place use the wrist's extension, as the lift of
+ReachPinchLift does.
+
+The skills (:data:`SKILLS`, one line each in :data:`SKILL_DESCRIPTIONS`), all starting
+from the lifted pinch at :func:`skill_start_time`: ``lift_hold`` (hold still),
+``seesaw_slow`` and ``seesaw_fast`` (the pen's axis tilts up and down), ``tilt_left`` and
+``tilt_right`` (tilt and hold; left: the operator's left end of the pen, paper -x, goes
+down, so yaw > 0), ``lift_place`` (lower the pen back onto its support, still pinched).
+
+Each person performs them in their own way (:class:`SkillStyle`, deterministic in the person
+id: a sha256 of it, not Python's salted ``hash()``): amplitude and speed factors, a delay
+before the skill, and a physiological tremor (8-12 Hz, a few mrad) on the wrist and the
+pinching fingers. Pure numpy (the glove layer).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ias_gym.errors import InputError
+from ias_gym.glove.device import ReachPinchLift, ReachPinchLiftTimings
+from ias_gym.glove.hand import N_JOINTS, PersonParams, joint_index
+from ias_gym.glove.ids import check_id
+
+FloatArray = NDArray[np.float64]
+
+#: The skills, in a fixed order.
+SKILLS: tuple[str, ...] = (
+    "lift_hold",
+    "seesaw_slow",
+    "seesaw_fast",
+    "tilt_left",
+    "tilt_right",
+    "lift_place",
+)
+#: One line per skill: the object motion after the pinch-lift.
+SKILL_DESCRIPTIONS: dict[str, str] = {
+    "lift_hold": "lift the pen and hold it still",
+    "seesaw_slow": "see-saw: tilt the pen's axis up and down once, slowly (period ~1.8 s)",
+    "seesaw_fast": "see-saw: tilt the pen's axis up and down twice, fast (period ~0.75 s)",
+    "tilt_left": "tilt the pen's left end (paper -x) down by ~10 deg and hold",
+    "tilt_right": "tilt the pen's right end (paper +x) down by ~10 deg and hold",
+    "lift_place": "lift the pen, then lower it back onto its support, still pinched",
+}
+
+#: Phase times of the pinch-lift before a skill [s] (script time, ReachPinchLift's): the
+#: default's close, a shorter hold and a faster lift, so that the skill fits the registered
+#: 4 s episode (400 steps) that starts at the end of the reach (1.3 s).
+SKILL_TIMINGS = ReachPinchLiftTimings(rest=0.3, reach=1.3, close=2.0, hold=2.3, lift=3.0)
+#: Nominal pronation amplitudes [rad] of the see-saws and the tilts (measured above: the pen
+#: tilts by about half the wrist's pronation; 0.3 rad as a sine drops it).
+SEESAW_SLOW_AMPLITUDE = 0.16
+SEESAW_FAST_AMPLITUDE = 0.11
+TILT_AMPLITUDE = 0.2
+#: Nominal periods [s] and cycles of the see-saws; time [s] of a tilt and of the place.
+SEESAW_SLOW_PERIOD = 1.8
+SEESAW_FAST_PERIOD = 0.75
+SEESAW_FAST_CYCLES = 2
+TILT_TIME = 0.8
+PLACE_TIME = 1.0
+#: Share of the lift's wrist extension undone by ``lift_place`` (-): the pen comes back down
+#: onto the cradles (the wrist's target goes a little past the lift's start, the support
+#: stops the pen, and the squeeze keeps holding it).
+PLACE_SHARE = 1.0
+
+
+def check_skill(name: object, what: str = "skill") -> str:
+    """Return ``name`` if it is one of :data:`SKILLS`, else raise.
+
+    Args:
+        name: the skill's name.
+        what: how the caller calls it in messages (``"skill"``, ``"--skill"``).
+
+    Returns:
+        ``name`` unchanged.
+
+    Raises:
+        InputError: not a known skill; the message lists the valid ones.
+    """
+    if not isinstance(name, str) or name not in SKILLS:
+        raise InputError(f"{what} {name!r} is not a glove skill; choose one of {', '.join(SKILLS)}")
+    return name
+
+
+@dataclass(frozen=True)
+class SkillStyle:
+    """How one person performs the skills (sampled by :meth:`sample` from the person id).
+
+    Attributes:
+        person_id: whose style.
+        amplitude: factor on the skills' amplitudes (-), ~U(0.85, 1.15).
+        speed: factor on the skills' speed (-), ~U(0.85, 1.15): periods and times / speed.
+        delay: pause between the lift and the skill's own motion [s], ~U(0, 0.15).
+        tremor: amplitude of the tremor on each tremoring joint [rad], ~U(0.001, 0.003).
+        tremor_hz: ``(2,)`` its two frequencies [Hz], ~U(8, 12).
+        tremor_phase: ``(n_joints, 2)`` phases of both per joint [rad].
+    """
+
+    person_id: str
+    amplitude: float
+    speed: float
+    delay: float
+    tremor: float
+    tremor_hz: tuple[float, float]
+    tremor_phase: tuple[tuple[float, float], ...]
+
+    @classmethod
+    def sample(cls, person_id: str) -> SkillStyle:
+        """The style of ``person_id``, reproducibly (the same id gives the same style).
+
+        Raises:
+            InputError: ``person_id`` is not a valid id (:func:`~ias_gym.glove.ids.check_id`).
+        """
+        check_id(person_id, "person_id")
+        # sha256, not hash(): Python salts str hashes per process. "skill-style:" keeps this
+        # stream apart from the one of PersonParams.sample (same id, other numbers).
+        digest = hashlib.sha256(f"skill-style:{person_id}".encode()).digest()
+        rng = np.random.default_rng(int.from_bytes(digest[:8], "little"))
+        hz = rng.uniform(8.0, 12.0, size=2)
+        phase = rng.uniform(0.0, 2.0 * math.pi, size=(len(TREMOR_JOINTS), 2))
+        return cls(
+            person_id=person_id,
+            amplitude=float(rng.uniform(0.85, 1.15)),
+            speed=float(rng.uniform(0.85, 1.15)),
+            delay=float(rng.uniform(0.0, 0.15)),
+            tremor=float(rng.uniform(0.001, 0.003)),
+            tremor_hz=(float(hz[0]), float(hz[1])),
+            tremor_phase=tuple((float(a), float(b)) for a, b in phase),
+        )
+
+
+#: Joints with tremor: the wrist and the pinching fingers (the others rest curled).
+TREMOR_JOINTS: tuple[str, ...] = (
+    "wrist_flexion",
+    "wrist_deviation",
+    "wrist_pronation",
+    "index_mcp",
+    "index_pip",
+    "thumb_cmc",
+    "thumb_flexion",
+)
+
+
+def _min_jerk(s: float) -> float:
+    s = min(max(s, 0.0), 1.0)
+    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+def _seesaw(u: float, period: float, cycles: float) -> float:
+    """A see-saw of unit amplitude at time ``u`` [s] after its start: a sine whose first and
+    last quarter periods fade in and out (minimum jerk), so the wrist starts and stops at
+    rest; 0 before and after."""
+    length = period * cycles
+    if u <= 0.0 or u >= length:
+        return 0.0
+    ramp = 0.25 * period
+    envelope = min(_min_jerk(u / ramp), _min_jerk((length - u) / ramp))
+    return envelope * math.sin(2.0 * math.pi * u / period)
+
+
+class SkillOperator:
+    """The scripted operator of a skill: a pinch-lift, then the skill, with a person's style.
+
+    Θ(t) = ``base(t)`` (the pen's pinch-lift with :data:`SKILL_TIMINGS`) + the skill's joint
+    offsets from :attr:`skill_start` on + the person's tremor (all times script time [s]).
+
+    Args:
+        base: the person's pinch-lift (:func:`~ias_gym.glove.operator.pen_operator` with
+            :data:`SKILL_TIMINGS`).
+        skill: one of :data:`SKILLS`.
+        style: the person's way of performing it (default: ``SkillStyle.sample`` of
+            ``base.person``'s id).
+
+    Raises:
+        InputError: ``skill`` is not one of :data:`SKILLS`.
+    """
+
+    def __init__(self, base: ReachPinchLift, skill: str, style: SkillStyle | None = None) -> None:
+        self.base = base
+        self.skill = check_skill(skill)
+        self.style = style if style is not None else SkillStyle.sample(base.person.person_id)
+        self.timings = base.timings
+        #: Script time [s] where the skill's own motion begins (after lift and delay).
+        self.skill_start = base.timings.lift + self.style.delay
+        self._pron = joint_index("wrist_pronation")
+        self._wf = joint_index("wrist_flexion")
+        self._tremor_idx = np.array([joint_index(j) for j in TREMOR_JOINTS])
+        self._tremor_phase = np.array(self.style.tremor_phase)
+        self._lift = float(base.poses["lifted"][self._wf] - base.poses["pinch"][self._wf])
+
+    @property
+    def duration(self) -> float:
+        """Script time [s] at which the skill's motion has ended (it holds after)."""
+        return self.skill_start + self.motion_time
+
+    @property
+    def motion_time(self) -> float:
+        """Length of the skill's own motion [s] at this person's speed."""
+        v = self.style.speed
+        return {
+            "lift_hold": 0.0,
+            "seesaw_slow": SEESAW_SLOW_PERIOD / v,
+            "seesaw_fast": SEESAW_FAST_PERIOD * SEESAW_FAST_CYCLES / v,
+            "tilt_left": TILT_TIME / v,
+            "tilt_right": TILT_TIME / v,
+            "lift_place": PLACE_TIME / v,
+        }[self.skill]
+
+    def offsets(self, t: float) -> FloatArray:
+        """The skill's joint offsets ``(10,)`` [rad] at script time ``t`` [s] (no tremor)."""
+        out = np.zeros(N_JOINTS)
+        u = t - self.skill_start
+        if u <= 0.0 or self.skill == "lift_hold":
+            return out
+        a, v = self.style.amplitude, self.style.speed
+        if self.skill == "seesaw_slow":
+            out[self._pron] = a * SEESAW_SLOW_AMPLITUDE * _seesaw(u, SEESAW_SLOW_PERIOD / v, 1)
+        elif self.skill == "seesaw_fast":
+            out[self._pron] = (
+                a * SEESAW_FAST_AMPLITUDE * _seesaw(u, SEESAW_FAST_PERIOD / v, SEESAW_FAST_CYCLES)
+            )
+        elif self.skill in ("tilt_left", "tilt_right"):
+            # Supination (-) turns the pen's left end (paper -x) down (yaw > 0), measured.
+            sign = -1.0 if self.skill == "tilt_left" else 1.0
+            out[self._pron] = sign * a * TILT_AMPLITUDE * _min_jerk(u * v / TILT_TIME)
+        else:  # lift_place: undo the lift's wrist extension (the person's own lift)
+            out[self._wf] = -PLACE_SHARE * self._lift * _min_jerk(u * v / PLACE_TIME)
+        return out
+
+    def tremor(self, t: float) -> FloatArray:
+        """The person's tremor ``(10,)`` [rad] at script time ``t`` [s]."""
+        out = np.zeros(N_JOINTS)
+        hz = np.array(self.style.tremor_hz)
+        waves = np.sin(2.0 * math.pi * hz[None, :] * t + self._tremor_phase)
+        out[self._tremor_idx] = 0.5 * self.style.tremor * waves.sum(axis=1)
+        return out
+
+    def __call__(self, t: float) -> FloatArray:
+        """Intended joint angles Θ(t) ``(10,)`` [rad] at script time ``t`` [s]."""
+        return self.base(t) + self.offsets(t) + self.tremor(t)
+
+
+def skill_start_time(skill_name: str, person: PersonParams | str) -> float:
+    """Episode time [s] at which ``skill_name``'s own motion begins for ``person``.
+
+    ``IAS-GloveGrasp-v0`` episodes start at the end of the reach (script time
+    ``SKILL_TIMINGS.reach``); the skill starts at the end of the lift plus the person's
+    delay (:class:`SkillStyle`). Before it, every skill is the same pinch-lift.
+
+    Args:
+        skill_name: one of :data:`SKILLS`.
+        person: the person or their id.
+
+    Returns:
+        The start [s] since the episode's reset.
+
+    Raises:
+        InputError: unknown skill or invalid person id.
+    """
+    check_skill(skill_name)
+    person_id = person if isinstance(person, str) else person.person_id
+    style = SkillStyle.sample(person_id)
+    return SKILL_TIMINGS.lift - SKILL_TIMINGS.reach + style.delay
