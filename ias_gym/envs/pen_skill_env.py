@@ -126,7 +126,6 @@ class PenSkillConfig(PenHandConfig):
     """PenSkill settings (units in the comments); the base fields are shared with PenRotate."""
 
     duration: float = 3.0  # episode length [s]; a shorter skill holds its last pose
-    hand: str = "ias4f"  # the robot hand (ias_gym.sim.hands)
     max_position_error: float = 0.015  # success: pen centre within this of nominal [m]
     drop_distance: float = 0.025  # pen centre this far from nominal = dropped [m]
     settle_time: float = 0.2  # the tracking errors ignore the first 0.2 s [s]
@@ -137,8 +136,6 @@ class PenSkillConfig(PenHandConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if self.hand != "ias4f":
-            raise InputError(f"hand {self.hand!r} is not known; hands: ['ias4f']")
         if not 0 <= self.settle_time < self.duration:
             raise ValueError(f"settle_time must be in [0, duration), got {self.settle_time}")
         if not (self.max_rms_position_error > 0 and self.max_rms_rotation_error > 0):

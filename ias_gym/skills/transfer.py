@@ -45,6 +45,7 @@ from scipy.signal import savgol_filter
 from ias_gym.envs.pen_skill_env import PenSkillConfig, PenSkillEnv, SkillReference
 from ias_gym.errors import InputError
 from ias_gym.grasp.grasp_margin import margin_series
+from ias_gym.sim import hands
 from ias_gym.sim.pen import rpy_to_matrix
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.skill import Skill
@@ -55,6 +56,9 @@ FloatArray = NDArray[np.float64]
 SHIPPED_DB = "human_skills.db"
 #: Friction coefficient of the pen the glove sessions are performed with [-] (pen.xml).
 GLOVE_PEN_MU = 0.25
+#: Torsional friction of the glove hand's soft pads [m] (human_hand.xml, class "pad"; the
+#: pads win every pen contact by priority).
+GLOVE_PAD_TORSION = 0.03
 #: The margin reference is kept in this range [-]: below 1 would ask the robot to slip,
 #: and ``inf`` (no squeeze needed) leaves the hand its own least squeeze.
 MARGIN_RANGE = (1.0, 10.0)
@@ -80,34 +84,27 @@ class HandWorkspace:
     tilt: float
 
 
-#: Hands known before ``ias_gym.sim.hands`` existed (the four-finger hand's numbers: tips
-#: reach +-1 cm at the contacts, PenRotate's amplitude limit is 0.35 rad).
-_DEFAULT_WORKSPACES = {"ias4f": HandWorkspace(reach=0.006, tilt=0.25)}
+#: The held pen's centre moves at most this fraction of the tips' reach along the pen: the
+#: reach is measured with the pen at rest, and the tips must still hold the pen at the far
+#: end of a translation, tilted (measured on both hands: docs/transfer.md).
+TRANSLATION_SHARE = 0.4
 
 
 def hand_names() -> list[str]:
-    """The robot hands a skill can be transferred to."""
-    try:
-        from ias_gym.sim import hands
-    except ImportError:
-        return sorted(_DEFAULT_WORKSPACES)
+    """The robot hands a skill can be transferred to (:data:`ias_gym.sim.hands.HANDS`)."""
     return list(hands.hand_names())
 
 
 def hand_workspace(hand: str) -> HandWorkspace:
-    """The workspace of a hand (its ``HandSpec`` where the registry has one).
+    """The workspace of a hand, from its ``HandSpec``: the pen centre moves up to
+    :data:`TRANSLATION_SHARE` of the tips' reach, its axis turns up to the largest tilt the
+    expert tracks.
 
     Raises:
         InputError: an unknown hand (the message lists the known ones).
     """
-    if hand not in hand_names():
-        raise InputError(f"unknown hand {hand!r}; hands: {hand_names()}")
-    try:
-        from ias_gym.sim.hands import HANDS
-    except ImportError:
-        return _DEFAULT_WORKSPACES[hand]
-    spec = HANDS[hand]
-    return HandWorkspace(reach=float(spec.reach), tilt=float(spec.max_tilt))
+    spec = hands.get_hand(hand)
+    return HandWorkspace(reach=TRANSLATION_SHARE * spec.reach, tilt=spec.max_tilt)
 
 
 def skill_start_index(skill: Skill) -> int:
@@ -149,7 +146,7 @@ def demonstrated_margin(skill: Skill, mu: float = GLOVE_PEN_MU) -> FloatArray:
     m = skill.model
     k = m.touching.shape[1]
     per = m.c.shape[1] // k
-    mu_t = 0.005 if per == 4 else 0.0  # pen.xml: friction="0.25 0.005 0.0001" [-, m, m]
+    mu_t = GLOVE_PAD_TORSION if per == 4 else 0.0
     return margin_series(m.c_p, m.c_h, m.touching, mu, mu_t)
 
 
@@ -510,9 +507,8 @@ def run_transfer(
 
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; methods: {list(METHODS)}")
-    kwargs = {} if hand == "ias4f" else {"hand": hand}
     env = PenSkillEnv(
-        render_mode="rgb_array" if render else None, references=[reference], **kwargs, **config
+        render_mode="rgb_array" if render else None, references=[reference], hand=hand, **config
     )
     try:
         policy: Any = ExpertPolicy(env) if method == "gt" else KinematicPolicy(env)
