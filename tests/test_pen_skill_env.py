@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pickle
+import sqlite3
 from pathlib import Path
 
 import gymnasium as gym
@@ -14,8 +15,10 @@ import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.baselines.expert import ExpertPolicy
 from ias_gym.envs.pen_skill_env import PenSkillEnv, SkillReference
 from ias_gym.errors import InputError
+from ias_gym.glove.skills import SKILLS
+from ias_gym.skills.check import check_database
 from ias_gym.skills.db import SkillDB
-from ias_gym.skills.transfer import HandWorkspace, transfer_reference
+from ias_gym.skills.transfer import HandWorkspace, shipped_skill_db, transfer_reference
 
 WS = HandWorkspace(0.005, 0.2)
 
@@ -115,7 +118,20 @@ def test_gym_make_reads_the_skills_of_a_database(skill_db: Path) -> None:
 
 
 def test_gym_make_uses_the_shipped_human_skills_by_default() -> None:
-    env = gym.make("IAS-PenSkill-v0", duration=0.5)
+    env = gym.make("IAS-PenSkill-v0", duration=0.5, hand="ias3f")
     refs = env.unwrapped.references
-    assert len({r.person for r in refs}) >= 8  # glove sessions of at least eight people
+    assert env.action_space.shape == (9,)  # the three-finger hand
+    assert len({r.person for r in refs}) >= 2  # glove sessions of several people
+    assert {r.name for r in refs} == set(SKILLS)  # every skill class of the glove library
     assert all(r.person and r.skill_id > 0 for r in refs)
+
+
+def test_the_shipped_database_is_checked_and_readable_without_a_journal() -> None:
+    path = shipped_skill_db()
+    problems: list[tuple[int, str | None]] = []
+    assert check_database(path, lambda i, problem: problems.append((i, problem))) == 0
+    assert len(problems) == 12 and all(p is None for _, p in problems)
+    # a rollback journal: a WAL database cannot be opened read-only where the reader cannot
+    # create its -shm file (an installed package)
+    with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as conn:
+        assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "delete"

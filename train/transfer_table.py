@@ -20,6 +20,7 @@ import argparse
 import json
 import math
 import shutil
+import sqlite3
 import sys
 import tempfile
 from collections.abc import Sequence
@@ -67,6 +68,12 @@ def build_db(out: Path, persons: Sequence[str], episodes: int, overwrite: bool) 
 
         with SkillDB(path) as db:  # fold the write-ahead log into the file
             db.list_skills()
+        # A rollback journal, not WAL: a WAL file cannot be opened read-only in a directory
+        # the reader cannot write (an installed package's assets).
+        conn = sqlite3.connect(path)
+        conn.execute("PRAGMA journal_mode = DELETE")
+        conn.execute("VACUUM")
+        conn.close()
         with atomic_output(out, overwrite=overwrite) as final:
             shutil.copyfile(path, final)
 
