@@ -403,3 +403,32 @@ def test_cli_refuses_an_existing_video_before_any_work(skill_db: Path, tmp_path:
     out = cli("--db", str(skill_db), "--id", "1", "--video", str(video))
     assert out.returncode == 2 and "exists" in out.stderr
     assert video.read_bytes() == b"keep"
+
+
+# ---------------------------------------------------------------------------- Minari
+def test_minari_export_of_robot_executions_of_human_skills(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    pytest.importorskip("minari")
+    import minari
+
+    from ias_gym.skills.minari_export import PEN_SKILL_DATASET_ID, export_pen_skill_dataset
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    export_pen_skill_dataset(hand="ias3f", skill_ids=[2, 9], db_path=tmp_path / "runs.db")
+    dataset = minari.load_dataset(PEN_SKILL_DATASET_ID)
+    assert dataset.total_episodes == 2  # each chosen skill once
+    episodes = list(dataset.iterate_episodes())
+    assert {int(e.infos["skill_id"][0]) for e in episodes} == {2, 9}
+    for episode in episodes:
+        assert episode.actions.shape[1] == 9  # the three-finger hand's joints
+        assert episode.infos["contact_forces"].shape[1:] == (3, 3)
+        assert episode.infos["internal_forces"].shape[1:] == (9,)
+        # the expert holds: normal forces push, and it executed the skill successfully
+        held = episode.infos["fingers_in_contact"][1:].all(axis=1)  # after the first step
+        assert held.mean() > 0.95
+        assert np.all(episode.infos["contact_forces"][1:][held][:, :, 0] > 0)
+        assert bool(episode.infos["is_success"][-1])
+    env = dataset.recover_environment()
+    assert env.unwrapped.config.hand == "ias3f"
+    assert [r.skill_id for r in env.unwrapped.references] == [2, 9]
