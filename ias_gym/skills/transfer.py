@@ -121,7 +121,7 @@ def skill_start_index(skill: Skill) -> int:
     try:
         from ias_gym.glove.skills import SKILLS, skill_start_time
 
-        if skill.name in SKILLS:
+        if skill.name in SKILLS and skill.person_id is not None:
             start = skill_start_time(skill.name, skill.person_id)
             return int(np.searchsorted(model.time, start - 1e-9))
     except ImportError:
