@@ -329,9 +329,11 @@ def test_the_expert_squeezes_to_the_skills_margin() -> None:
     assert high / low == pytest.approx(2.0, rel=0.15)
 
 
-def test_the_kinematic_baseline_runs_and_holds_a_slow_skill() -> None:
+@pytest.mark.parametrize("hand", ["ias4f", "ias3f"])
+def test_the_kinematic_baseline_runs_and_holds_a_slow_skill(hand: str) -> None:
+    # (on the three-finger hand only with the squeeze balanced between the sides)
     ref = reference_for_test()
-    env = PenSkillEnv(references=[ref], duration=2.0)
+    env = PenSkillEnv(references=[ref], duration=2.0, hand=hand)
     policy = KinematicPolicy(env)
     obs, info = env.reset(seed=0)
     done = False

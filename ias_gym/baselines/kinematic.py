@@ -29,7 +29,7 @@ class KinematicGains:
 
     kp: float = 400.0  # tip position stiffness [N/m]
     kv: float = 4.0  # tip damping [N s/m]
-    squeeze: float = 1.0  # fixed normal force of every tip on the object [N]
+    squeeze: float = 1.0  # fixed normal force per tip, on a hand with as many above as below [N]
 
 
 def _rotation_between(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -83,6 +83,14 @@ class KinematicPolicy:
             # the tips' places on the demonstrated object, frozen at the start
             self._attached = tips - ref.position
             self._normals = contacts.frames[:, 0].copy()
+            # The same total squeeze from above and below (k/2 x squeeze each side), split
+            # among the fingers of each side: equal squeezes on a hand with more fingers on
+            # one side would push the object off (measured on the three-finger hand: every
+            # skill dropped). That is all the force model the baseline has.
+            sides = np.sign(self._normals[:, 1])
+            k = len(sides)
+            count = np.where(sides > 0, np.sum(sides > 0), np.sum(sides <= 0))
+            self._squeeze = g.squeeze * (k / 2) / count
             self._axis0 = ref.axis.copy()
         assert self._normals is not None and self._axis0 is not None
         R = _rotation_between(self._axis0, ref.axis)
@@ -95,7 +103,7 @@ class KinematicPolicy:
         J_world = np.einsum("kji,kjn->kin", contacts.frames, J)
         tip_velocity = np.einsum("kin,n->ki", J_world, p.hand_qvel())
         force = g.kp * (target - tips) + g.kv * (target_velocity - tip_velocity)
-        force += g.squeeze * (self._normals @ R.T)
+        force += self._squeeze[:, None] * (self._normals @ R.T)
         tau: FloatArray = np.einsum("kin,ki->n", J_world, force)
         return tau
 
