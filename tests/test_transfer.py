@@ -310,7 +310,7 @@ def test_the_expert_tracks_a_transferred_skill_from_perturbed_starts() -> None:
         assert info["rms_position_error"] < 1e-3  # [m]
         assert math.degrees(info["rms_rotation_error"]) < 1.5
         # the hand squeezes with the demonstrated margin (2.0) within 20 %
-        assert info["margin_error"] < 0.2
+        assert 0 <= env.margin_error() < 0.2 and info["margin_error"] == env.margin_error()
 
 
 def mean_margin(margin: float) -> float:
@@ -342,7 +342,7 @@ def test_the_kinematic_baseline_runs_and_holds_a_slow_skill(hand: str) -> None:
         done = terminated or truncated
     assert not info["dropped"]
     assert info["rms_position_error"] < 5e-3  # it sags under the weight, but holds
-    assert math.isfinite(info["margin_error"])
+    assert math.isfinite(env.margin_error())
 
 
 # ---------------------------------------------------------------------------- the CLI

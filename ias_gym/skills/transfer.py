@@ -525,7 +525,7 @@ def run_transfer(
             rows["pr"].append(ref.position)
             rows["a"].append(env.state.axis.copy())
             rows["ar"].append(ref.axis)
-            rows["m"].append(info["margin"])
+            rows["m"].append(env.grasp_margin())
             rows["mr"].append(info["margin_reference"])
             rows["ch"].append(info["internal_forces"])
             rows["cf"].append(info["contact_forces"])
@@ -552,7 +552,7 @@ def run_transfer(
         held_s=float(rows["t"][-1]),
         rot_rms_deg=math.degrees(info["rms_rotation_error"]),
         pos_rms_mm=1000.0 * info["rms_position_error"],
-        margin_err_rel=float(info["margin_error"]),
+        margin_err_rel=env.margin_error(),
         scale=reference.scale,
         scale_rotation=reference.scale_rotation,
         time=np.array(rows["t"]),
