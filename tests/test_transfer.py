@@ -449,3 +449,11 @@ def test_the_shipped_human_skills_hold_with_a_margin_of_at_least_one() -> None:
             m = demonstrated_margin(skill)[skill_start_index(skill) :]
             assert np.mean(m >= 0.95) > 0.95, (skill.name, skill.person_id)
             assert 1.0 < np.nanmedian(m) < 2.0
+
+
+def test_cli_runs_a_shipped_skill_by_default() -> None:
+    out = cli("--id", "2", "--hand", "ias3f", "--json", "--duration", "0.6")
+    assert out.returncode == 0, out.stderr
+    (row,) = [json.loads(line) for line in out.stdout.strip().splitlines()]
+    assert (row["hand"], row["skill"], row["person"]) == ("ias3f", "seesaw_slow", "p1")
+    assert row["held_s"] == pytest.approx(0.6)
