@@ -87,7 +87,7 @@ class HandWorkspace:
 #: The held pen's centre moves at most this fraction of the tips' reach along the pen: the
 #: reach is measured with the pen at rest, and the tips must still hold the pen at the far
 #: end of a translation, tilted (measured on both hands: docs/transfer.md).
-TRANSLATION_SHARE = 0.4
+TRANSLATION_SHARE = 0.3
 
 
 def hand_names() -> list[str]:
