@@ -439,8 +439,8 @@ def test_minari_export_of_robot_executions_of_human_skills(
 def test_the_shipped_human_skills_hold_with_a_margin_of_at_least_one() -> None:
     # A person who did not drop the pen held it inside the cones: with the pads' torsional
     # friction (0.03 m) the demonstrated margin is >= 1 (up to the pads' creep) nearly
-    # everywhere (p1, p2: 92-100 % of the samples); with the pen's 0.005 m the torsion would look out of its cone and the
-    # margin 0 for most of the tilting skills.
+    # everywhere (p1, p2: 92-100 % of the samples); with the pen's 0.005 m the torsion
+    # would look out of its cone and the margin 0 for most of the tilting skills.
     from ias_gym.skills.transfer import demonstrated_margin, shipped_skill_db, skill_start_index
 
     with SkillDB(shipped_skill_db(), readonly=True) as db:
