@@ -59,6 +59,7 @@ import numpy as np
 from ias_gym.baselines import law
 from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv, PenReference
 from ias_gym.grasp.contacts import cross3, wrench_matrices
+from ias_gym.grasp.grasp_margin import scale_to_margin
 from ias_gym.grasp.grip_transform import null_space_basis, pseudo_inverse
 from ias_gym.grasp.internal_forces import (
     Cone,
@@ -359,6 +360,7 @@ def batch_torques(
     scalars: list[tuple[Any, ...]] = []
     refs: list[PenReference] = []
     offsets: list[FloatArray | None] = []
+    margins: list[float | None] = []
     slides: list[dict[int, FloatArray]] = []
     for i, (ctrl, env) in enumerate(zip(controllers, envs, strict=True)):
         ctrl._bind(env)
@@ -387,6 +389,13 @@ def batch_torques(
             internal = task_offset if internal is None else internal + task_offset
         offsets.append(internal)
         active = contacts.active
+        # A skill's grasp margin (IAS-PenSkill-v0, docs/transfer.md), while every finger holds.
+        margin_reference = getattr(env, "grasp_margin_reference", None)
+        margins.append(
+            float(margin_reference())
+            if margin_reference is not None and bool(active.all())
+            else None
+        )
         slides.append({j: s for j, s in ref.sliding.items() if active[j]})
         sliding = np.zeros(k, dtype=bool)
         sliding[list(slides[-1])] = True
@@ -422,7 +431,7 @@ def batch_torques(
         )
         scalars.append((p.pen_mass_nominal, env.config.control_dt, first, scheduled))
     x = _Gathered().stack(rows, scalars)
-    return _control_step(controllers, x, refs, slides, offsets, accel_offsets)
+    return _control_step(controllers, x, refs, slides, offsets, accel_offsets, margins)
 
 
 def _control_step(
@@ -432,6 +441,7 @@ def _control_step(
     slides: Sequence[dict[int, FloatArray]],
     offsets: Sequence[FloatArray | None],
     accel_offsets: FloatArray | None,
+    margins: Sequence[float | None],
 ) -> FloatArray:
     """The control step of :func:`batch_torques` on the gathered rows (order of eq. 45)."""
     g = controllers[0].gains
@@ -467,6 +477,10 @@ def _control_step(
         dW[x.first] = 0.0
     c_p = law._matvec(W_pinv, wrench)
     c_h_d = law.internal_part(c_ref, W, W_pinv)
+    for i, margin in enumerate(margins):
+        if margin is not None:
+            # The hand's own internal forces, scaled so that c_p + c_h^d has the margin.
+            c_h_d[i] = scale_to_margin(c_p[i], c_h_d[i], margin, g.mu)
     offset_scale = [1.0] * len(controllers)
     for i, ctrl in enumerate(controllers):
         internal_offset = offsets[i]

@@ -31,6 +31,7 @@ from ias_gym.cli.args import (
     parse_env_kwargs,
     policy_arguments,
 )
+from ias_gym.cli.transfer import add_transfer_command
 from ias_gym.errors import IasGymError, InputError
 from ias_gym.glove.skills import SKILLS
 
@@ -377,4 +378,5 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
     )
     db_argument(migrate)
     migrate.set_defaults(run=_migrate)
+    add_transfer_command(commands)
     return skills

@@ -166,3 +166,103 @@ def export_minari(
             shutil.rmtree(path, ignore_errors=True)  # no half-written dataset left behind
             raise
     return path
+
+
+#: The Minari id of the robot executions of the shipped human skills (the counterpart of
+#: D4RL's/Minari's Adroit ``pen-human`` dataset).
+PEN_SKILL_DATASET_ID = "ias/pen-skill/human-v0"
+
+
+def export_pen_skill_dataset(
+    dataset_id: str = PEN_SKILL_DATASET_ID,
+    hand: str = "ias4f",
+    episodes_per_skill: int = 1,
+    db_path: str | Path | None = None,
+    skill_ids: list[int] | None = None,
+) -> Path:
+    """Record the expert executing every human skill on ``IAS-PenSkill-v0`` and export it.
+
+    Each episode is the grip-transform expert (Theorem 1 with the skill's grasp margin)
+    executing one skill of the shipped human-skill library on ``hand``; the seeds are chosen
+    so that every skill is executed ``episodes_per_skill`` times (the env draws its skill from
+    the seed, so ``recover_environment()`` and ``reset(seed=...)`` replay the same skill). The
+    infos carry the forces: ``contact_forces`` (k x 3 [N], each fingertip's intensities
+    normal, t1, t2), ``internal_forces`` (the measured ``c_h`` [N]), the grasp ``margin`` and
+    its reference, and the tracking errors.
+
+    Args:
+        dataset_id: the Minari id.
+        hand: the robot hand (``ias_gym.sim.hands``).
+        episodes_per_skill: executions of every skill (>= 1).
+        db_path: keep the recorded executions in this new skill database (default: a
+            temporary one, removed afterwards).
+        skill_ids: only these skills of the library (default: all); stored in the
+            dataset's env kwargs.
+
+    Returns:
+        The dataset's directory.
+
+    Raises:
+        ImportError: minari is not installed.
+        FileExistsError: the dataset or ``db_path`` exists already.
+        ValueError: ``episodes_per_skill`` < 1.
+    """
+    import tempfile
+
+    from ias_gym.baselines.expert import ExpertPolicy
+    from ias_gym.skills.record import record_episode
+
+    if episodes_per_skill < 1:
+        raise ValueError(f"episodes_per_skill must be >= 1, got {episodes_per_skill}")
+    _import_minari()  # before the work: a missing extra must not cost the recording
+    from minari.storage import get_dataset_path
+
+    if Path(get_dataset_path(dataset_id)).exists():
+        raise FileExistsError(f"a Minari dataset {dataset_id!r} exists already")
+    if db_path is not None and Path(db_path).exists():
+        raise FileExistsError(f"{db_path} exists already; give a new file")
+    env_kwargs: dict[str, Any] = {"hand": hand}
+    if skill_ids is not None:
+        env_kwargs["skill_ids"] = [int(i) for i in skill_ids]
+    env = gym.make("IAS-PenSkill-v0", **env_kwargs)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(db_path) if db_path is not None else Path(tmp) / "executions.db"
+        try:
+            unwrapped: Any = env.unwrapped
+            n_skills = len(unwrapped.references)
+            wanted = dict.fromkeys(range(n_skills), episodes_per_skill)
+            expert = ExpertPolicy(env)
+            seed = 0
+            with SkillDB(path) as db:
+                while any(wanted.values()):
+                    _, info = env.reset(seed=seed)
+                    index = int(info["skill_index"])
+                    if wanted[index]:
+                        reference = unwrapped.references[index]
+                        skill = record_episode(
+                            env,
+                            expert,
+                            seed=seed,
+                            source="expert",
+                            name=f"{reference.name} of {reference.person} on {hand}",
+                            person_id=reference.person or None,
+                            env_kwargs=env_kwargs,
+                        )
+                        db.add(skill)
+                        wanted[index] -= 1
+                    seed += 1
+        finally:
+            env.close()
+        return export_minari(
+            path,
+            dataset_id,
+            "IAS-PenSkill-v0",
+            author="ias-gym (expert executing human glove skills)",
+            description=(
+                f"The grip-transform expert (Theorem 1) on hand {hand} executing each human "
+                f"skill of the ias-gym library {episodes_per_skill} time(s): the pen's motion "
+                "relative to the person's grasp, scaled into the hand's workspace, held with "
+                "the person's grasp margin. Infos carry the contact forces and the internal "
+                "forces (c_h) per step."
+            ),
+        )

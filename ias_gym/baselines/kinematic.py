@@ -1,0 +1,123 @@
+"""The kinematic baseline of skill transfer: fingertips rigidly attached to the object's motion.
+
+What one tries first when a demonstrated object motion is to be replayed by another hand:
+treat the object and the fingertips as one rigid body. At the start of an episode each tip's
+position relative to the reference pose is frozen; every control step the tips are driven
+to where that rigid attachment carries them along the reference (the reference's position
+plus the rotation that takes the initial axis to the reference's axis), by a PD servo in
+task space through ``tau = J^T f`` (eq. 30's Jacobian), plus a fixed squeeze along each
+contact's initial normal. There is no grasp model: no W, no internal forces, no friction
+cones, no object dynamics (its weight shows up as the servo's steady-state error). The same
+skills and metrics as the grip-transform expert (``ias-gym skills transfer --method
+kinematic``), so the difference measures what the grasp model of Theorem 1 buys.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv
+
+
+@dataclass(frozen=True)
+class KinematicGains:
+    """Gains of the kinematic baseline (units in the comments)."""
+
+    # 400 N/m and 4 N s/m diverged on the three-finger hand (its 6 mm tips and 7 mm thumb
+    # pad): the tips chattered off the pen within 1 s; 300 and 3 hold on both hands.
+    kp: float = 300.0  # tip position stiffness [N/m]
+    kv: float = 3.0  # tip damping [N s/m]
+    squeeze: float = 1.0  # fixed normal force per tip, on a hand with as many above as below [N]
+
+
+def _rotation_between(a: FloatArray, b: FloatArray) -> FloatArray:
+    """The smallest rotation matrix taking unit vector ``a`` to unit vector ``b`` (Rodrigues)."""
+    v = np.cross(a, b)
+    c = float(a @ b)
+    if c < -1.0 + 1e-12:  # opposite: any half turn about an axis across a
+        raise ValueError("the reference axis turned by 180 degrees")
+    vx = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    result: FloatArray = np.eye(3) + vx + vx @ vx / (1.0 + c)
+    return result
+
+
+class KinematicPolicy:
+    """``predict(obs) -> (action, None)``: the tips follow the reference as if glued to the pen.
+
+    Privileged like the expert (:class:`~ias_gym.baselines.expert.ExpertPolicy`): it reads
+    the unwrapped env's reference, tip positions and Jacobians, and acts only through the
+    env's action (normalised torques).
+
+    Args:
+        env: an ``IAS-Pen*`` environment with a ``reference()`` (wrappers are looked through).
+        gains: servo gains and squeeze.
+    """
+
+    def __init__(self, env: gym.Env[Any, Any], gains: KinematicGains | None = None) -> None:
+        unwrapped = env.unwrapped
+        if not isinstance(unwrapped, PenHandEnv):
+            raise TypeError(
+                f"the kinematic baseline controls IAS pen environments, got "
+                f"{type(unwrapped).__name__}"
+            )
+        self.env = unwrapped
+        self.gains = gains or KinematicGains()
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the attachment; the next call freezes the tips' positions anew."""
+        self._attached: FloatArray | None = None
+        self._normals: FloatArray | None = None
+        self._axis0: FloatArray | None = None
+
+    def torques(self) -> FloatArray:
+        """Joint torques [N m] for the env's current state and reference."""
+        env, g = self.env, self.gains
+        p = env.physics
+        ref = env.reference()
+        contacts = p.fingertip_contacts()
+        tips = p.tip_positions()
+        if self._attached is None:
+            # the tips' places on the demonstrated object, frozen at the start
+            self._attached = tips - ref.position
+            self._normals = contacts.frames[:, 0].copy()
+            # The same total squeeze from above and below (k/2 x squeeze each side), split
+            # among the fingers of each side: equal squeezes on a hand with more fingers on
+            # one side would push the object off (measured on the three-finger hand: every
+            # skill dropped). That is all the force model the baseline has.
+            sides = np.sign(self._normals[:, 1])
+            k = len(sides)
+            count = np.where(sides > 0, np.sum(sides > 0), np.sum(sides <= 0))
+            self._squeeze = g.squeeze * (k / 2) / count
+            self._axis0 = ref.axis.copy()
+        assert self._normals is not None and self._axis0 is not None
+        R = _rotation_between(self._axis0, ref.axis)
+        offsets = self._attached @ R.T
+        target = ref.position + offsets
+        target_velocity = ref.velocity + np.cross(ref.omega, offsets)
+        # J maps joint rates to each contact point's velocity along its (n, t1, t2) rows;
+        # frames^T turns those rows back into the paper frame.
+        J = p.fingertip_jacobians(contacts).reshape(-1, 3, p.n_hand_dofs)
+        J_world = np.einsum("kji,kjn->kin", contacts.frames, J)
+        tip_velocity = np.einsum("kin,n->ki", J_world, p.hand_qvel())
+        force = g.kp * (target - tips) + g.kv * (target_velocity - tip_velocity)
+        force += self._squeeze[:, None] * (self._normals @ R.T)
+        tau: FloatArray = np.einsum("kin,ki->n", J_world, force)
+        return tau
+
+    def predict(
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[FloatArray, None]:
+        """The action for the env's current state (SB3's signature; ``observation`` unused)."""
+        if episode_start is not None and bool(np.any(episode_start)):
+            self.reset()
+        action = np.clip(self.torques() / self.env._ctrl_max, -1.0, 1.0)
+        return action.astype(np.float32), None

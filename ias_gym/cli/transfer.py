@@ -1,0 +1,157 @@
+"""``ias-gym skills transfer``: execute a stored (human) skill on robot hands of other kinematics.
+
+The skill's object trajectory relative to its grasp frame, scaled into each hand's
+workspace, and its grasp margin (:mod:`ias_gym.skills.transfer`) are executed by the
+grip-transform expert (``--method gt``: Theorem 1) or the kinematic baseline
+(``--method kinematic``); prints the transfer metrics per hand, with ``--json`` one JSON
+object per hand and line (``hand``, ``method``, ``success``, ``rot_rms_deg``,
+``pos_rms_mm``, ``margin_err_rel``, ``scale``, ...). ``--list-hands`` lists the hands.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+from ias_gym.cli.args import HelpFormatter, non_negative_int
+from ias_gym.errors import InputError
+
+
+def _duration(text: str) -> float:
+    """argparse type: an episode length in (0, 60] s."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
+    if not 0 < value <= 60:  # False for NaN too
+        raise argparse.ArgumentTypeError(f"must be in (0, 60] s, got {value}")
+    return value
+
+
+def _list_hands() -> int:
+    from ias_gym.skills.transfer import hand_names, hand_workspace
+
+    for name in hand_names():
+        ws = hand_workspace(name)
+        print(
+            f"{name}: reach {1000 * ws.reach:.1f} mm, largest tilt {math.degrees(ws.tilt):.1f} deg"
+        )
+    return 0
+
+
+def _transfer(args: argparse.Namespace) -> int:
+    if args.list_hands:
+        return _list_hands()
+    if args.id is None:
+        raise InputError("skills transfer needs --id N (or --list-hands)")
+    from ias_gym.outputs import check_output_file
+    from ias_gym.skills.db import SkillDB, SkillNotFoundError
+    from ias_gym.skills.transfer import (
+        METHODS,
+        hand_names,
+        run_transfer,
+        shipped_skill_db,
+        transfer_reference,
+    )
+
+    if args.method not in METHODS:
+        raise InputError(f"unknown --method {args.method!r}; methods: {list(METHODS)}")
+    hands = hand_names() if args.hand == "all" else [args.hand]
+    unknown = [h for h in hands if h not in hand_names()]
+    if unknown:
+        raise InputError(f"unknown --hand {unknown[0]!r}; hands: {hand_names()} or all")
+    video: Path | None = None
+    if args.video is not None:  # before any work
+        from ias_gym.evaluation import VIDEO_SUFFIXES
+
+        video = check_output_file(
+            args.video, overwrite=args.overwrite, suffixes=VIDEO_SUFFIXES, what="--video"
+        )
+    db_path = Path(args.db) if args.db is not None else shipped_skill_db()
+    if not db_path.is_file():
+        raise InputError(
+            f"--db {db_path} does not exist; record skills with `ias-gym skills record`"
+        )
+    with SkillDB(db_path, readonly=True) as db:
+        try:
+            skill = db.get(args.id)
+        except SkillNotFoundError as exc:
+            raise InputError(str(exc)) from exc
+    frames_all: list[Any] = []
+    for hand in hands:
+        reference = transfer_reference(skill, hand, duration=args.duration)
+        run, frames = run_transfer(
+            reference,
+            hand,
+            args.method,
+            seed=args.seed,
+            render=video is not None,
+            duration=args.duration,
+        )
+        frames_all += frames
+        if args.json:
+            print(json.dumps(run.to_json()))
+        else:
+            print(
+                f"{hand} {args.method}: {'success' if run.success else 'FAILED'}, rotation RMS "
+                f"{run.rot_rms_deg:.2f} deg, position RMS {run.pos_rms_mm:.2f} mm, margin "
+                f"error {100 * run.margin_err_rel:.1f} %, scale {run.scale:.3f} "
+                f"(rotation {run.scale_rotation:.3f}), held {run.held_s:.2f} s"
+            )
+        sys.stdout.flush()
+    if video is not None:
+        from ias_gym.evaluation import write_video
+
+        write_video(video, frames_all, fps=50.0, overwrite=args.overwrite)
+    return 0
+
+
+def add_transfer_command(commands: argparse._SubParsersAction[Any]) -> argparse.ArgumentParser:
+    """Add ``transfer`` to the ``skills`` sub-commands.
+
+    Args:
+        commands: the ``skills`` group's sub-parsers.
+
+    Returns:
+        The ``transfer`` parser.
+    """
+    transfer = commands.add_parser(
+        "transfer",
+        formatter_class=HelpFormatter,
+        help="execute a stored skill on robot hands (grip transform or kinematic)",
+        description="Turn a stored skill (e.g. a glove session) into a reference for each "
+        "robot hand - the object's motion relative to its grasp frame, scaled into the "
+        "hand's workspace, and the person's grasp margin - and execute it with the "
+        "grip-transform expert (gt, Theorem 1) or the kinematic baseline. Prints the "
+        "transfer metrics per hand; with --json one JSON object per hand and line (hand, "
+        "method, success, rot_rms_deg, pos_rms_mm, margin_err_rel, scale, scale_rot, "
+        "held_s, skill_id, person, skill).",
+    )
+    transfer.add_argument(
+        "--db",
+        metavar="PATH",
+        help="an existing skill database (default: the human skills shipped with the package)",
+    )
+    transfer.add_argument("--id", type=int, metavar="N", help="the skill's id")
+    transfer.add_argument(
+        "--hand", default="ias4f", metavar="NAME|all", help="the robot hand, or all hands"
+    )
+    transfer.add_argument(
+        "--method", default="gt", metavar="gt|kinematic", help="how the hand executes it"
+    )
+    transfer.add_argument(
+        "--seed", type=non_negative_int, default=0, metavar="S", help="the reset seed"
+    )
+    transfer.add_argument(
+        "--duration", type=_duration, default=3.0, metavar="SECONDS", help="episode length [s]"
+    )
+    transfer.add_argument("--video", metavar="FILE", help="an MP4 of the executions")
+    transfer.add_argument("--overwrite", action="store_true", help="replace an existing --video")
+    transfer.add_argument("--json", action="store_true", help="one JSON object per hand and line")
+    transfer.add_argument("--list-hands", action="store_true", help="list the hands and exit")
+    transfer.set_defaults(run=_transfer)
+    return transfer

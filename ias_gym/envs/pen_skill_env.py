@@ -1,0 +1,468 @@
+"""IAS-PenSkill-v0: a robot hand performs a skill a person demonstrated through the glove.
+
+The paper's Flow 2 (Proposition 1): a skill is stored as the time behaviour of the grip
+transform G(t) - the object's trajectory and the internal forces - so that a hand of another
+structure than the glove's can execute it. This env is the execution side: it takes the
+skills as arrays (:class:`SkillReference`, built from the skill database by
+:mod:`ias_gym.skills.transfer`, which the envs layer cannot import) and asks the hand to move
+the pen along the reference while holding it with the person's grasp margin
+(:mod:`ias_gym.grasp.grasp_margin`). ``gym.make("IAS-PenSkill-v0", skill_db=...)`` goes
+through :class:`ias_gym.skills.transfer.PenSkillDBEnv`, which reads the database.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from typing import Any, ClassVar
+
+import mujoco
+import numpy as np
+
+from ias_gym.envs.pen_hand_env import (
+    FloatArray,
+    PenHandConfig,
+    PenHandEnv,
+    PenReference,
+)
+from ias_gym.errors import InputError
+from ias_gym.grasp.grasp_margin import grasp_margin
+
+#: Look-ahead of the observation's reference [control steps].
+LOOK_AHEAD_STEPS: tuple[int, ...] = (5, 10)
+#: Reward scales: position [m], rotation [rad], log margin ratio [-].
+TRACK_POSITION_SCALE = 0.003
+TRACK_ROTATION_SCALE = math.radians(3.0)
+MARGIN_SCALE = 0.3
+#: The measured margin in the observation is clipped to this [-] (inf: no squeeze needed).
+MARGIN_CLIP = 10.0
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class SkillReference:
+    """One skill as the target hand should execute it: arrays on the env's control grid.
+
+    Row k is time ``k dt`` after the grasp is established (the skill's own start); paper
+    frame, SI units, the pen's position relative to its nominal centre in the hand.
+
+    Attributes:
+        dt: sample period [s] (the env's ``control_dt``).
+        position, velocity, acceleration: ``(T, 3)`` pen centre [m], [m/s], [m/s^2].
+        axis: ``(T, 3)`` unit pen axis (its roll is free).
+        omega, alpha: ``(T, 3)`` angular velocity [rad/s] and acceleration [rad/s^2].
+        margin: ``(T,)`` grasp margin to hold [-] (:mod:`ias_gym.grasp.grasp_margin`).
+        skill_id: the skill's id in its database (-1: none).
+        name: the skill's name; person: who demonstrated it ("" if unknown).
+        scale: translation scale into the hand's workspace [-].
+        scale_rotation: rotation scale [-].
+    """
+
+    dt: float
+    position: FloatArray
+    velocity: FloatArray
+    acceleration: FloatArray
+    axis: FloatArray
+    omega: FloatArray
+    alpha: FloatArray
+    margin: FloatArray
+    skill_id: int = -1
+    name: str = ""
+    person: str = ""
+    scale: float = 1.0
+    scale_rotation: float = 1.0
+
+    def __post_init__(self) -> None:
+        T = len(self.position)
+        if T < 2 or not (math.isfinite(self.dt) and self.dt > 0):
+            raise InputError(f"a skill reference needs >= 2 samples and dt > 0, got {T}, {self.dt}")
+        for name in ("position", "velocity", "acceleration", "axis", "omega", "alpha"):
+            value = np.asarray(getattr(self, name), dtype=float)
+            if value.shape != (T, 3) or not np.all(np.isfinite(value)):
+                raise InputError(
+                    f"skill reference {name} must be finite with shape ({T}, 3), got {value.shape}"
+                )
+            object.__setattr__(self, name, value)
+        margin = np.asarray(self.margin, dtype=float)
+        if margin.shape != (T,) or not np.all(np.isfinite(margin)) or np.any(margin <= 0):
+            raise InputError(f"skill reference margin must be ({T},), finite and > 0")
+        object.__setattr__(self, "margin", margin)
+        norms = np.linalg.norm(self.axis, axis=1)
+        if np.any(np.abs(norms - 1.0) > 1e-6):
+            raise InputError("skill reference axis must be unit vectors")
+
+    @property
+    def length(self) -> int:
+        """Number of samples T."""
+        return len(self.position)
+
+    @property
+    def duration(self) -> float:
+        """Time spanned [s]."""
+        return (self.length - 1) * self.dt
+
+    def index(self, t: float) -> int:
+        """The sample at time ``t`` [s] (the last one after the end: the pose is held)."""
+        return min(max(round(t / self.dt), 0), self.length - 1)
+
+    def at(self, t: float) -> PenReference:
+        """The :class:`PenReference` the expert tracks at time ``t`` [s]."""
+        k = self.index(t)
+        end = k == self.length - 1 and t > self.duration  # held at rest after the skill
+        zero = np.zeros(3)
+        return PenReference(
+            position=self.position[k],
+            velocity=zero if end else self.velocity[k],
+            acceleration=zero if end else self.acceleration[k],
+            axis=self.axis[k],
+            omega=zero if end else self.omega[k],
+            alpha=zero if end else self.alpha[k],
+            sliding={},
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class PenSkillConfig(PenHandConfig):
+    """PenSkill settings (units in the comments); the base fields are shared with PenRotate."""
+
+    duration: float = 3.0  # episode length [s]; a shorter skill holds its last pose
+    max_position_error: float = 0.015  # success: pen centre within this of nominal [m]
+    drop_distance: float = 0.025  # pen centre this far from nominal = dropped [m]
+    settle_time: float = 0.2  # the tracking errors ignore the first 0.2 s [s]
+    max_rms_position_error: float = 0.003  # success: RMS position tracking error [m]
+    max_rms_rotation_error: float = 0.05  # success: RMS axis angle error [rad]
+    track_weight: float = 1.0  # [-]
+    margin_weight: float = 0.5  # [-]
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not 0 <= self.settle_time < self.duration:
+            raise ValueError(f"settle_time must be in [0, duration), got {self.settle_time}")
+        if not (self.max_rms_position_error > 0 and self.max_rms_rotation_error > 0):
+            raise ValueError("max_rms_position_error [m] and max_rms_rotation_error [rad] > 0")
+
+
+class PenSkillEnv(PenHandEnv):
+    """Execute a person's skill (object trajectory and grasp margin) with a robot hand.
+
+    ## Description
+    ``IAS-PenSkill-v0``: the robot hand holds the pen and moves it along a skill a person
+    demonstrated through the sensor glove (paper Flow 2, Proposition 1): the pen's
+    displacement from where the person's grasp was established, scaled into this hand's
+    workspace, while holding the pen with the person's grasp margin (the ratio of the
+    squeeze applied to the least squeeze that keeps every contact in its friction cone,
+    docs/transfer.md). Each reset draws one skill of the library.
+
+    ## Action Space
+    ``Box(-1, 1, (3 k,))``: joint torques of the hand's k fingers (abd, mcp, pip),
+    normalised by the motors' limit (0.5 N m). Values outside [-1, 1] are clipped; NaN/inf
+    raise ValueError.
+
+    ## Observation Space
+    ``Box(-inf, inf, (78,))`` for a four-finger hand, float64, paper frame, SI: the pen
+    tasks' first 49 (joint angles and velocities, pen position, axis, velocity, angular
+    velocity, tip forces, time fraction); then the reference pen position (3) and axis
+    (3) now, 5 and 10 control steps ahead (12 more); the position error (3) and the axis
+    error ``axis_ref x axis`` (3); the reference grasp margin and the measured one (clipped
+    to 10) (2); the skill's progress (time / skill duration, 1) and its translation and
+    rotation scales (2).
+
+    ## Rewards
+    Sum of named terms, each in ``info["reward_<name>"]``: ``track`` =
+    exp(-(|e_p| / 3 mm)^2 - (e_R / 3 deg)^2) with e_p the position error and e_R the angle
+    between the pen's axis and the reference's; ``margin`` = 0.5 x exp(-(log(m / m_ref) /
+    0.3)^2) with m the measured grasp margin (0 while a finger is off); ``contact`` = 0.5 x
+    fraction of tips touching; ``effort`` = -0.01 x mean(action^2).
+
+    ## Starting State
+    A stable grasp at the nominal pose, perturbed as in the other pen tasks (pen centre
+    uniform within +-``pen_position_noise``, contacts at the hand's nominal positions
+    +-``contact_noise``); the skill is drawn uniformly from the library with the env's
+    ``np_random`` (``reset(options={"skill": i})`` picks skill i of the library).
+    ``reset(options={"qpos": ..., "qvel": ...})`` starts from that exact MuJoCo state.
+
+    ## Episode End
+    ``info["is_success"]`` (at the last step): the pen was held (never dropped, no tip off
+    for more than 20 ms, centre within ``max_position_error`` of nominal) and tracked: RMS
+    position error after ``settle_time`` < ``max_rms_position_error`` and RMS axis angle
+    error < ``max_rms_rotation_error``. ``info`` also carries ``rms_position_error`` [m],
+    ``rms_rotation_error`` [rad], ``margin`` (0 while a finger is off) and
+    ``margin_reference`` [-], ``margin_error`` (mean relative error so far, -1 before the
+    first sample), ``contact_forces`` [N] (k x 3: normal, t1, t2 of each fingertip) and
+    ``internal_forces`` [N] (the measured c_h; 0 while a finger is off). Terminated when
+    the pen is dropped (centre more than ``drop_distance`` from nominal); truncated by the
+    time limit (``duration``) or a diverging simulation (``info["sim_unstable"]``).
+
+    ## Arguments
+    ``gym.make("IAS-PenSkill-v0", **kwargs)`` takes ``render_mode``, the skill library
+    (``skill_db``: a skill database path, default the human skills shipped with the
+    package; ``skill_ids``: which of its skills, default all; see
+    :class:`ias_gym.skills.transfer.PenSkillDBEnv`) or, constructing this class directly,
+    ``references`` (a sequence of :class:`SkillReference`), and these config fields:
+
+    - ``hand`` [``"ias4f"``]: the robot hand.
+    - ``control_dt`` [0.01 s], ``min_grasp_force`` [0.2 N], ``pen_position_noise``
+      [0.001 m], ``contact_noise`` [0.001 m], ``penetration`` [3e-4 m]: as in the other pen
+      tasks.
+    - ``drop_distance`` [0.025 m], ``max_contact_gap`` [0.02 s], ``max_position_error``
+      [0.015 m]: holding limits.
+    - ``effort_weight`` [0.01], ``contact_weight`` [0.5], ``track_weight`` [1.0],
+      ``margin_weight`` [0.5]: reward weights [-].
+    - ``render_width`` [480 px], ``render_height`` [360 px], ``camera`` [``"front"``].
+    - ``duration`` [3.0 s]: the episode; ``settle_time`` [0.2 s];
+      ``max_rms_position_error`` [0.003 m] and ``max_rms_rotation_error`` [0.05 rad]: the
+      tracking tolerances of success.
+    - Disturbances as in the other pen tasks: ``friction_scale``, ``mass_scale``,
+      ``push_force``, ``push_duration``, ``force_noise``, ``joint_angle_noise``,
+      ``joint_velocity_noise``, ``action_noise``, ``action_delay``,
+      ``internal_force_step``.
+
+    ## Version History
+    - v0: initial release.
+    """
+
+    config_class: ClassVar[type[PenHandConfig]] = PenSkillConfig
+    config: PenSkillConfig
+    _episode_fields: ClassVar[tuple[str, ...]] = (
+        *PenHandEnv._episode_fields,
+        "_skill_index",
+        "_sq_position",
+        "_sq_rotation",
+        "_sq_count",
+        "_margin",
+        "_margin_sum",
+        "_margin_count",
+        "_errors",
+    )
+
+    _skill_index: int
+    _sq_position: float
+    _sq_rotation: float
+    _sq_count: int
+    _margin: float
+    _margin_sum: float
+    _margin_count: int
+    _errors: tuple[FloatArray, float, FloatArray]
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        references: Sequence[SkillReference] = (),
+        **config: Any,
+    ) -> None:
+        """Build the task.
+
+        Args:
+            render_mode: ``None``, ``"human"``, ``"rgb_array"`` or ``"depth_array"``.
+            references: the skill library, at least one :class:`SkillReference` sampled at
+                ``control_dt``.
+            **config: fields of :class:`PenSkillConfig` to override.
+
+        Raises:
+            InputError: no references, or one sampled at another period than ``control_dt``.
+        """
+        refs = tuple(references)
+        if not refs:
+            raise InputError(
+                "IAS-PenSkill-v0 needs at least one skill reference (gym.make builds them "
+                "from skill_db; see ias_gym.skills.transfer)"
+            )
+        dt = float(config.get("control_dt", PenSkillConfig.control_dt))
+        for ref in refs:
+            if not isinstance(ref, SkillReference):
+                raise InputError(f"references must be SkillReference, got {type(ref).__name__}")
+            if not math.isclose(ref.dt, dt):
+                raise InputError(
+                    f"skill reference {ref.skill_id} is sampled every {ref.dt} s, the env "
+                    f"steps every {dt} s; build it for this control_dt"
+                )
+        self.references = refs
+        self._skill_index = 0
+        super().__init__(render_mode=render_mode, **config)
+
+    # ------------------------------------------------------------------ the skill
+    @property
+    def skill(self) -> SkillReference:
+        """The reference of this episode's skill."""
+        return self.references[self._skill_index]
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[FloatArray, dict[str, Any]]:
+        """Reset to a perturbed stable grasp and draw a skill.
+
+        Args:
+            seed: seeds ``self.np_random``.
+            options: ``{"skill": i}`` executes skill i of the library; ``{"qpos": ...,
+                "qvel": ...}`` starts from that exact MuJoCo state.
+
+        Raises:
+            InputError: ``options["skill"]`` is not an index of the library.
+        """
+        options = dict(options or {})
+        if seed is not None:  # seed first so that the draw below uses the new generator
+            super(PenHandEnv, self).reset(seed=seed)
+        if "skill" in options:
+            index = options.pop("skill")
+            if not isinstance(index, (int, np.integer)) or not 0 <= index < len(self.references):
+                raise InputError(
+                    f"options skill={index!r} is not an index of the {len(self.references)} "
+                    "skills of the library"
+                )
+            self._skill_index = int(index)
+        else:
+            self._skill_index = int(self.np_random.integers(len(self.references)))
+        return super().reset(seed=None, options=options)
+
+    def reference(self) -> PenReference:
+        """The skill's pen motion now (what the expert tracks)."""
+        return self.skill.at(self.time)
+
+    def grasp_margin_reference(self) -> float:
+        """The grasp margin the skill asks for now [-] (the expert scales its squeeze to it)."""
+        return float(self.skill.margin[self.skill.index(self.time)])
+
+    def grasp_margin(self) -> float:
+        """The measured grasp margin now [-] (NaN while a finger is off; true Coulomb cones).
+
+        From the measured contact intensities split by the grip transform (eqs. 5, 7):
+        ``c_p = W+ W c`` and ``c_h = c - c_p``, with the pen's friction coefficient.
+        """
+        return self._margin
+
+    def _measure_margin(self) -> float:
+        p = self.physics
+        contacts = p.fingertip_contacts()
+        if not contacts.active.all():
+            return math.nan
+        W, _ = p.wrench_matrix(contacts)
+        c = p.contact_intensities(contacts)
+        c_p = np.linalg.lstsq(W, W @ c, rcond=None)[0]
+        mu = float(self.model.geom_friction[p.pen_geom_id, 0])
+        return grasp_margin(c_p, c - c_p, mu)
+
+    # ------------------------------------------------------------------ task hooks
+    def _task_update(self) -> None:
+        if self._steps == 0:
+            self._sq_position, self._sq_rotation, self._sq_count = 0.0, 0.0, 0
+            self._margin_sum, self._margin_count = 0.0, 0
+        ref = self.reference()
+        s = self.state
+        e_p = s.position - ref.position
+        cross = np.cross(ref.axis, s.axis)
+        angle = math.atan2(float(np.linalg.norm(cross)), float(ref.axis @ s.axis))
+        self._errors = (e_p, angle, cross)
+        self._margin = self._measure_margin()
+        if self.time >= self.config.settle_time - 1e-9 and self._steps > 0:
+            self._sq_position += float(e_p @ e_p)
+            self._sq_rotation += angle * angle
+            self._sq_count += 1
+            target = self.grasp_margin_reference()
+            if math.isfinite(self._margin):
+                self._margin_sum += abs(min(self._margin, MARGIN_CLIP) - target) / target
+                self._margin_count += 1
+
+    def rms_errors(self) -> tuple[float, float]:
+        """RMS position [m] and axis angle [rad] errors after ``settle_time`` so far."""
+        if self._sq_count == 0:
+            return 0.0, 0.0
+        n = self._sq_count
+        return math.sqrt(self._sq_position / n), math.sqrt(self._sq_rotation / n)
+
+    def margin_error(self) -> float:
+        """Mean relative error of the measured margin, ``|m - m_ref| / m_ref`` [-] (NaN: none)."""
+        if self._margin_count == 0:
+            return math.nan
+        return self._margin_sum / self._margin_count
+
+    def _reference_block(self, t: float) -> list[float]:
+        skill = self.skill
+        k = skill.index(t)
+        return [*skill.position[k], *skill.axis[k]]
+
+    def _task_observation(self) -> FloatArray:
+        skill, t, dt = self.skill, self.time, self.config.control_dt
+        e_p, _, cross = self._errors
+        margin = self._margin if math.isfinite(self._margin) else 0.0
+        values = self._reference_block(t)
+        for ahead in LOOK_AHEAD_STEPS:
+            values += self._reference_block(t + ahead * dt)
+        values += [*e_p, *cross, self.grasp_margin_reference(), min(margin, MARGIN_CLIP)]
+        values += [min(t / max(skill.duration, dt), 1.0), skill.scale, skill.scale_rotation]
+        return np.array(values)
+
+    def _task_reward(self) -> dict[str, float]:
+        cfg = self.config
+        e_p, angle, _ = self._errors
+        track = math.exp(
+            -float(e_p @ e_p) / TRACK_POSITION_SCALE**2 - (angle / TRACK_ROTATION_SCALE) ** 2
+        )
+        margin = 0.0
+        if math.isfinite(self._margin) and self._margin > 0:
+            ratio = math.log(min(self._margin, MARGIN_CLIP) / self.grasp_margin_reference())
+            margin = math.exp(-((ratio / MARGIN_SCALE) ** 2))
+        return {"track": cfg.track_weight * track, "margin": cfg.margin_weight * margin}
+
+    def _task_success(self) -> bool:
+        pos, rot = self.rms_errors()
+        cfg = self.config
+        return bool(pos < cfg.max_rms_position_error and rot < cfg.max_rms_rotation_error)
+
+    def episode_metrics(self, info: dict[str, Any]) -> dict[str, float]:
+        """Error metrics of a finished episode from its last ``info`` (SI units)."""
+        return {
+            "rms_position_error": float(info["rms_position_error"]),
+            "rms_rotation_error": float(info["rms_rotation_error"]),
+            "margin_error": float(info["margin_error"]) if info["margin_error"] >= 0 else math.nan,
+            "max_position_error": float(info["max_position_error"]),
+        }
+
+    def _task_info(self) -> dict[str, Any]:
+        pos, rot = self.rms_errors()
+        contacts = self.physics.fingertip_contacts()
+        c = self.physics.contact_intensities(contacts)
+        # No NaN in info (a NaN never equals itself, and a rollout's infos are compared):
+        # while a finger is off the internal forces and the margin read 0, and the margin
+        # error -1 until the first sample after settle_time.
+        if contacts.active.all():
+            W, _ = self.physics.wrench_matrix(contacts)
+            c_h = c - np.linalg.lstsq(W, W @ c, rcond=None)[0]
+        else:
+            c_h = np.zeros_like(c)
+        margin_error = self.margin_error()
+        return {
+            "skill_index": self._skill_index,
+            "skill_id": self.skill.skill_id,
+            "position_error": float(np.linalg.norm(self._errors[0])),
+            "rotation_error": self._errors[1],
+            "rms_position_error": pos,
+            "rms_rotation_error": rot,
+            "margin": self._margin if math.isfinite(self._margin) else 0.0,
+            "margin_reference": self.grasp_margin_reference(),
+            "margin_error": margin_error if math.isfinite(margin_error) else -1.0,
+            "contact_forces": c.reshape(-1, 3),
+            "internal_forces": c_h,
+        }
+
+    # ------------------------------------------------------------------ pickling
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle as the base does, plus the skill library."""
+        state = super().__getstate__()
+        state["references"] = self.references
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Rebuild the env from its configuration and library, then restore the state."""
+        PenSkillEnv.__init__(
+            self,
+            render_mode=state["render_mode"],
+            references=state["references"],
+            **state["config"],
+        )
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        mujoco.mj_setState(self.model, self.data, state["mj_state"], spec)
+        mujoco.mj_forward(self.model, self.data)
+        for key, value in state["episode"].items():
+            setattr(self, key, value)
+        self._np_random = state["np_random"]
+        self._measure()

@@ -1,0 +1,229 @@
+"""The skill-transfer table: human glove skills executed by every robot hand, G(t) vs kinematic.
+
+    python train/transfer_table.py --build-db out/human_skills.db --persons p1,...,h3
+    python train/transfer_table.py --db out/human_skills.db --heldout h1,h2,h3 \\
+        --out-json out/transfer.json --out-md out/transfer.md
+    python train/transfer_table.py --figure docs/img/transfer.png
+
+``--build-db`` records glove sessions (``IAS-GloveGrasp-v0``, teleop) of every person and
+skill class of the glove-skills library (today's pinch-and-lift where that library is
+missing) into a new database, written beside the target and moved there when complete
+(the shipped ``ias_gym/assets/human_skills.db`` is made this way). The table runs every
+successful glove skill of ``--db`` on every hand with every method (``run_transfer``:
+success, RMS rotation error [deg], RMS position error [mm], grasp-margin error [-]) and
+writes one JSON file (every run and the summaries) and a markdown table, both atomically;
+``--heldout`` names the persons never used while developing (reported separately).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import shutil
+import sqlite3
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+
+def skill_classes() -> list[str | None]:
+    """The glove skill classes (``None``: the plain pinch-and-lift of the glove env)."""
+    try:
+        from ias_gym.glove.skills import SKILLS
+    except ImportError:
+        return [None]
+    return list(SKILLS)
+
+
+def build_db(out: Path, persons: Sequence[str], episodes: int, overwrite: bool) -> None:
+    """Record every person's glove sessions of every skill class into a new database."""
+    from ias_gym.outputs import atomic_output, check_output_file
+    from ias_gym.skills.record import record_skills_spec
+
+    check_output_file(out, overwrite=overwrite, suffixes=(".db",), what="--build-db")
+    classes = skill_classes()
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "skills.db"
+        jobs = [(p, c) for p in persons for c in classes]
+        for person, skill in tqdm(jobs, desc="recording", unit="session"):
+            kwargs: dict[str, Any] = {"person_id": person}
+            if skill is not None:
+                kwargs["skill"] = skill
+            record_skills_spec(
+                "IAS-GloveGrasp-v0",
+                "teleop",
+                episodes,
+                path,
+                seed=0,
+                progress=False,
+                env_kwargs=kwargs,
+                person_id=person,
+            )
+        from ias_gym.skills.db import SkillDB
+
+        with SkillDB(path) as db:  # fold the write-ahead log into the file
+            db.list_skills()
+        # A rollback journal, not WAL: a WAL file cannot be opened read-only in a directory
+        # the reader cannot write (an installed package's assets).
+        conn = sqlite3.connect(path)
+        conn.execute("PRAGMA journal_mode = DELETE")
+        conn.execute("VACUUM")
+        conn.close()
+        with atomic_output(out, overwrite=overwrite) as final:
+            shutil.copyfile(path, final)
+
+
+def skill_class(summary: Any) -> str:
+    """A skill's class: its glove skill name, else the plain pinch-and-lift."""
+    return str(summary.env_kwargs.get("skill", "pinch_lift"))
+
+
+def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Success rate and mean errors of a group of runs (errors over all runs)."""
+
+    def mean(key: str) -> float | None:
+        values = [r[key] for r in rows if r[key] is not None]
+        return float(np.mean(values)) if values else None
+
+    def worst(key: str) -> float | None:
+        values = [r[key] for r in rows if r[key] is not None]
+        return float(np.max(values)) if values else None
+
+    return {
+        "runs": len(rows),
+        "success_rate": float(np.mean([r["success"] for r in rows])) if rows else math.nan,
+        "rot_rms_deg": mean("rot_rms_deg"),
+        "rot_rms_deg_max": worst("rot_rms_deg"),
+        "pos_rms_mm": mean("pos_rms_mm"),
+        "margin_err_rel": mean("margin_err_rel"),
+        "dropped": int(sum(r["held_s"] < r["duration_s"] - 1e-6 for r in rows)),
+    }
+
+
+def fmt(value: float | None, spec: str) -> str:
+    return "-" if value is None else format(value, spec)
+
+
+def markdown(summary: dict[str, Any], heldout: Sequence[str]) -> str:
+    """The table: per hand, method and skill class, then all classes, then held-out people."""
+    lines = [
+        "| hand | method | skills | runs | success | rot RMS [deg] mean / max | "
+        "pos RMS [mm] | margin error | dropped |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for key, s in summary.items():
+        hand, method, group = key.split("|")
+        lines.append(
+            f"| {hand} | {method} | {group} | {s['runs']} | {100 * s['success_rate']:.0f} % | "
+            f"{fmt(s['rot_rms_deg'], '.2f')} / {fmt(s['rot_rms_deg_max'], '.2f')} | "
+            f"{fmt(s['pos_rms_mm'], '.2f')} | "
+            f"{fmt(None if s['margin_err_rel'] is None else 100 * s['margin_err_rel'], '.1f')} % | "
+            f"{s['dropped']} |"
+        )
+    note = f"\nHeld-out persons (never used while developing): {', '.join(heldout)}.\n"
+    return "\n".join(lines) + "\n" + (note if heldout else "")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Build the database or run the table."""
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    parser.add_argument("--build-db", metavar="FILE.db", help="record a new human-skill DB")
+    parser.add_argument(
+        "--persons", default="p1,p2,p3,p4,p5,p6,p7,p8,h1,h2,h3", help="persons (--build-db)"
+    )
+    parser.add_argument("--episodes", type=int, default=1, help="sessions per person and skill")
+    parser.add_argument("--db", help="the skill database (default: the shipped human skills)")
+    parser.add_argument("--hands", default="all", help="comma-separated hands, or all")
+    parser.add_argument("--methods", default="gt,kinematic", help="comma-separated methods")
+    parser.add_argument("--heldout", default="h1,h2,h3", help="persons never used in development")
+    parser.add_argument("--seed", type=int, default=0, help="reset seed of every run")
+    parser.add_argument("--duration", type=float, default=3.0, help="episode length [s]")
+    parser.add_argument("--out-json", help="JSON of every run and the summaries")
+    parser.add_argument("--out-md", help="the markdown table")
+    parser.add_argument("--overwrite", action="store_true", help="replace existing outputs")
+    parser.add_argument("--figure", metavar="FILE.png", help="draw the transfer figure only")
+    parser.add_argument("--figure-id", type=int, default=2, help="the figure's skill id")
+    args = parser.parse_args(argv)
+    if args.figure:
+        from ias_gym.figures.transfer import transfer_figure
+
+        transfer_figure(args.figure, args.db, args.figure_id, overwrite=args.overwrite)
+        print(f"wrote {args.figure}")
+        return 0
+
+    from ias_gym.outputs import atomic_output, check_output_file
+
+    if args.build_db:
+        build_db(Path(args.build_db), args.persons.split(","), args.episodes, args.overwrite)
+        print(f"wrote {args.build_db}")
+        return 0
+    outputs = [Path(p) for p in (args.out_json, args.out_md) if p]
+    for path in outputs:
+        check_output_file(path, overwrite=args.overwrite)
+
+    from ias_gym.skills.db import SkillDB
+    from ias_gym.skills.transfer import (
+        hand_names,
+        run_transfer,
+        shipped_skill_db,
+        transfer_reference,
+    )
+
+    db_path = Path(args.db) if args.db else shipped_skill_db()
+    hands = hand_names() if args.hands == "all" else args.hands.split(",")
+    methods = args.methods.split(",")
+    heldout = [p for p in args.heldout.split(",") if p]
+    with SkillDB(db_path, readonly=True) as db:
+        summaries = [s for s in db.list_skills(success=True) if s.person_id]
+        skills = [(s, db.get(s.id)) for s in summaries]
+    rows: list[dict[str, Any]] = []
+    jobs = [(s, k, h, m) for s, k in skills for h in hands for m in methods]
+    for summary, skill, hand, method in tqdm(jobs, desc="transfer", unit="run"):
+        reference = transfer_reference(skill, hand, duration=args.duration)
+        run, _ = run_transfer(reference, hand, method, seed=args.seed, duration=args.duration)
+        row = run.to_json()
+        row.update(
+            skill_class=skill_class(summary),
+            heldout=summary.person_id in heldout,
+            duration_s=args.duration,
+        )
+        rows.append(row)
+
+    groups: dict[str, list[dict[str, Any]]] = {}
+    for row in rows:
+        for group in (row["skill_class"], "all", "held-out" if row["heldout"] else None):
+            if group is not None:
+                groups.setdefault(f"{row['hand']}|{row['method']}|{group}", []).append(row)
+    summary = {key: summarise(group) for key, group in sorted(groups.items())}
+    table = markdown(summary, heldout)
+    print(table)
+    persons = sorted({r["person"] for r in rows})
+    result = {
+        "db": str(db_path),
+        "persons": persons,
+        "heldout": heldout,
+        "hands": hands,
+        "methods": methods,
+        "summary": summary,
+        "runs": rows,
+    }
+    if args.out_json:
+        with atomic_output(args.out_json, overwrite=args.overwrite) as tmp:
+            tmp.write_text(json.dumps(result, indent=1, allow_nan=False))
+    if args.out_md:
+        with atomic_output(args.out_md, overwrite=args.overwrite) as tmp:
+            tmp.write_text(table)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
