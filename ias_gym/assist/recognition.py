@@ -99,6 +99,8 @@ PHASE_SPEEDS = np.linspace(0.8, 1.2, 9)
 #: 10 control steps, ~0.1 s: consecutive frames of the smooth motion are far from independent).
 PHASE_SIGMA_FLOOR = 0.1
 PHASE_TEMPER = 0.1
+#: Phase model: the weight [sessions] of the variance prior (fit_phase_model).
+PHASE_PRIOR_WEIGHT = 2.0
 #: Phase model: the phase grid's step [s] (one control step).
 PHASE_DT = 0.01
 
@@ -490,14 +492,15 @@ def open_end_dtw_cost(query: FloatArray, template: FloatArray, window: int | Non
 class DTWRecogniser(LibraryRecogniser):
     """1-nearest-neighbour open-end DTW on the stored sessions (the baseline).
 
-    A skill's evidence is ``-cost / tau``: its nearest template's relative cost (the
+    A skill's evidence is ``-cost / tau``: its nearest template's cost (the
     :func:`open_end_dtw_cost` of the session so far on the template, both sub-sampled by
-    :data:`DTW_STRIDE`, window :data:`DTW_WINDOW`, divided by the template's own scale)
-    over the temperature ``tau``, the median of the library's leave-one-person-out scores.
-    The novelty score is the smallest relative cost. A template's scale is the cost of its
-    own motion performed 10 % larger and slower, plus :data:`DTW_COST_FLOOR`: another
-    person misses a template by a share of its motion, and a fast see-saw's right match
-    costs far more than a still hold's, so raw costs would need a threshold per skill.
+    :data:`DTW_STRIDE`, window :data:`DTW_WINDOW`) over the temperature ``tau``, a right
+    match's typical cost (the median leave-one-person-out score times the median template
+    scale). The novelty score is the smallest cost relative to its template's scale: the
+    cost of the template's own motion performed 10 % larger and slower, plus
+    :data:`DTW_COST_FLOOR`. Another person misses a template by a share of its motion, and
+    a fast see-saw's right match costs far more than a still hold's, so raw costs would
+    need a threshold per skill.
 
     Args:
         sessions: the library.
@@ -525,15 +528,18 @@ class DTWRecogniser(LibraryRecogniser):
     def _costs(
         self, query: FloatArray, classes: Mapping[str, Sequence[LibrarySession]]
     ) -> tuple[dict[str, float], float]:
-        """Each skill's nearest-template cost and the novelty score."""
-        costs = {
-            name: min(
-                open_end_dtw_cost(query, s.features[::DTW_STRIDE], DTW_WINDOW) / self._scale(s)
-                for s in sessions
-            )
-            for name, sessions in classes.items()
-        }
-        return costs, min(costs.values())
+        """Each skill's nearest-template cost and the novelty score (the smallest cost
+        relative to its template's scale)."""
+        costs: dict[str, float] = {}
+        novelty = math.inf
+        for name, sessions in classes.items():
+            best = math.inf
+            for s in sessions:
+                cost = open_end_dtw_cost(query, s.features[::DTW_STRIDE], DTW_WINDOW)
+                best = min(best, cost)
+                novelty = min(novelty, cost / self._scale(s))
+            costs[name] = best
+        return costs, novelty
 
     def _scale(self, s: LibrarySession) -> float:
         """The cost a 10 % larger and slower performance of ``s``'s motion has on it."""
@@ -552,8 +558,11 @@ class DTWRecogniser(LibraryRecogniser):
     def _from_costs(
         self, costs: Mapping[str, float], novelty: float
     ) -> tuple[dict[str, float], float]:
-        # the median leave-one-out score; 1 while the library is being calibrated
-        tau = max(float(np.median(self._loo)), 1e-9) if self._loo else 1.0
+        # a right match's typical raw cost: the median leave-one-out (relative) score times
+        # the median template scale; 1 while the library is being calibrated
+        tau = 1.0
+        if self._loo:
+            tau = max(float(np.median(self._loo) * np.median(list(self._scales.values()))), 1e-9)
         return {k: -c / tau for k, c in costs.items()}, novelty
 
     def _evidence(self) -> tuple[dict[str, float], float] | None:
@@ -624,19 +633,28 @@ def _resample(s: LibrarySession, times: FloatArray) -> FloatArray:
     )
 
 
-def fit_phase_model(sessions: Sequence[LibrarySession], iterations: int = 2) -> PhaseModel:
+def fit_phase_model(
+    sessions: Sequence[LibrarySession],
+    prior_var: FloatArray | None = None,
+    iterations: int = 2,
+) -> PhaseModel:
     """Fit a skill's :class:`PhaseModel`: align each session to the class mean, average.
 
     Starts from the sessions on their own time (delay 0, speed 1); each iteration picks,
     per session, the delay/speed hypothesis whose warped mean fits it best (least squares)
-    and recomputes the mean and standard deviation on the phase grid.
+    and recomputes the mean and the variance on the phase grid. The variance of n sessions
+    is shrunk towards ``prior_var`` with :data:`PHASE_PRIOR_WEIGHT` pseudo-sessions
+    (``(n var + w prior) / (n + w)``, a conjugate prior's posterior mean), so that a skill
+    learnt from one or two demonstrations gets a library-like spread, not the floor alone.
 
     Args:
         sessions: the skill's sessions (>= 1).
+        prior_var: ``(G', 8)`` prior variance on the phase grid (held beyond its end), or
+            ``None``: the sessions' own variance.
         iterations: alignment rounds.
 
     Returns:
-        The model (a single session: its own trajectory with the floor as std).
+        The model.
     """
     end = max(float(s.time_s[-1]) for s in sessions)
     # the grid reaches the phase of the slowest hypothesis' faster runs
@@ -648,7 +666,12 @@ def fit_phase_model(sessions: Sequence[LibrarySession], iterations: int = 2) -> 
         warped = np.stack(
             [_resample(s, _time_of(grid, d, v)) for s, (d, v) in zip(sessions, h_of, strict=True)]
         )
-        std = np.sqrt(warped.var(axis=0) + PHASE_SIGMA_FLOOR**2)
+        var = warped.var(axis=0)
+        if prior_var is not None:
+            prior = prior_var[np.minimum(np.arange(len(grid)), len(prior_var) - 1)]
+            n, w = len(sessions), PHASE_PRIOR_WEIGHT
+            var = (n * var + w * prior) / (n + w)
+        std = np.sqrt(var + PHASE_SIGMA_FLOOR**2)
         model = PhaseModel(mean=warped.mean(axis=0), std=std)
         if it == iterations or len(sessions) == 1:
             break
@@ -687,10 +710,26 @@ class PhaseRecogniser(LibraryRecogniser):
         """The recogniser of the glove sessions in ``db`` (:func:`load_library`)."""
         return cls(load_library(db, task))
 
+    def _fit_all(self) -> None:
+        # The variance prior: the mean variance over the phase of the skills that several
+        # persons performed, from a first fit without it; fixed from then on (add_skill
+        # uses it as it is).
+        self._prior_var: FloatArray | None = None
+        self._models: dict[str, PhaseModel] = {}
+        first = {k: fit_phase_model(v) for k, v in self._classes.items()}
+        spread = [
+            m.std**2 - PHASE_SIGMA_FLOOR**2
+            for k, m in first.items()
+            if len({s.group for s in self._classes[k]}) > 1
+        ]
+        if spread:
+            g = min(len(v) for v in spread)
+            self._prior_var = np.mean([v[:g] for v in spread], axis=0)
+        for name in self._classes:
+            self._fit_class(name)
+
     def _fit_class(self, name: str) -> None:
-        if not hasattr(self, "_models"):
-            self._models: dict[str, PhaseModel] = {}
-        self._models[name] = fit_phase_model(self._classes[name])
+        self._models[name] = fit_phase_model(self._classes[name], self._prior_var)
 
     def _reset_state(self) -> None:
         self._delays, self._speeds = _hypotheses()
@@ -741,7 +780,7 @@ class PhaseRecogniser(LibraryRecogniser):
         maha = np.zeros_like(loglik)
         for i, name in enumerate(classes):
             model = (
-                fit_phase_model(classes[name])
+                fit_phase_model(classes[name], self._prior_var)
                 if name == refit or name not in self._models
                 else self._models[name]
             )
