@@ -132,8 +132,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--held-out-episodes", type=int, default=3)
     parser.add_argument("--demos", type=int, default=5, help="acquisition demonstrations")
     parser.add_argument("--overwrite", action="store_true", help="replace existing outputs")
+    parser.add_argument(
+        "--replot", action="store_true", help="only redraw the plot from the JSON in --out"
+    )
     args = parser.parse_args(argv)
     out = Path(args.out)
+    if args.replot:
+        payload = json.loads((out / "recognition.json").read_text())
+        _plot(payload["methods"], payload["acquisition"], Path(args.plot))
+        return 0
     out.mkdir(parents=True, exist_ok=True)
     outputs = [out / "recognition.md", out / "recognition.json", Path(args.plot)]
     existing = [str(p) for p in outputs if p.exists()]
@@ -203,9 +210,16 @@ def _plot(results: dict[str, Any], acquisition: dict[str, Any], path: Path) -> N
     import matplotlib.pyplot as plt
 
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 3.8))
+    colour = {m: f"C{i}" for i, m in enumerate(results)}
     for m, r in results.items():
         curve = r["accuracy_by_fraction"]
-        ax.plot([100 * f for f in FRACTIONS], [curve[f"{f:.1f}"] for f in FRACTIONS], "o-", label=m)
+        ax.plot(
+            [100 * f for f in FRACTIONS],
+            [curve[f"{f:.1f}"] for f in FRACTIONS],
+            "o-",
+            color=colour[m],
+            label=m,
+        )
     ax.axhline(0.7, color="grey", ls=":", lw=1)
     ax.axhline(0.95, color="grey", ls=":", lw=1)
     ax.set_xlabel("observed fraction of the skill's motion [%]")
@@ -214,8 +228,16 @@ def _plot(results: dict[str, Any], acquisition: dict[str, Any], path: Path) -> N
     ax.legend()
     ax.set_title("intent recognition")
     for m, a in acquisition.items():
-        bx.plot(a["demos"], a["new_skill_accuracy"], "o-", label=f"{m}: new skill")
-        bx.plot(a["demos"], a["known_skill_accuracy"], "s--", label=f"{m}: known skills")
+        bx.plot(a["demos"], a["new_skill_accuracy"], "o-", color=colour[m], label=f"{m}: new skill")
+        bx.plot(
+            a["demos"],
+            a["known_skill_accuracy"],
+            "s--",
+            color=colour[m],
+            alpha=0.5,
+            label=f"{m}: known skills",
+        )
+    bx.set_xticks(list(acquisition[next(iter(acquisition))]["demos"]))
     bx.axhline(0.9, color="grey", ls=":", lw=1)
     bx.set_xlabel("demonstrations of the new skill")
     bx.set_ylabel("accuracy (held-out persons)")
