@@ -51,12 +51,18 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
     """One small recorded library (stored in a DB) and the test sessions, for all tests."""
     path = tmp_path_factory.mktemp("recog") / "lib.db"
     with SkillDB(path) as db:
-        record_sessions(LIB_PERSONS, KNOWN, 1, seed=0, db=db)
+        live = record_sessions(LIB_PERSONS, KNOWN, 1, seed=0, db=db)
         new_demos = record_sessions(LIB_PERSONS, (NEW,), 1, seed=0)
         with SkillDB(path, readonly=True) as ro:
             library = [labelled_session(ro.get(i)) for i in ro.ids()]
     tests = {s.skill: s for s in record_sessions((TEST_PERSON,), ("tilt_left", NEW), 1, seed=100)}
-    return {"path": path, "library": library, "new_demos": new_demos, "tests": tests}
+    return {
+        "path": path,
+        "library": library,
+        "live": live,
+        "new_demos": new_demos,
+        "tests": tests,
+    }
 
 
 def _lib(recorded: dict[str, object]) -> list[LibrarySession]:
@@ -75,6 +81,13 @@ def test_library_round_trips_through_the_db(recorded: dict[str, object]) -> None
     }
     s = library[0]  # type: ignore[index]
     assert np.isfinite(np.stack([f.readings for f in s.frames])).all()
+    # the frames read from the live env come back exactly from the database
+    live = recorded["live"][0]  # type: ignore[index]
+    assert (live.skill, live.person_id) == (s.skill, s.person_id)
+    for a, b in zip(live.frames, s.frames, strict=True):
+        for field in ("readings", "theta", "tau_display", "pen_position", "pen_rpy"):
+            assert np.array_equal(getattr(a, field), getattr(b, field)), field
+        assert a.time_s == pytest.approx(b.time_s, abs=1e-12)
     assert len(s.frames) == 401
     # the motion window follows the person's style
     assert s.t_end > s.t_start > 1.6
@@ -300,3 +313,61 @@ def test_cli_recognise_errors(
         assert main(["assist", "recognise", *args]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and message in err
+
+
+def _frames(times: np.ndarray, pronation: np.ndarray, offset_m: float = 0.0) -> list:
+    from ias_gym.assist.stream import SessionFrame
+
+    frames = []
+    for t, p in zip(times, pronation, strict=True):
+        theta = np.zeros(10)
+        theta[2] = p
+        frames.append(
+            SessionFrame(
+                time_s=float(t),
+                readings=np.zeros(10),
+                theta=theta,
+                tau_display=np.zeros(5),
+                pen_position=np.array([0.0, 0.03, offset_m]),
+                pen_rpy=np.array([1.5, 0.0, p / 2]),
+            )
+        )
+    return frames
+
+
+def test_features_ignore_where_a_person_holds_the_pen() -> None:
+    """Features are relative to the end of the lift: a person's lateral pen offset of 1 cm
+    changes nothing, the skill's motion after it does."""
+    from ias_gym.assist.recognition import FEATURE_T0, feature_matrix
+
+    t = np.arange(0, 401) * 0.01
+    motion = np.where(t > FEATURE_T0, 0.2 * np.sin(t - FEATURE_T0), 0.0)
+    a = feature_matrix(_frames(t, motion))
+    b = feature_matrix(_frames(t, motion, offset_m=0.01))
+    assert np.array_equal(a, b)
+    assert np.all(a[t < FEATURE_T0] == 0.0)
+    assert np.abs(a[-1]).max() > 1.0
+
+
+def test_dtw_window_keeps_a_still_hold_from_matching_a_skill_not_started_yet() -> None:
+    """Open-end DTW alone lets a session that holds still match the prefix of any skill
+    before its motion; in the band it is the hold."""
+    t = np.arange(0, 401) * 0.01
+    still = np.zeros(len(t))
+    library = []
+    for g, (amplitude, start) in {"a": (0.2, 1.8), "b": (0.22, 1.85)}.items():
+        move = np.where(t > start, amplitude * np.minimum((t - start) / 0.8, 1.0), 0.0)
+        library.append(LibrarySession("hold", g, *_as_lib(t, still + 0.01 * (g == "b"))))
+        library.append(LibrarySession("tilt", g, *_as_lib(t, move)))
+    rec = DTWRecogniser(library)
+    post, _ = rec.score_session(_frames(t, still))
+    assert post["hold"] > 0.9
+    # and the tilt, once under way, is the tilt
+    post, _ = rec.score_session(_frames(t[:260], library[1].features[:260, 2] * 0.05))
+    assert post["tilt"] > 0.9
+
+
+def _as_lib(t: np.ndarray, pronation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    from ias_gym.assist.recognition import feature_matrix
+
+    return feature_matrix(_frames(t, pronation)), t
