@@ -34,6 +34,7 @@ the :class:`~ias_gym.skills.SkillDB` (one transaction) before the recogniser lea
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -595,6 +596,16 @@ class PhaseModel:
     mean: FloatArray
     std: FloatArray
 
+    @functools.cached_property
+    def inv_std(self) -> FloatArray:
+        """``(G, 8)`` 1 / std."""
+        return 1.0 / self.std
+
+    @functools.cached_property
+    def log_norm(self) -> FloatArray:
+        """``(G,)`` the Gaussian's log normaliser, ``sum_d log(2 pi std_d^2)``."""
+        return np.log(2.0 * np.pi * self.std**2).sum(axis=-1)
+
 
 def _hypotheses() -> tuple[FloatArray, FloatArray]:
     d, v = np.meshgrid(PHASE_DELAYS, PHASE_SPEEDS, indexing="ij")
@@ -743,10 +754,9 @@ class PhaseRecogniser(LibraryRecogniser):
     ) -> tuple[FloatArray, FloatArray]:
         """Per hypothesis (and frame): tempered log-likelihood and summed squared z."""
         idx = np.minimum(np.rint(phase / PHASE_DT).astype(int), len(model.mean) - 1)
-        mu, sd = model.mean[idx], model.std[idx]
-        z2 = ((x - mu) / sd) ** 2
-        ll = -0.5 * (z2 + np.log(2.0 * np.pi * sd * sd)).sum(axis=-1)
-        return PHASE_TEMPER * ll, z2.sum(axis=-1)
+        z2 = (((x - model.mean[idx]) * model.inv_std[idx]) ** 2).sum(axis=-1)
+        ll = -0.5 * (z2 + model.log_norm[idx])
+        return PHASE_TEMPER * ll, z2
 
     def _evidence(self) -> tuple[dict[str, float], float] | None:
         x = self._feats[-1]
