@@ -127,8 +127,12 @@ def evaluate_group(
     hand: str,
     seeds: Sequence[int],
     label: str,
+    visited: list[tuple[Any, Any]] | None = None,
 ) -> dict[str, Any]:
-    """Run ``policy_spec`` once per skill of ``ids`` and seed; success and tracking errors."""
+    """Run ``policy_spec`` once per skill of ``ids`` and seed; success and tracking errors.
+
+    ``visited`` collects each step's (observation, action) when given.
+    """
     from tqdm import tqdm
 
     from ias_gym.baselines.policies import load_policy
@@ -146,6 +150,8 @@ def evaluate_group(
                 action, state = policy.predict(
                     obs, state=state, episode_start=length == 0, deterministic=True
                 )
+                if visited is not None:
+                    visited.append((obs, action))
                 obs, _, terminated, truncated, info = env.step(action)
                 length += 1
                 done = terminated or truncated
@@ -155,6 +161,7 @@ def evaluate_group(
                     "skill_id": int(ids[index]),
                     "success": bool(info["is_success"]),
                     "held": bool(held),
+                    "length_s": length * env.unwrapped.config.control_dt,  # type: ignore[attr-defined]
                     "rms_position_error_mm": 1e3 * float(info["rms_position_error"]),
                     "rms_rotation_error_deg": math.degrees(float(info["rms_rotation_error"])),
                     "margin_error": float(info["margin_error"]),
@@ -163,6 +170,46 @@ def evaluate_group(
     finally:
         env.close()
     return summarise(rows)
+
+
+def open_loop_diagnosis(
+    visited: Sequence[tuple[Any, Any]],
+    train_observations: Any,
+    models: dict[str, str],
+    env_kwargs: dict[str, Any],
+) -> dict[str, Any]:
+    """Why a cloned policy fails where it does, measured on the expert's own states.
+
+    Two numbers per group: how far the expert's observations lie outside the training
+    data, in the policy's normalisation (largest ``|obs - mean| / std`` and its feature
+    index), and each model's open-loop action error there (RMS over steps and
+    components of model action minus expert action [normalised torque]; the expert itself
+    drops the pen under action noise of about 0.002, ias_gym/learning/dart.py).
+    """
+    import numpy as np
+
+    from ias_gym.baselines.policies import load_policy
+    from ias_gym.evaluation import make_env
+    from ias_gym.learning.normalisation import OBS_STD_FLOOR, observation_statistics
+
+    obs = np.array([o for o, _ in visited], dtype=np.float32)
+    expert = np.array([a for _, a in visited], dtype=np.float32)
+    mean, std = observation_statistics(train_observations, OBS_STD_FLOOR)
+    z = np.abs((obs - mean) / std).max(axis=0)
+    out: dict[str, Any] = {
+        "steps": len(obs),
+        "max_abs_z": float(z.max()),
+        "feature_of_max_z": int(z.argmax()),
+    }
+    env = make_env(ENV_ID, **env_kwargs)
+    try:
+        for name, path in models.items():
+            policy = load_policy(path, env)
+            actions = np.array([policy.predict(o, deterministic=True)[0] for o in obs])
+            out[f"{name}_action_rms_error"] = float(np.sqrt(np.mean((actions - expert) ** 2)))
+    finally:
+        env.close()
+    return out
 
 
 def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
@@ -179,6 +226,7 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
         "episodes": len(rows),
         "success_rate": float(np.mean([r["success"] for r in rows])) if rows else 0.0,
         "held_rate": len(held) / len(rows) if rows else 0.0,
+        "mean_length_s": float(np.mean([r["length_s"] for r in rows])) if rows else 0.0,
         "rms_position_error_mean_mm": mean("rms_position_error_mm"),
         "rms_rotation_error_mean_deg": mean("rms_rotation_error_deg"),
         "margin_error_mean": mean("margin_error"),
@@ -197,15 +245,16 @@ def markdown(results: dict[str, Any]) -> str:
         f"{results['train_skills']}; held-out skills {results['heldout_skills']}, "
         f"held-out persons {results['heldout_persons']}",
         "",
-        "| group | policy | episodes | success | held | RMS pos. err. [mm] | "
+        "| group | policy | episodes | success | held | mean length [s] | RMS pos. err. [mm] | "
         "RMS axis err. [deg] | margin err. [-] |",
-        "|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for group, per_policy in results["groups"].items():
         for name, s in per_policy.items():
             lines.append(
                 f"| {group} | {name} | {s['episodes']} | {s['success_rate']:.0%} | "
-                f"{s['held_rate']:.0%} | {fmt(s['rms_position_error_mean_mm'], 2)} | "
+                f"{s['held_rate']:.0%} | {s['mean_length_s']:.2f} | "
+                f"{fmt(s['rms_position_error_mean_mm'], 2)} | "
                 f"{fmt(s['rms_rotation_error_mean_deg'], 2)} | "
                 f"{fmt(s['margin_error_mean'], 2)} |"
             )
@@ -213,6 +262,19 @@ def markdown(results: dict[str, Any]) -> str:
     lines.append(
         "Errors are means over the episodes in which the pen was held to the end (`held`)."
     )
+    lines += [
+        "",
+        "On the expert's states of each group: the largest |z| of an observation feature "
+        "in the policy's normalisation, and the open-loop action error [normalised torque]:",
+        "",
+        "| group | steps | max abs z (feature) | BC action RMS error | BC+PPO action RMS error |",
+        "|---|---|---|---|---|",
+    ]
+    for group, d in results.get("open_loop", {}).items():
+        lines.append(
+            f"| {group} | {d['steps']} | {d['max_abs_z']:.0f} (#{d['feature_of_max_z']}) | "
+            f"{d['bc_action_rms_error']:.4f} | {d['bc_ppo_action_rms_error']:.4f} |"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -327,15 +389,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         "heldout_both": (str(heldout_db), heldout_split.heldout_both),
     }
     groups: dict[str, dict[str, Any]] = {}
+    diagnosis: dict[str, dict[str, Any]] = {}
     for group, (db_path, ids) in libraries.items():
         if args.max_eval_skills > 0:
             ids = ids[: args.max_eval_skills]
         if not ids:
             continue
+        visited: list[tuple[Any, Any]] = []
         groups[group] = {
-            name: evaluate_group(spec, db_path, ids, args.hand, eval_seeds, f"{group} / {name}")
+            name: evaluate_group(
+                spec,
+                db_path,
+                ids,
+                args.hand,
+                eval_seeds,
+                f"{group} / {name}",
+                visited if name == "expert" else None,
+            )
             for name, spec in specs.items()
         }
+        diagnosis[group] = open_loop_diagnosis(
+            visited, demos.observations, {n: specs[n] for n in ("bc", "bc_ppo")}, env_kwargs
+        )
         print(
             group,
             {n: f"{s['success_rate']:.0%}" for n, s in groups[group].items()},
@@ -358,6 +433,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "validation": [list(h) for h in history],
         "eval_seeds": eval_seeds,
         "groups": groups,
+        "open_loop": diagnosis,
     }
     with atomic_output(out / "results.json", overwrite=True) as tmp:
         tmp.write_text(json.dumps(results, indent=1) + "\n")
