@@ -36,7 +36,7 @@ def _expert_from_nearby_starts(env_id: str, seed: int = 100) -> tuple[Evaluation
     )
 
 
-@pytest.mark.parametrize("env_id", ["IAS-PenSlide-v0", "IAS-PenRotate-v0"])
+@pytest.mark.parametrize("env_id", ["IAS-PenSlide-v0", "IAS-PenRotate-v0", "IAS-PenRotate3F-v0"])
 def test_expert_succeeds_and_random_fails(env_id: str) -> None:
     random = evaluate_spec(env_id, "random", episodes=3, seed=100)
     assert not any(random.successes)

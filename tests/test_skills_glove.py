@@ -344,6 +344,10 @@ def test_cli_records_and_shows_a_glove_session(
     shown = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert shown["person_id"] == "p1" and shown["seed"] == 4
     assert len(shown["model"]["fingers"]) == 2 and len(shown["model"]["f_int_range"]) == 2
+    # The normal force is every 4th column of a soft finger's c: the pads press the pen.
+    for finger in shown["model"]["fingers"]:
+        low, high = finger["normal_force_range"]
+        assert low == 0.0 and 0.3 < high < 5.0  # [N]: off the pen at reset, then pressing
     assert shown["model"]["max_pen_excursion"] >= 0.03
 
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "datasets"))

@@ -3,6 +3,7 @@
     python train/transfer_table.py --build-db out/human_skills.db --persons p1,...,h3
     python train/transfer_table.py --db out/human_skills.db --heldout h1,h2,h3 \\
         --out-json out/transfer.json --out-md out/transfer.md
+    python train/transfer_table.py --figure docs/img/transfer.png
 
 ``--build-db`` records glove sessions (``IAS-GloveGrasp-v0``, teleop) of every person and
 skill class of the glove-skills library (today's pinch-and-lift where that library is
@@ -149,7 +150,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out-json", help="JSON of every run and the summaries")
     parser.add_argument("--out-md", help="the markdown table")
     parser.add_argument("--overwrite", action="store_true", help="replace existing outputs")
+    parser.add_argument("--figure", metavar="FILE.png", help="draw the transfer figure only")
+    parser.add_argument("--figure-id", type=int, default=2, help="the figure's skill id")
     args = parser.parse_args(argv)
+    if args.figure:
+        from ias_gym.figures.transfer import transfer_figure
+
+        transfer_figure(args.figure, args.db, args.figure_id, overwrite=args.overwrite)
+        print(f"wrote {args.figure}")
+        return 0
 
     from ias_gym.outputs import atomic_output, check_output_file
 

@@ -15,14 +15,15 @@ from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv
 class GripTransformAction(gym.ActionWrapper[FloatArray, Any, Any]):
     """Object-level actions turned into joint torques by the control law of Theorem 1.
 
-    The action, ``Box(-1, 1, (12,))``, is a normalised offset of what the expert commands:
+    The action, ``Box(-1, 1, (3k,))`` for a hand of k fingers (``(12,)`` on the four-finger
+    hand), is a normalised offset of what the expert commands:
 
     - ``action[0:3] * linear_accel_scale``: added to the desired linear acceleration of the
       pen [m/s^2] (eq. 41's ``r''_d``),
     - ``action[3:6] * angular_accel_scale``: added to its desired angular acceleration
       [rad/s^2],
-    - ``action[6:12] * internal_force_scale``: added to the internal forces f_int of the
-      reference [N], i.e. ``c_h^d += N offset`` (eq. 7).
+    - ``action[6:] * internal_force_scale``: added to the internal forces f_int of the
+      reference [N], i.e. ``c_h^d += N offset`` (eq. 7; 3k - 6 of them).
 
     A zero action reproduces the expert (:class:`~ias_gym.baselines.expert.ExpertPolicy`)
     exactly. ``info`` gains ``"internal_force_infeasible"``: how many control steps of the
@@ -55,10 +56,10 @@ class GripTransformAction(gym.ActionWrapper[FloatArray, Any, Any]):
             [
                 np.full(3, linear_accel_scale),
                 np.full(3, angular_accel_scale),
-                np.full(6, internal_force_scale),
+                np.full(3 * self.pen_env.physics.n_fingers - 6, internal_force_scale),
             ]
         )
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(12,), dtype=np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=self._scale.shape, dtype=np.float32)
         self._new_controller()
 
     def _new_controller(self) -> None:
@@ -82,8 +83,8 @@ class GripTransformAction(gym.ActionWrapper[FloatArray, Any, Any]):
             ValueError: wrong shape, NaN or inf.
         """
         a = np.asarray(action, dtype=float)
-        if a.shape != (12,):
-            raise ValueError(f"action must have shape (12,), got {a.shape}")
+        if a.shape != self._scale.shape:
+            raise ValueError(f"action must have shape {self._scale.shape}, got {a.shape}")
         if not np.isfinite(a).all():
             raise ValueError(f"action contains NaN or inf: {a}; actions must be finite")
         offset = np.clip(a, -1.0, 1.0) * self._scale

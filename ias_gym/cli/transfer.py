@@ -17,8 +17,19 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ias_gym.cli.args import non_negative_int
+from ias_gym.cli.args import HelpFormatter, non_negative_int
 from ias_gym.errors import InputError
+
+
+def _duration(text: str) -> float:
+    """argparse type: an episode length in (0, 60] s."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
+    if not 0 < value <= 60:  # False for NaN too
+        raise argparse.ArgumentTypeError(f"must be in (0, 60] s, got {value}")
+    return value
 
 
 def _list_hands() -> int:
@@ -35,14 +46,15 @@ def _list_hands() -> int:
 def _transfer(args: argparse.Namespace) -> int:
     if args.list_hands:
         return _list_hands()
-    if args.db is None or args.id is None:
-        raise InputError("skills transfer needs --db PATH and --id N (or --list-hands)")
+    if args.id is None:
+        raise InputError("skills transfer needs --id N (or --list-hands)")
     from ias_gym.outputs import check_output_file
     from ias_gym.skills.db import SkillDB, SkillNotFoundError
     from ias_gym.skills.transfer import (
         METHODS,
         hand_names,
         run_transfer,
+        shipped_skill_db,
         transfer_reference,
     )
 
@@ -59,7 +71,7 @@ def _transfer(args: argparse.Namespace) -> int:
         video = check_output_file(
             args.video, overwrite=args.overwrite, suffixes=VIDEO_SUFFIXES, what="--video"
         )
-    db_path = Path(args.db)
+    db_path = Path(args.db) if args.db is not None else shipped_skill_db()
     if not db_path.is_file():
         raise InputError(
             f"--db {db_path} does not exist; record skills with `ias-gym skills record`"
@@ -73,7 +85,12 @@ def _transfer(args: argparse.Namespace) -> int:
     for hand in hands:
         reference = transfer_reference(skill, hand, duration=args.duration)
         run, frames = run_transfer(
-            reference, hand, args.method, seed=args.seed, render=video is not None
+            reference,
+            hand,
+            args.method,
+            seed=args.seed,
+            render=video is not None,
+            duration=args.duration,
         )
         frames_all += frames
         if args.json:
@@ -104,6 +121,7 @@ def add_transfer_command(commands: argparse._SubParsersAction[Any]) -> argparse.
     """
     transfer = commands.add_parser(
         "transfer",
+        formatter_class=HelpFormatter,
         help="execute a stored skill on robot hands (grip transform or kinematic)",
         description="Turn a stored skill (e.g. a glove session) into a reference for each "
         "robot hand - the object's motion relative to its grasp frame, scaled into the "
@@ -113,7 +131,11 @@ def add_transfer_command(commands: argparse._SubParsersAction[Any]) -> argparse.
         "method, success, rot_rms_deg, pos_rms_mm, margin_err_rel, scale, scale_rot, "
         "held_s, skill_id, person, skill).",
     )
-    transfer.add_argument("--db", metavar="PATH", help="an existing skill database")
+    transfer.add_argument(
+        "--db",
+        metavar="PATH",
+        help="an existing skill database (default: the human skills shipped with the package)",
+    )
     transfer.add_argument("--id", type=int, metavar="N", help="the skill's id")
     transfer.add_argument(
         "--hand", default="ias4f", metavar="NAME|all", help="the robot hand, or all hands"
@@ -125,7 +147,7 @@ def add_transfer_command(commands: argparse._SubParsersAction[Any]) -> argparse.
         "--seed", type=non_negative_int, default=0, metavar="S", help="the reset seed"
     )
     transfer.add_argument(
-        "--duration", type=float, default=3.0, metavar="SECONDS", help="episode length [s]"
+        "--duration", type=_duration, default=3.0, metavar="SECONDS", help="episode length [s]"
     )
     transfer.add_argument("--video", metavar="FILE", help="an MP4 of the executions")
     transfer.add_argument("--overwrite", action="store_true", help="replace an existing --video")

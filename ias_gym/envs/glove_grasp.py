@@ -114,6 +114,10 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     (:func:`~ias_gym.glove.operator.pen_operator`, a
     :class:`~ias_gym.glove.device.ReachPinchLift`) from its pre-shape (:class:`FromPreShape`):
     close the pinch (0.7 s), hold (0.5 s), lift by extending the wrist (1 s), hold.
+    With ``skill=NAME`` (one of :data:`ias_gym.glove.skills.SKILLS`) the person performs
+    that skill after a quicker pinch-lift (close 0.7 s, hold 0.3 s, lift 0.7 s, a 4 N
+    pinch), in their own style (:class:`~ias_gym.glove.skills.SkillStyle`, from the id);
+    its own motion starts at :attr:`skill_start`.
 
     Force display: the contact forces of the pen on the index and thumb geoms, f [N], give
     ``tau = J^T f`` [N m] on the actuated joints (MuJoCo Jacobians at the contact points; the
@@ -143,7 +147,8 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     Every reset opens the glove anew (``glove_factory`` with a seed drawn from the env's
     ``np_random``) and reads it once: the hand starts at rest at the calibrated Θ of that
     reading (clipped to the joint ranges), the pen at rest at its start on the support, and
-    the force display of that state is written to the glove.
+    the force display of that state is written to the glove. ``reset(options={"qpos": ...,
+    "qvel": ...})`` then sets that exact MuJoCo state (e.g. a perturbed start).
 
     ## Episode End
     Terminated when the pen falls ``drop_height`` below its start or leaves
@@ -154,26 +159,34 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     kept; ``""`` otherwise), or when the simulation diverges (``info["sim_unstable"]``:
     MuJoCo raised a warning, e.g. a huge acceleration, or the state is not finite; the
     state is then put back to the start, not terminated). ``info["is_success"]``: pen >=
-    ``lift_height`` above its start and touching neither the support nor the floor.
+    ``lift_height`` above its start and touching neither the support nor the floor; for
+    the skill ``lift_place``: lifted so before, and now back within
+    :data:`PLACE_TOLERANCE` of its start with both fingers holding it.
 
     ## Arguments
     ``render_mode`` (``None`` or ``"rgb_array"``), ``person``, ``calibration`` and
     ``glove_factory`` (see :meth:`__init__`), and the fields of :class:`GloveGraspConfig`
     (defaults in brackets): ``person_id`` [``"p1"``]: the simulated person wearing the
-    glove; ``control_dt`` [0.01 s]: one step = one glove read, a multiple of 1 ms;
+    glove, any valid id (:func:`~ias_gym.glove.ids.check_id`; a new id's calibration is
+    trained once, seconds, and cached); ``skill`` [None]: the skill performed after the
+    pinch-lift (None: the pinch-lift alone); ``control_dt`` [0.01 s]: one step = one glove
+    read, a multiple of 1 ms;
     ``duration`` [4.0 s]; ``action_scale`` [0.2 rad]: joint offset of a full action;
     ``filter_tau`` [0.05 s, 0: off]: the low-pass on Θ; ``lift_height`` [0.03 m]: success;
     ``drop_height`` [0.05 m] and ``max_distance`` [0.15 m]: termination; ``lift_weight``
     [1.0], ``contact_weight`` [0.5], ``effort_weight`` [0.1]: reward weights [-].
 
     ## Version History
-    - v0: first version.
+    - v0: first version; the ``skill`` argument and soft-finger pads in the skill model
+      added later (the default episode is unchanged).
 
     Attributes:
         model, data: the compiled scene of the person's hand and its state.
         physics: :class:`~ias_gym.sim.glove_contacts.GlovePenPhysics` of the scene (index,
             thumb).
         contact_pass: the pen's contacts of the last ``reset`` or ``step`` (``None`` before).
+        skill_start: episode time [s] where the skill's own motion begins
+            (:func:`~ias_gym.glove.skills.skill_start_time`); ``None`` without a skill.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 100}  # noqa: RUF012

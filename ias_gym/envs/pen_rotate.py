@@ -129,7 +129,7 @@ class PenRotateEnv(PenHandEnv):
     - ``hand`` [``"ias4f"``; ``"ias3f"``]: the robot hand (:mod:`ias_gym.sim.hands`); an
       unknown name raises InputError listing the known ones.
     - PenRotate's own: ``duration`` [4.0 s]; ``amplitude`` A [0.2 rad, at most the hand's
-      ``max_tilt``: 0.35 for both hands];
+      ``max_tilt``: 0.35 rad for ``"ias4f"``, 0.4 rad for ``"ias3f"``];
       ``frequency`` w [2.0 rad/s]; ``initial_error`` [(0.03, 0.08) rad]: the range of the
       reset's tilt error; ``settle_time`` [1.0 s] and ``max_rms_error`` [0.05, fraction of
       A]: the success test ignores the first ``settle_time``; ``track_weight`` [1.0] and

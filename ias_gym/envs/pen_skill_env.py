@@ -186,8 +186,10 @@ class PenSkillEnv(PenHandEnv):
     for more than 20 ms, centre within ``max_position_error`` of nominal) and tracked: RMS
     position error after ``settle_time`` < ``max_rms_position_error`` and RMS axis angle
     error < ``max_rms_rotation_error``. ``info`` also carries ``rms_position_error`` [m],
-    ``rms_rotation_error`` [rad], ``margin`` and ``margin_reference`` [-], ``contact_forces``
-    [N] (k x 3, paper frame) and ``internal_forces`` [N] (the measured c_h). Terminated when
+    ``rms_rotation_error`` [rad], ``margin`` (0 while a finger is off) and
+    ``margin_reference`` [-], ``margin_error`` (mean relative error so far, -1 before the
+    first sample), ``contact_forces`` [N] (k x 3: normal, t1, t2 of each fingertip) and
+    ``internal_forces`` [N] (the measured c_h; 0 while a finger is off). Terminated when
     the pen is dropped (centre more than ``drop_distance`` from nominal); truncated by the
     time limit (``duration``) or a diverging simulation (``info["sim_unstable"]``).
 
@@ -411,7 +413,7 @@ class PenSkillEnv(PenHandEnv):
         return {
             "rms_position_error": float(info["rms_position_error"]),
             "rms_rotation_error": float(info["rms_rotation_error"]),
-            "margin_error": float(info["margin_error"]),
+            "margin_error": float(info["margin_error"]) if info["margin_error"] >= 0 else math.nan,
             "max_position_error": float(info["max_position_error"]),
         }
 
@@ -419,11 +421,15 @@ class PenSkillEnv(PenHandEnv):
         pos, rot = self.rms_errors()
         contacts = self.physics.fingertip_contacts()
         c = self.physics.contact_intensities(contacts)
+        # No NaN in info (a NaN never equals itself, and a rollout's infos are compared):
+        # while a finger is off the internal forces and the margin read 0, and the margin
+        # error -1 until the first sample after settle_time.
         if contacts.active.all():
             W, _ = self.physics.wrench_matrix(contacts)
             c_h = c - np.linalg.lstsq(W, W @ c, rcond=None)[0]
         else:
-            c_h = np.full_like(c, np.nan)
+            c_h = np.zeros_like(c)
+        margin_error = self.margin_error()
         return {
             "skill_index": self._skill_index,
             "skill_id": self.skill.skill_id,
@@ -431,9 +437,9 @@ class PenSkillEnv(PenHandEnv):
             "rotation_error": self._errors[1],
             "rms_position_error": pos,
             "rms_rotation_error": rot,
-            "margin": self._margin,
+            "margin": self._margin if math.isfinite(self._margin) else 0.0,
             "margin_reference": self.grasp_margin_reference(),
-            "margin_error": self.margin_error(),
+            "margin_error": margin_error if math.isfinite(margin_error) else -1.0,
             "contact_forces": c.reshape(-1, 3),
             "internal_forces": c_h,
         }

@@ -141,8 +141,9 @@ class PenSlideEnv(PenHandEnv):
       ``internal_force_step`` [0 N] steps the internal-force reference by +- this.
     - ``hand`` [``"ias4f"``]: the robot hand (:mod:`ias_gym.sim.hands`). The sliding
       schedule is the paper's four-finger one, so only ``"ias4f"`` is accepted; another name
-      raises InputError (docs/DESIGN.md, "The second hand", says why there is no
-      three-finger PenSlide).
+      raises InputError. There is no three-finger PenSlide: ``"ias3f"``'s thumb, its only
+      finger below the pen, cannot slide along a still pen (its kinetic friction exceeds
+      what the top fingers can hold by mu m g; docs/DESIGN.md, "The second hand").
     - PenSlide's own: ``hold_time`` [0.25 s] before phase 1; ``duration`` [4.75 s]: hold +
       4 s of sliding + 0.5 s settling; ``target_tolerance`` [0.002 m] and ``max_tilt``
       [5 deg, in rad]: success limits; ``track_weight`` [1.0] and ``pose_weight`` [1.0]:

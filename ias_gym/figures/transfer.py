@@ -7,15 +7,12 @@ forces ``|c_h|`` of the human pinch and of each hand's grasp, and the grasp marg
 (docs/transfer.md), which the hands reproduce although their contacts, their number and
 their internal forces differ from the pinch's.
 
-    python -m ias_gym.figures.transfer --out docs/img/transfer.png [--db F --id N]
+    python train/transfer_table.py --figure docs/img/transfer.png [--db F --figure-id N]
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
-from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -129,20 +126,3 @@ def transfer_figure(
     save_png_atomic(fig, path, overwrite=overwrite)
     plt.close(fig)
     return runs
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m ias_gym.figures.transfer --out FILE.png [--db F] [--id N]``."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", required=True, help="the PNG to write")
-    parser.add_argument("--db", help="skill database (default: the shipped human skills)")
-    parser.add_argument("--id", type=int, default=DEFAULT_SKILL_ID, help="the skill's id")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out")
-    args = parser.parse_args(argv)
-    transfer_figure(args.out, args.db, args.id, overwrite=args.overwrite)
-    print(f"wrote {args.out}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -14,7 +14,10 @@
   and the scripted operator :class:`ReachPinchLift`.
 - :mod:`~ias_gym.glove.operator`: the scripted pen pinch of the glove world
   (:func:`~ias_gym.glove.operator.pen_operator`, :class:`~ias_gym.glove.operator.FromPreShape`).
-- :mod:`~ias_gym.glove.profile_cache`: the simulated persons' calibrations, cached as profiles.
+- :mod:`~ias_gym.glove.skills`: the object-level skills a person performs with the pinched
+  pen after the pinch-lift (:data:`~ias_gym.glove.skills.SKILLS`), each person's style.
+- :mod:`~ias_gym.glove.profile_cache`: the simulated persons' calibrations (any person id:
+  trained once, cached as profiles).
 - :mod:`~ias_gym.glove.ids`: :func:`check_id`, the one rule for person and glove ids
   (they name files).
 

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from ias_gym.glove.device import ReachPinchLift, ReachPinchLiftTimings
 from ias_gym.glove.hand import PersonParams
-from ias_gym.glove.skills import SKILL_TIMINGS, SkillOperator
+from ias_gym.glove.skills import SKILL_PINCH_FORCE, SKILL_TIMINGS, SkillOperator
 
 FloatArray = NDArray[np.float64]
 
@@ -40,12 +40,15 @@ PEN_PINCH_POSES: tuple[tuple[float, float, float], ...] = (
 
 #: ReachPinchLift's default phase times (the pinch-lift without a skill).
 DEFAULT_TIMINGS = ReachPinchLiftTimings()
+#: ReachPinchLift's default pinch force [N].
+DEFAULT_PINCH_FORCE = 2.0
 
 
 def pen_operator(
     person: PersonParams,
     pen_radius: float,
     timings: ReachPinchLiftTimings = DEFAULT_TIMINGS,
+    pinch_force: float = DEFAULT_PINCH_FORCE,
 ) -> ReachPinchLift:
     """The scripted operator pinching the pen: :class:`ReachPinchLift` with the pads apart.
 
@@ -63,6 +66,8 @@ def pen_operator(
         person: the operator's hand.
         pen_radius: the pen's radius [m] (the scene's pen geom, ``model.geom_size[pen, 0]``).
         timings: the script's phase times [s] (a skill's: :data:`SKILL_TIMINGS`).
+        pinch_force: ReachPinchLift's ``pinch_force`` [N] (how far the targets lie inside
+            the pen; a skill's: :data:`~ias_gym.glove.skills.SKILL_PINCH_FORCE`).
 
     Raises:
         ValueError: ``pen_radius`` is not positive, or no pen pinch of
@@ -74,7 +79,9 @@ def pen_operator(
     wide = dataclasses.replace(person, pad_contact=2.0 * pen_radius + PEN_PAD_GAP * s)
     for cmc, flexion, dip in PEN_PINCH_POSES:
         try:
-            return ReachPinchLift(wide, timings, thumb=(cmc, flexion), dip=dip)
+            return ReachPinchLift(
+                wide, timings, pinch_force=pinch_force, thumb=(cmc, flexion), dip=dip
+            )
         except ValueError:  # out of this hand's reach: the next pose
             continue
     raise ValueError(f"no pen pinch of {PEN_PINCH_POSES} is in reach of {person.person_id}")
@@ -93,7 +100,8 @@ def skill_operator(person: PersonParams, pen_radius: float, skill: str) -> Skill
         InputError: unknown ``skill``.
         ValueError: as :func:`pen_operator`.
     """
-    return SkillOperator(pen_operator(person, pen_radius, SKILL_TIMINGS), skill)
+    base = pen_operator(person, pen_radius, SKILL_TIMINGS, SKILL_PINCH_FORCE)
+    return SkillOperator(base, skill)
 
 
 class ScriptedOperator(Protocol):

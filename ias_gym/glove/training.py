@@ -20,7 +20,7 @@ With 1600 training readings and 1500 iterations per network a person's calibrati
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -154,6 +154,7 @@ def train_calibration(
     seed: int = 0,
     max_iter: int = DEFAULT_MAX_ITER,
     weight_decay: float = DEFAULT_WEIGHT_DECAY,
+    on_group: Callable[[str], None] | None = None,
 ) -> tuple[Calibration, TrainingReport]:
     """Calibrate one person: an ANN per ``"ann"`` group, least squares per ``"linear"`` one.
 
@@ -163,6 +164,7 @@ def train_calibration(
         seed: seeds the initial weights.
         max_iter: L-BFGS iterations per network (a smaller budget trains faster, e.g. tests).
         weight_decay: L2 penalty on the weights.
+        on_group: called with each group's name when it is done (e.g. a progress bar).
 
     Returns:
         The calibration (numpy) and a :class:`TrainingReport`.
@@ -182,6 +184,8 @@ def train_calibration(
             model = fit_linear_group(spec, session)
         models.append(model)
         seconds[spec.name] = time.perf_counter() - tg
+        if on_group is not None:
+            on_group(spec.name)
     report = TrainingReport(time.perf_counter() - t0, seconds, losses, iterations)
     return Calibration(tuple(models)), report
 
@@ -193,10 +197,11 @@ class CalibrationRun:
     Attributes:
         person: who was calibrated.
         train, held_out: the session's two parts.
-        models: ``"ann"`` (shipped: :data:`ANN_GROUPS`), ``"paper_ann"`` (index 2-10-3 on
-            ψ1, ψ2, :data:`PAPER_GROUPS`), ``"linear"`` (least squares, :data:`LINEAR_GROUPS`,
-            same training readings), ``"linear_free"`` (the same fitted on the free poses only:
-            the paper's "optimal gains" that fail when thumb and index touch).
+        models: ``"ann"`` (shipped: :data:`ANN_GROUPS`), ``"linear"`` (least squares,
+            :data:`LINEAR_GROUPS`, same training readings) and, with ``baselines`` (the
+            default), ``"paper_ann"`` (index 2-10-3 on ψ1, ψ2, :data:`PAPER_GROUPS`) and
+            ``"linear_free"`` (the linear one fitted on the free poses only: the paper's
+            "optimal gains" that fail when thumb and index touch).
         metrics: held-out errors of each model.
         report: training report of the ``"ann"`` calibration.
         profile: the ``"ann"`` calibration as a profile (not yet saved).
@@ -218,6 +223,8 @@ def calibrate_person(
     n_readings: int = DEFAULT_READINGS,
     glove_id: str = DEFAULT_GLOVE_ID,
     max_iter: int = DEFAULT_MAX_ITER,
+    baselines: bool = True,
+    on_group: Callable[[str], None] | None = None,
 ) -> CalibrationRun:
     """Record a session for ``person``, train and evaluate the ANN and the baselines.
 
@@ -227,25 +234,29 @@ def calibrate_person(
         n_readings: readings in the session (:data:`HELD_OUT_FRACTION` held out).
         glove_id: stored in the profile.
         max_iter: L-BFGS iterations per network.
+        baselines: also train the paper's index network (``"paper_ann"``) and fit
+            ``"linear_free"``; False leaves them out (the profile is the same: it holds the
+            ``"ann"`` calibration and the ``"linear"`` metrics), e.g. for a cached default
+            calibration.
+        on_group: called with each trained group's name (:func:`train_calibration`).
     """
     session = record_session(person, n_readings, seed=seed)
     train, held_out = session.split(HELD_OUT_FRACTION, seed=seed)
-    ann, report = train_calibration(train, ANN_GROUPS, seed=seed, max_iter=max_iter)
-    paper_groups = []  # the shipped groups, with the paper's index network instead
-    for k, spec in enumerate(PAPER_GROUPS):
-        if spec in ANN_GROUPS:
-            paper_groups.append(ann.group(spec.name))
-        else:
-            paper_groups.append(
-                train_group(spec, train, seed=seed + 1000 * k, max_iter=max_iter)[0]
-            )
-    paper = Calibration(tuple(paper_groups))
-    models = {
-        "ann": ann,
-        "paper_ann": paper,
-        "linear": fit_linear(train, LINEAR_GROUPS),
-        "linear_free": fit_linear(train.subset(~train.pinch), LINEAR_GROUPS),
-    }
+    ann, report = train_calibration(
+        train, ANN_GROUPS, seed=seed, max_iter=max_iter, on_group=on_group
+    )
+    models = {"ann": ann, "linear": fit_linear(train, LINEAR_GROUPS)}
+    if baselines:
+        paper_groups = []  # the shipped groups, with the paper's index network instead
+        for k, spec in enumerate(PAPER_GROUPS):
+            if spec in ANN_GROUPS:
+                paper_groups.append(ann.group(spec.name))
+            else:
+                paper_groups.append(
+                    train_group(spec, train, seed=seed + 1000 * k, max_iter=max_iter)[0]
+                )
+        models["paper_ann"] = Calibration(tuple(paper_groups))
+        models["linear_free"] = fit_linear(train.subset(~train.pinch), LINEAR_GROUPS)
     metrics = {name: evaluate(model, held_out) for name, model in models.items()}
     training = {
         "seed": seed,

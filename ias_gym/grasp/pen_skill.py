@@ -119,6 +119,32 @@ def pen_wrench_matrix(phi: ArrayLike, radius: float = 1.0 * CM) -> FloatArray:
     return wrench_matrix(contact_points(phi, radius), contact_frames())
 
 
+def grasp_wrench_matrix(
+    contact_x: ArrayLike, sides: ArrayLike, radius: float = 1.0 * CM
+) -> FloatArray:
+    """W of eq. (16) for a pen held by any hand: ``(6, 3k)`` [-, m].
+
+    Contact i sits at ``(contact_x[i], sides[i] r, 0)`` (paper frame) with the frame of
+    :func:`contact_frames` (normal ``-side`` along y, t_x, t_z); for the paper's four fingers
+    ``grasp_wrench_matrix(OUTWARD * phi, SIDE)`` is :func:`pen_wrench_matrix`.
+
+    Args:
+        contact_x: ``(k,)`` signed contact positions along the pen from its centre [m].
+        sides: ``(k,)`` +1 for a finger on top of the pen (pushes down), -1 below.
+        radius: pen radius r [m].
+    """
+    x = np.asarray(contact_x, dtype=float)
+    side = np.asarray(sides, dtype=float)
+    if x.shape != side.shape or x.ndim != 1:
+        raise ValueError(f"contact_x {x.shape} and sides {side.shape} must be equal (k,)")
+    points = np.stack([x, side * radius, np.zeros(len(x))], axis=1)
+    frames = np.zeros((len(x), 3, 3))
+    frames[:, 0, 1] = -side
+    frames[:, 1, 0] = 1.0
+    frames[:, 2, 2] = 1.0
+    return wrench_matrix(points, frames)
+
+
 def gravity_wrench(weight: float) -> FloatArray:
     """External wrench of eq. (18) on the pen, ``w_g = [0, -m g, 0, 0, 0, 0]`` [N, N m].
 

@@ -1,29 +1,39 @@
-"""The glove scene's finger-pen contacts as the paper's point contacts with friction.
+"""The glove scene's finger-pen contacts as the paper's contacts: soft fingers.
 
 In ``IAS-GloveGrasp-v0`` the human hand touches the pen with several capsules per finger
 (index: proximal, middle, distal phalanges and pad; thumb: metacarpal, proximal, distal and
 pad), and MuJoCo may report several contacts for one finger at once (in the pinch the distal
 phalanx and the pad capsule both press on the pen). The paper's skill model (sec. 3) has one
-point contact with friction per finger, three wrench intensities each (eqs. 3, 16).
-:class:`GlovePenPhysics` resolves each finger's contacts into one such contact:
+contact per finger. The pads are soft (MuJoCo ``condim=4``: friction plus torsional
+friction about the normal; ``human_hand.xml``), so :class:`GlovePenPhysics` resolves each
+finger's contacts into one *soft-finger* contact: a point contact with friction plus a
+torsion about its normal, four wrench intensities (normal, t1, t2 [N], torsion [N m]):
 
 - force: the sum of the forces of the finger's MuJoCo contacts on the pen (exact);
-- point: their centre of pressure, the normal-force-weighted mean of the contact points
-  (their plain mean if every normal force is zero); with one contact it is that contact's
-  point;
+- moment: their exact moment about the pen's centre of mass, each contact's torsion
+  included (MuJoCo's ``mj_contactForce`` gives it for condim 4);
 - frame: normal = normal-force-weighted mean of the contact normals, oriented from the
   finger into the pen (the direction in which the finger pushes), t1 = the pen's axis made
   orthogonal to it, t2 = +-(t1 x n) as :class:`~ias_gym.sim.pen_hand.PenHandPhysics` does
   (sign fixed per finger: -1 for a finger that comes down on the pen from above, +1 for
-  the others; for a vertical pinch t2 = paper +z for both, as in eq. 16).
+  the others; for a vertical pinch t2 = paper +z for both, as in eq. 16);
+- point: where the finger's force and moment are a force plus a torsion along the normal
+  (:func:`soft_contact_points`): the centre of pressure (normal-force-weighted mean of the
+  contact points) moved along the finger's force, by at most 1.3 mm (measured); with one
+  contact it is that contact's point;
+- torsion: the finger's moment about that point, along the normal.
 
-What the hard-finger model leaves out is a moment: the pads are soft contacts (condim 4,
-torsional friction; ``human_hand.xml``) whose torsion about the normal has no column in
-eq. (16), and several contacts of one finger also make a moment about their centre of
-pressure. So ``W c`` carries the fingers' net force exactly, and their moment up to
-1.8e-3 N m (median 5e-4 N m; measured in the held pinch of ``IAS-GloveGrasp-v0``, seeds
-0-3; the pen's weight times its radius is 1e-2 N m). :attr:`FingerContacts.moment` keeps
-the exact moment (it matches MuJoCo's ``cfrc_ext``).
+W (:func:`soft_wrench_matrix`, eq. 16 with the torsion column ``[0; n]`` per finger) is
+then 6 x 8 for the two fingers and ``W c`` is the fingers' net wrench on the pen exactly,
+force and moment (to 2e-17 N m; the hard-finger W of earlier versions, 6 x 6, missed the
+moment by up to 1.8e-3 N m). While both fingers touch, rank W = 6: the torsions make the
+moment about the line between the contacts that two point contacts cannot, so the grip
+transform G (eq. 8) exists, with two internal forces, the squeeze and the opposed torsions
+(:func:`pinch_null_basis`). :func:`soft_finger_cone_margin` checks MuJoCo's elliptic
+condim-4 cone ``c_n >= sqrt((c_t1/mu)^2 + (c_t2/mu)^2 + (c_tau/mu_tau)^2)``: it holds
+to rounding for every MuJoCo contact and for a finger resolved from one contact (a finger
+resolved from several, e.g. pad and distal phalanx with different friction, is the sum
+of several cones, not one).
 
 Frames and origin as :mod:`ias_gym.sim.pen`: paper frame (x = MuJoCo x = the pen's
 axis at rest, y = MuJoCo z = up, z = -MuJoCo y), positions relative to the pen's nominal
@@ -63,18 +73,19 @@ PINCH_RANK = 5
 #: Wrench intensities per finger of the soft-finger model: normal, t1, t2, torsion.
 SOFT_COLUMNS = ContactModel.SOFT_FINGER.n_wrenches
 #: Largest move of a finger's point from its centre of pressure to make its wrench a soft
-#: finger's [m] (:func:`soft_contact_points`): a quarter of the pads' 6-7 mm radius.
-MAX_POINT_SHIFT = 0.0015
+#: finger's [m] (:func:`soft_contact_points`): half the pads' 6-7 mm radius (measured
+#: moves: at most 1.3 mm over 2827 finger samples of four skill episodes).
+MAX_POINT_SHIFT = 0.003
 
 
 @dataclass(frozen=True)
 class FingerContacts(PointContacts):
-    """Each finger's pen contacts resolved as one point contact with friction (paper frame).
+    """Each finger's pen contacts resolved as one soft-finger contact (paper frame).
 
     Attributes:
         active: ``(k,)`` bool, some geom of finger i touches the pen.
-        points: ``(k, 3)`` centre of pressure [m] (origin: nominal pen centre); the finger's
-            tip site for a finger not touching.
+        points: ``(k, 3)`` the soft finger's point [m] (origin: nominal pen centre; see
+            :func:`soft_contact_points`); the finger's tip site for a finger not touching.
         frames: ``(k, 3, 3)`` rows normal (the finger pushes along it), t1, t2; for a finger
             not touching, the normal points from the tip site to the pen's axis.
         force: ``(k, 3)`` summed force of finger i on the pen [N] (zero when not touching).
@@ -283,7 +294,7 @@ class GlovePenPhysics(FreePenPhysics):
         )
 
     def finger_contacts(self, contact_pass: PenContactPass | None = None) -> FingerContacts:
-        """Each finger's pen contacts as one point contact with friction (module docstring).
+        """Each finger's pen contacts as one soft-finger contact (module docstring).
 
         Args:
             contact_pass: the pass over the contacts to resolve (default: a new one). The
@@ -373,8 +384,8 @@ def soft_contact_points(
     the points that satisfy it form a line parallel to F, and the one nearest the centre of
     pressure is used. Where the finger has one MuJoCo contact this is its point (its moment
     about it is MuJoCo's torsion along the normal). The line moves by the tangential moment
-    / |F| (several contacts of the finger, e.g. pad and distal phalanx), measured below
-    0.5 mm in the held pinch; a finger whose shift would exceed :data:`MAX_POINT_SHIFT`
+    / |F| (several contacts of the finger, e.g. pad and distal phalanx), measured up to
+    1.3 mm; a finger whose shift would exceed :data:`MAX_POINT_SHIFT`
     (a grazing contact, n . F near 0) keeps its centre of pressure.
 
     Args:
@@ -458,8 +469,12 @@ def pinch_null_basis(W: FloatArray, contacts: FingerContacts) -> FloatArray | No
     s [N] each, positive when squeezing; it lies in null(W) exactly), column 2 the opposed
     torsions (both fingers twisting the pen about their own normals in opposite senses of
     the world, each +1/sqrt(2); projected onto null(W) and made orthogonal to column 1,
-    signed so that its torsion of finger 1 is positive). Being a function of W and the
-    contacts, N(t) is as continuous as W(t).
+    signed so that its torsion of finger 1 is positive). For antipodal normals that is the
+    pure torsion pair; where the normals are not opposite (the glove's pen pinch: about 110
+    degrees apart) the torsions alone are not internal, and column 2 is mostly opposed
+    forces along the pen's axis (t1) whose moment about the chord the torsions balance
+    (measured: t1 entries 0.70, torsion entries 0.01, in mixed units N and N m). Being a
+    function of W and the contacts, N(t) is as continuous as W(t).
 
     Args:
         W: ``(6, 8)`` soft-finger wrench matrix (:meth:`GlovePenPhysics.wrench_matrix`).

@@ -34,7 +34,8 @@ def place_grasp(
         pen_rpy: pen roll, pitch, yaw [rad], paper frame (as :meth:`PenHandPhysics.pen_pose`).
         contact_x: ``(k,)`` signed contact positions along the pen's axis [m] (pen frame;
             the paper's ``[-phi1, -phi2, +phi3, +phi4]`` on the four-finger hand). Each tip
-            touches the side of the pen its base is on (``physics.finger_sides``).
+            touches the side of the pen its base is on (``physics.finger_sides``); every
+            finger has three joints (abd, mcp, pip), as on both registered hands.
         penetration: how far each tip sphere overlaps the pen [m].
         iterations: Gauss-Newton iterations of the inverse kinematics.
         tolerance: stop when every tip is this close to its target [m].
@@ -59,7 +60,6 @@ def place_grasp(
 
     qadr, dadr = physics.hand_qpos_ids, physics.hand_dof_ids
     lo, hi = m.jnt_range[m.dof_jntid[dadr]].T
-    n = physics.n_hand_dofs // physics.n_fingers  # joints per finger
     jac = np.zeros((3, m.nv))
     err = np.inf
     for _ in range(iterations):
@@ -71,10 +71,10 @@ def place_grasp(
             break
         for i, site in enumerate(physics._tip_sites):
             mujoco.mj_jacSite(m, d, jac, None, int(site))
-            cols = dadr[n * i : n * i + n]
+            cols = dadr[3 * i : 3 * i + 3]
             J = jac[:, cols]
-            step = np.linalg.solve(J.T @ J + 1e-8 * np.eye(n), J.T @ residual[i])
-            q = qadr[n * i : n * i + n]
-            d.qpos[q] = np.clip(d.qpos[q] + step, lo[n * i : n * i + n], hi[n * i : n * i + n])
+            step = np.linalg.solve(J.T @ J + 1e-8 * np.eye(3), J.T @ residual[i])
+            q = qadr[3 * i : 3 * i + 3]
+            d.qpos[q] = np.clip(d.qpos[q] + step, lo[3 * i : 3 * i + 3], hi[3 * i : 3 * i + 3])
     mujoco.mj_forward(m, d)
     return err

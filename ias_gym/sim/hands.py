@@ -38,7 +38,11 @@ class HandSpec:
         contact_x: per finger, the nominal contact position along the pen's axis from its
             centre [m] (the ``grasp`` keyframe's).
         reach: how far every tip reaches along the pen from its nominal contact, both ways,
-            with the pen at rest [m] (inverse kinematics within the joint ranges).
+            with the pen at rest [m]: the smallest distance in :attr:`contact_range`.
+        contact_range: per finger, the lowest and highest contact position along the pen
+            [m] its tip reaches with the pen at rest and the other tips at their nominal
+            contacts (inverse kinematics within the joint ranges, no link touching the pen,
+            on the pen's cylinder |x| <= 5 cm; scanned in 1 mm steps).
         max_tilt: the largest see-saw amplitude about the paper's z the Theorem-1 expert
             tracks on this hand [rad] (measured, docs/DESIGN.md).
         description: one line for listings.
@@ -51,13 +55,16 @@ class HandSpec:
     sides: tuple[float, ...]
     contact_x: tuple[float, ...]
     reach: float
+    contact_range: tuple[tuple[float, float], ...]
     max_tilt: float
     description: str
 
     def __post_init__(self) -> None:
         k = len(self.fingers)
-        if len(self.sides) != k or len(self.contact_x) != k:
-            raise ValueError(f"hand {self.name!r}: sides and contact_x need one entry per finger")
+        if not len(self.sides) == len(self.contact_x) == len(self.contact_range) == k:
+            raise ValueError(
+                f"hand {self.name!r}: sides, contact_x and contact_range need one entry per finger"
+            )
         if not ({1.0, -1.0} <= set(self.sides) <= {1.0, -1.0}):
             raise ValueError(f"hand {self.name!r}: sides must be +1 or -1, on both sides")
 
@@ -84,7 +91,9 @@ HANDS: dict[str, HandSpec] = {
         joints=("abd", "mcp", "pip"),
         sides=(1.0, -1.0, -1.0, 1.0),
         contact_x=(-0.03, -0.02, 0.02, 0.03),
-        reach=0.015,
+        reach=0.02,
+        contact_range=((-0.05, 0.012), (-0.05, 0.022), (-0.022, 0.05), (-0.012, 0.05)),
+        # PenRotate's limit since v0 (docs/DESIGN.md, "Envelope of the 4-finger hand").
         max_tilt=0.35,
         description="four fingers, two above and two below the pen (the paper's skill example)",
     ),
@@ -95,8 +104,10 @@ HANDS: dict[str, HandSpec] = {
         joints=("abd", "mcp", "pip"),
         sides=(1.0, -1.0, 1.0),
         contact_x=(-0.03, 0.0, 0.03),
-        reach=0.015,
-        max_tilt=0.35,
+        reach=0.02,
+        contact_range=((-0.05, 0.014), (-0.049, 0.049), (-0.014, 0.05)),
+        # 5 / 5 seeds succeed at A = 0.4 rad for w = 2..12 rad/s, not at 0.45 rad, 12 rad/s.
+        max_tilt=0.4,
         description="three fingers: two short ones above the pen, a long thumb below its centre",
     ),
 }

@@ -9,18 +9,20 @@ paper frame and units (see :mod:`ias_gym.sim.glove_contacts`):
 
 - ``touching``: (index, thumb) touch the pen; ``sliding``: all False (a glove session has
   no sliding schedule);
-- ``c`` (eq. 3): per finger the pen's contact force resolved as one point contact with
-  friction [normal, t1, t2] at the finger's centre of pressure (eq. 16's columns), 6 values;
-- ``f_ext = W c`` (eq. 3) with W built by :func:`ias_gym.grasp.contacts.wrench_matrix`;
-- ``f_int = N^T c`` (eq. 10) and ``c_h = N N^T c`` (eq. 7), with N the unit null vector of
-  the rank-5 W of the pinch (:func:`~ias_gym.sim.glove_contacts.squeeze_null_vector`),
-  signed so that squeezing is positive; NaN unless both fingers touch. Two point contacts
-  never make rank W = 6, so the grip transform G of eq. (8) does not exist here, but the
-  internal force of the pinch - the squeeze along the line between the contacts - does.
+- ``c`` (eq. 3): per finger the pen's contact wrench resolved as one soft-finger contact
+  (the pads are MuJoCo condim-4 contacts): [normal, t1, t2] [N] at the finger's point and
+  the torsion about the normal [N m] (eq. 16's columns and ``[0; n]``), 8 values;
+- ``f_ext = W c`` (eq. 3), the fingers' net wrench on the pen, force and moment exactly,
+  with W of :func:`ias_gym.sim.glove_contacts.soft_wrench_matrix` (6 x 8);
+- ``f_int = N^T c`` (eq. 10, two columns) and ``c_h = N N^T c`` (eq. 7): while both
+  fingers touch W has rank 6, so G (eq. 8) exists and null(W) is two-dimensional; N is the
+  named basis of :func:`~ias_gym.sim.glove_contacts.pinch_null_basis`, the squeeze
+  (positive when squeezing) and the opposed torsions; NaN unless both fingers touch.
 
-The pads are soft contacts whose torsion has no column in the hard-finger c (eq. 16): W c
-carries the fingers' net force exactly and their moment to about 2e-3 N m (see
-:mod:`ias_gym.sim.glove_contacts`).
+Skills (:mod:`ias_gym.glove.skills`): an env made with ``skill=NAME`` performs that skill
+after the pinch-lift; a recording stores it with ``Skill.name == NAME`` and
+``env_kwargs["skill"] == NAME``, and its own motion starts at
+:func:`ias_gym.glove.skills.skill_start_time` ``(NAME, person_id)`` [s].
 
 The env has no expert: a glove session is teleoperation (the ``teleop`` policy of
 :func:`ias_gym.baselines.policies.load_policy`, zero action). Provenance: the person is the env's
@@ -88,7 +90,7 @@ class GloveSkillModelRecorder(SkillModelSamples):
         c = p.contact_intensities(contacts)
         N = pinch_null_basis(W, contacts)
         if N is not None:
-            # G (eq. 8) = [W+ N]^T-blocks: c = W+ W c + N N^T c (eqs. 4-7).
+            # G (eq. 8) exists: c = W+ W c + N N^T c (eqs. 4-7), f_int = N^T c (eq. 10).
             f_int = N.T @ c
             c_h = N @ f_int
         else:

@@ -11,8 +11,10 @@ aligned with the observations.
 The sampler follows the env's type (:func:`skill_model_recorder`): the pen-hand tasks
 (``IAS-Pen*``, :class:`SkillModelRecorder`) or the glove env ``IAS-GloveGrasp-v0`` and its
 subclasses (:class:`~ias_gym.skills.glove_session.GloveSkillModelRecorder`: a two-finger
-pinch, whose one internal force is the squeeze). A glove session is recorded with the
-``teleop`` policy (zero action); its skills carry the env's person and the glove's id.
+pinch of soft fingers, W 6 x 8, whose two internal forces are the squeeze and the opposed
+torsions). A glove session is recorded with the ``teleop`` policy (zero action); its skills
+carry the env's person and the glove's id, and a glove skill (``skill`` env kwarg,
+:data:`ias_gym.glove.skills.SKILLS`) is named after it.
 """
 
 from __future__ import annotations
@@ -158,7 +160,8 @@ def record_episode(
         seed: reset seed.
         source: provenance (see :func:`~ias_gym.baselines.policies.policy_source`).
         name: skill name; default ``"<task> <source> seed <seed>"`` (glove sessions:
-            ``"<task> <source> <person> seed <seed>"``).
+            ``"<task> <source> <person> seed <seed>"``; a glove skill: its name, e.g.
+            ``"tilt_left"``).
         person_id: who demonstrated it, if a person did (glove env: default and must be
             the env's person).
         env_kwargs: keyword arguments ``env`` was made with (stored for re-creating it).

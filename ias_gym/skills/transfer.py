@@ -87,7 +87,7 @@ class HandWorkspace:
 #: The held pen's centre moves at most this fraction of the tips' reach along the pen: the
 #: reach is measured with the pen at rest, and the tips must still hold the pen at the far
 #: end of a translation, tilted (measured on both hands: docs/transfer.md).
-TRANSLATION_SHARE = 0.4
+TRANSLATION_SHARE = 0.3
 
 
 def hand_names() -> list[str]:
@@ -525,7 +525,7 @@ def run_transfer(
             rows["pr"].append(ref.position)
             rows["a"].append(env.state.axis.copy())
             rows["ar"].append(ref.axis)
-            rows["m"].append(info["margin"])
+            rows["m"].append(env.grasp_margin())
             rows["mr"].append(info["margin_reference"])
             rows["ch"].append(info["internal_forces"])
             rows["cf"].append(info["contact_forces"])
@@ -552,7 +552,7 @@ def run_transfer(
         held_s=float(rows["t"][-1]),
         rot_rms_deg=math.degrees(info["rms_rotation_error"]),
         pos_rms_mm=1000.0 * info["rms_position_error"],
-        margin_err_rel=float(info["margin_error"]),
+        margin_err_rel=env.margin_error(),
         scale=reference.scale,
         scale_rotation=reference.scale_rotation,
         time=np.array(rows["t"]),

@@ -1,0 +1,397 @@
+"""Glove skills (issue #13): skills after the pinch-lift, any person id, soft-finger pads."""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.errors import InputError
+from ias_gym.glove import skills as glove_skills
+from ias_gym.glove.device import ReachPinchLiftTimings, SimulatedGlove
+from ias_gym.glove.hand import PersonParams
+from ias_gym.glove.operator import FromPreShape, pen_operator, skill_operator
+from ias_gym.glove.skills import (
+    SKILL_DESCRIPTIONS,
+    SKILLS,
+    SkillStyle,
+    check_skill,
+    skill_start_time,
+)
+from ias_gym.grasp.contacts import wrench_matrix
+from ias_gym.sim.glove_contacts import (
+    FingerContacts,
+    pinch_null_basis,
+    soft_contact_intensities,
+    soft_finger_cone_margin,
+    soft_wrench_matrix,
+)
+from ias_gym.sim.glove_scene import scene_pen_radius
+from ias_gym.skills import SkillDB
+from ias_gym.skills.glove_session import GloveSkillModelRecorder
+from ias_gym.skills.record import record_skills_spec
+from tests.closed_loop import perturbed_starts
+
+ENV_ID = "IAS-GloveGrasp-v0"
+#: Persons of the fixture: one the code ships (p2) and one it never saw before (q17).
+PERSONS = ("p2", "q17")
+ZERO = np.zeros(10, dtype=np.float32)
+
+
+def _rollout(
+    env: gym.Env[np.ndarray, np.ndarray], seed: int = 0, options: dict | None = None
+) -> dict[str, np.ndarray]:
+    """One teleop episode: the pen's pose per step and whether both fingers held it."""
+    unwrapped = env.unwrapped
+    assert isinstance(unwrapped, GloveGraspEnv)
+    env.reset(seed=seed, options=options)
+    pose, held, success = [], [], []
+    done = False
+    while not done:
+        _, _, terminated, truncated, info = env.step(ZERO)
+        position, rpy = unwrapped.physics.pen_pose()
+        pose.append(np.concatenate([position, rpy]))
+        held.append(info["index_contact"] and info["thumb_contact"])
+        success.append(info["is_success"])
+        done = terminated or truncated
+    return {
+        "time": unwrapped.config.control_dt * np.arange(1, len(pose) + 1),
+        "pose": np.array(pose),
+        "held": np.array(held),
+        "success": np.array(success),
+        "terminated": np.array(terminated),
+    }
+
+
+@pytest.fixture(scope="module")
+def runs() -> dict[tuple[str, str], dict[str, np.ndarray]]:
+    """Every skill performed once by each of :data:`PERSONS` (seed 0)."""
+    out = {}
+    for person in PERSONS:
+        for skill in SKILLS:
+            env = gym.make(ENV_ID, person_id=person, skill=skill)
+            out[person, skill] = _rollout(env)
+            env.close()
+    return out
+
+
+def _features(run: dict[str, np.ndarray], skill: str, person: str) -> np.ndarray:
+    """The pen's motion over the skill's own window (its start + motion + 0.3 s), on 40
+    points of normalised time, relative to the skill's start: x and height [mm], the
+    see-saw angle (yaw) [deg]."""
+    base = skill_operator(PersonParams.sample(person), scene_pen_radius(), skill)
+    start = skill_start_time(skill, person)
+    grid = start + np.linspace(0.0, max(base.motion_time, 1.0) + 0.3, 40)
+    pose = run["pose"]
+    f = np.column_stack([np.interp(grid, run["time"], pose[:, j]) for j in (0, 1, 5)])
+    f -= f[0]
+    return f * np.array([1e3, 1e3, math.degrees(1.0)])
+
+
+def test_skills_are_named_described_and_checked() -> None:
+    assert len(SKILLS) >= 5 and len(set(SKILLS)) == len(SKILLS)
+    assert set(SKILL_DESCRIPTIONS) == set(SKILLS)
+    assert check_skill("tilt_left") == "tilt_left"
+    for bad in ("nope", "", None, "Tilt_Left"):
+        with pytest.raises(InputError, match="choose one of lift_hold, seesaw_slow"):
+            check_skill(bad)
+    with pytest.raises(InputError, match="skill 'spin' is not a glove skill"):
+        gym.make(ENV_ID, skill="spin")
+
+
+def test_a_person_style_is_deterministic_in_the_id_across_processes() -> None:
+    """The same id gives the same person and style in another process with another hash
+    seed (Python's ``hash()`` would not); two ids differ."""
+    code = (
+        "import json; from ias_gym.glove.skills import SkillStyle;"
+        "from ias_gym.glove.hand import PersonParams;"
+        "print(json.dumps([repr(SkillStyle.sample('q17')), PersonParams.sample('q17').to_dict()]))"
+    )
+    env = {**os.environ, "PYTHONHASHSEED": "12345"}
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=Path(__file__).resolve().parents[1],
+    )
+    style, person = json.loads(out.stdout)
+    assert style == repr(SkillStyle.sample("q17"))
+    assert person == PersonParams.sample("q17").to_dict()
+    assert SkillStyle.sample("q17") != SkillStyle.sample("anna")
+    assert PersonParams.sample("q17") != PersonParams.sample("anna")
+    with pytest.raises(InputError, match="not a valid id"):
+        SkillStyle.sample("../x")
+
+
+#: sha256 (first 12 hex digits) of ``json.dumps(PersonParams.sample(p).to_dict())``,
+#: computed with the code before the glove skills.
+SHIPPED_PERSON_DIGESTS = {
+    "p1": "43acbbb57c9d",
+    "p2": "39faa0c11138",
+    "p3": "3a816e5f0e01",
+    "p4": "4b7857223813",
+    "p5": "29cded449a47",
+}
+
+
+def test_shipped_persons_keep_their_parameters() -> None:
+    """p1-p5 are sampled bit for bit as before (any valid id gives a person the same way)."""
+    got = {
+        p: hashlib.sha256(json.dumps(PersonParams.sample(p).to_dict()).encode()).hexdigest()[:12]
+        for p in SHIPPED_PERSON_DIGESTS
+    }
+    assert got == SHIPPED_PERSON_DIGESTS
+
+
+def test_the_default_episode_is_unchanged() -> None:
+    """Without a skill the operator is the old pinch-lift (its default timings and 2 N
+    pinch), and the episode's return is the one of the code before the skills (seed 3:
+    406.8341132481626, computed there; to 1e-9 relative, another machine's last bits)."""
+    env = gym.make(ENV_ID)
+    unwrapped = env.unwrapped
+    assert isinstance(unwrapped, GloveGraspEnv)
+    assert unwrapped.config.skill is None and unwrapped.skill_start is None
+    person = unwrapped.person
+    old = pen_operator(person, scene_pen_radius())
+    assert old.timings == ReachPinchLiftTimings() and old.pinch_force == 2.0
+    env.reset(seed=3)
+    glove = unwrapped.glove
+    assert glove is not None
+    ret, done, steps = 0.0, False, 0
+    script = FromPreShape(old)
+    while not done:
+        _, reward, terminated, truncated, _ = env.step(ZERO)
+        ret += float(reward)
+        done = terminated or truncated
+        steps += 1
+        # The glove read the old script at this step's time (read k at k / 100 s).
+        assert isinstance(glove, SimulatedGlove) and glove.last_theta is not None
+        np.testing.assert_array_equal(glove.last_theta, script(steps / 100.0))
+    env.close()
+    assert steps == 400
+    assert ret == pytest.approx(406.8341132481626, rel=1e-9)
+
+
+def test_skills_share_the_pinch_lift_then_differ(
+    runs: dict[tuple[str, str], dict[str, np.ndarray]],
+) -> None:
+    """Before ``skill_start_time`` every skill of a person is the same episode (bit for
+    bit); after it the pen moves differently."""
+    for person in PERSONS:
+        first = runs[person, SKILLS[0]]
+        for skill in SKILLS[1:]:
+            run = runs[person, skill]
+            start = skill_start_time(skill, person)
+            assert 1.6 <= start <= 1.9
+            before = run["time"] < start
+            np.testing.assert_array_equal(run["pose"][before], first["pose"][before])
+            after = run["time"] > start + 0.5
+            assert np.abs(run["pose"][after] - first["pose"][after]).max() > 1e-3
+
+
+def test_a_new_person_gives_the_same_episode_twice(
+    runs: dict[tuple[str, str], dict[str, np.ndarray]],
+) -> None:
+    """A person id never seen before (q17) is a deterministic person: a second env of the
+    same id and skill repeats the episode bit for bit; another id (p2) moves the pen
+    otherwise."""
+    env = gym.make(ENV_ID, person_id="q17", skill="seesaw_slow")
+    again = _rollout(env)
+    env.close()
+    np.testing.assert_array_equal(again["pose"], runs["q17", "seesaw_slow"]["pose"])
+    other = runs["p2", "seesaw_slow"]["pose"]
+    assert np.abs(again["pose"] - other).max() > 1e-3
+
+
+def test_skills_are_distinct_object_motions(
+    runs: dict[tuple[str, str], dict[str, np.ndarray]],
+) -> None:
+    """The pen's motion of two skills differs far more than that of one skill by two
+    persons (RMS over the skill's window, mm and deg). Measured over 9 persons: mean
+    between-skill distance 9 x the mean within-skill one; here with p2 and q17."""
+
+    def rms(a: np.ndarray, b: np.ndarray) -> float:
+        return float(np.sqrt(np.mean((a - b) ** 2)))
+
+    f = {(p, s): _features(runs[p, s], s, p) for p in PERSONS for s in SKILLS}
+    within = [rms(f[a, s], f[b, s]) for s in SKILLS for a, b in itertools.combinations(PERSONS, 2)]
+    between = [
+        rms(f[p, s1], f[q, s2])
+        for s1, s2 in itertools.combinations(SKILLS, 2)
+        for p in PERSONS
+        for q in PERSONS
+    ]
+    assert min(between) > 1.2 * max(within)
+    assert np.mean(between) > 4.0 * np.mean(within)
+
+
+def test_the_pen_stays_held_for_every_skill(
+    runs: dict[tuple[str, str], dict[str, np.ndarray]],
+) -> None:
+    """Both fingers hold the pen from the pinch to the end and the env's success holds at
+    the end (lifted; lift_place: put back within 5 mm of its start)."""
+    for (person, skill), run in runs.items():
+        assert not run["terminated"], (person, skill)
+        closed = np.flatnonzero(run["held"])[0]
+        assert run["held"][closed:].all(), (person, skill)
+        assert run["success"][-1], (person, skill)
+        if skill == "lift_place":
+            assert abs(run["pose"][-1, 1]) < 0.005 and run["pose"][:, 1].max() > 0.03
+        else:
+            assert run["pose"][-1, 1] > 0.03
+
+
+@pytest.mark.parametrize("skill", SKILLS)
+def test_the_pen_stays_held_from_perturbed_starts(skill: str) -> None:
+    """The same for a person never seen before, from nearby starts (closed_loop.py)."""
+    env = gym.make(ENV_ID, person_id="anna", skill=skill)
+    for options in perturbed_starts(env, seed=1):
+        run = _rollout(env, seed=1, options=options)
+        closed = np.flatnonzero(run["held"])[0]
+        assert run["held"][closed:].all() and run["success"][-1], options is None
+    env.close()
+
+
+def test_soft_finger_skill_model_during_a_skill() -> None:
+    """While the pen is held: W is 6 x 8 of rank 6, N (the squeeze and the opposed
+    torsions) spans null(W), W c is the fingers' net wrench on the pen (force and moment,
+    MuJoCo's), and every finger-pen contact lies in its friction cone."""
+    env = gym.make(ENV_ID, person_id="q17", skill="seesaw_fast")
+    unwrapped = env.unwrapped
+    assert isinstance(unwrapped, GloveGraspEnv)
+    recorder = GloveSkillModelRecorder()
+    env.reset(seed=0)
+    recorder.sample(unwrapped)
+    p = unwrapped.physics
+    held = 0
+    for _ in range(400):
+        _, _, terminated, truncated, _ = env.step(ZERO)
+        recorder.sample(unwrapped)
+        contacts = p.finger_contacts(unwrapped.contact_pass)
+        W, active = p.wrench_matrix(contacts)
+        c = p.contact_intensities(contacts)
+        assert W.shape == (6, 8) and c.shape == (8,)
+        if active.all():
+            held += 1
+            assert np.linalg.matrix_rank(W) == 6
+            N = pinch_null_basis(W, contacts)
+            assert N is not None
+            np.testing.assert_allclose(W @ N, 0.0, atol=1e-12)
+            np.testing.assert_allclose(N.T @ N, np.eye(2), atol=1e-12)
+            net = np.concatenate([contacts.force.sum(axis=0), contacts.moment.sum(axis=0)])
+            np.testing.assert_allclose(W @ c, net, atol=1e-9)
+            # A finger with one MuJoCo contact is that contact: inside its condim-4 cone.
+            margin = soft_finger_cone_margin(c, contacts.friction)
+            assert (margin[contacts.count == 1] > -1e-9).all()
+        if terminated or truncated:
+            break
+    env.close()
+    assert held > 250
+    model = recorder.model()
+    model.validate()
+    assert model.c.shape == (401, 8) and model.f_int.shape == (401, 2)
+    both = model.touching.all(axis=1)
+    assert np.isfinite(model.f_int[both]).all() and np.isnan(model.f_int[~both]).all()
+    assert (model.f_int[both, 0] > 0).all()  # squeezing
+
+
+def _contacts(points: np.ndarray, normals: np.ndarray, torsion: np.ndarray) -> FingerContacts:
+    frames = []
+    for n in normals:
+        t1 = np.array([1.0, 0.0, 0.0]) - n[0] * n
+        t1 /= np.linalg.norm(t1)
+        frames.append(np.stack([n, t1, np.cross(t1, n)]))
+    return FingerContacts(
+        active=np.array([True, True]),
+        points=points,
+        frames=np.array(frames),
+        force=np.zeros((2, 3)),
+        moment=np.zeros((2, 3)),
+        count=np.ones(2, dtype=np.int64),
+        torsion=torsion,
+        friction=np.array([[0.25, 0.03], [0.25, 0.03]]),
+    )
+
+
+def test_soft_pinch_wrench_matrix_and_internal_forces() -> None:
+    """An antipodal pinch of a 1 cm pen: the hard-finger W has rank 5 (no moment about the
+    chord), the soft-finger W (eq. 16 + [0; n]) rank 6; its null space is exactly the
+    squeeze and the opposed torsions; c_tau enters W c as a moment along the normal."""
+    r = 0.01
+    points = np.array([[0.0, r, 0.0], [0.0, -r, 0.0]])  # index above, thumb below
+    contacts = _contacts(points, -points / r, np.zeros(2))
+    assert np.linalg.matrix_rank(wrench_matrix(points, contacts.frames)) == 5
+    W = soft_wrench_matrix(contacts, np.zeros(3))
+    assert W.shape == (6, 8) and np.linalg.matrix_rank(W) == 6
+    np.testing.assert_array_equal(W[:, 3], [0, 0, 0, *contacts.frames[0, 0]])
+    N = pinch_null_basis(W, contacts)
+    assert N is not None
+    s = 1.5  # each finger squeezes with 1.5 N and twists by 2 mN m the other way
+    c = np.array([s, 0, 0, 0.002, s, 0, 0, 0.002])
+    np.testing.assert_allclose(W @ c, 0.0, atol=1e-15)
+    np.testing.assert_allclose(N.T @ c, [math.sqrt(2) * s, math.sqrt(2) * 0.002], atol=1e-12)
+    # One finger twisting alone is an external moment about the chord (paper y here).
+    one = np.array([0, 0, 0, 0.002, 0, 0, 0, 0])
+    np.testing.assert_allclose(W @ one, [0, 0, 0, 0, -0.002, 0], atol=1e-15)
+    c_from = soft_contact_intensities(_contacts(points, -points / r, np.array([0.002, 0.0])))
+    assert c_from[3] == 0.002 and c_from[7] == 0.0
+    # The cone: |t| / mu and |tau| / mu_tau inside the normal force (elliptic).
+    friction = np.array([[0.25, 0.03], [0.25, 0.03]])
+    inside = np.array([1.0, 0.15, 0.0, 0.01, 1.0, 0.0, 0.0, 0.0])
+    outside = np.array([1.0, 0.2, 0.0, 0.02, 1.0, 0.0, 0.0, 0.0])
+    assert (soft_finger_cone_margin(inside, friction) > 0).all()
+    assert soft_finger_cone_margin(outside, friction)[0] < 0
+
+
+def test_record_names_the_skill_and_the_person(tmp_path: Path) -> None:
+    db = tmp_path / "skills.db"
+    ids = record_skills_spec(
+        ENV_ID, "teleop", 1, db, seed=0, progress=False, person_id="x9", skill="tilt_right"
+    )
+    with SkillDB(db) as database:
+        skill = database.get(ids[0])
+    assert skill.name == "tilt_right" and skill.person_id == "x9"
+    assert skill.env_kwargs == {"person_id": "x9", "skill": "tilt_right"}
+    assert skill.model.c.shape[1] == 8 and skill.model.f_int.shape[1] == 2
+    assert skill.is_success
+    # The stored skill start: the same function, from the stored kwargs.
+    assert skill_start_time(skill.env_kwargs["skill"], skill.person_id) == pytest.approx(
+        glove_skills.SKILL_TIMINGS.lift
+        - glove_skills.SKILL_TIMINGS.reach
+        + SkillStyle.sample("x9").delay
+    )
+    with pytest.raises(InputError, match="not a glove skill; choose one of"):
+        record_skills_spec(ENV_ID, "teleop", 1, db, progress=False, skill="wave")
+    with pytest.raises(InputError, match="--skill is for glove envs"):
+        record_skills_spec("IAS-PenRotate-v0", "expert", 1, db, progress=False, skill="tilt_left")
+
+
+def test_cli_skill_option(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--skill``'s help lists the skills; a wrong name is one line naming the valid ones
+    (exit 2, nothing stored)."""
+    from ias_gym.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["skills", "record", "--help"])
+    # argparse wraps the help text: compare without line breaks and indentation
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "--skill NAME" in help_text and ", ".join(SKILLS) in help_text
+    db = tmp_path / "s.db"
+    code = main(["skills", "record", "--env", ENV_ID, "--policy", "teleop", "--skill", "wave",
+                 "--db", str(db), "--no-progress"])  # fmt: skip
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1
+    assert "'wave' is not a glove skill; choose one of " + ", ".join(SKILLS) in err[0]
+    assert not db.exists()
