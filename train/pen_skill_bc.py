@@ -63,6 +63,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--heldout-skills", default=HELDOUT_SKILLS, help="comma-separated")
     parser.add_argument("--heldout-persons", default=HELDOUT_PERSONS, help="comma-separated")
     parser.add_argument(
+        "--extra-train-persons",
+        default="",
+        help="comma-separated ids: their glove sessions of the training skills are recorded "
+        "into OUT/train_library.db beside a copy of --train-db (missing ones only), and that "
+        "library is trained on (e.g. tr-k4m2,tr-q8s1,tr-w3n7)",
+    )
+    parser.add_argument(
         "--noise", type=float, default=0.001, help="DART noise std [normalised torque]"
     )
     parser.add_argument("--record-seed", type=int, default=0, help="seed of the first demo")
@@ -91,7 +98,7 @@ def _names(text: str) -> list[str]:
     return [t.strip() for t in text.split(",") if t.strip()]
 
 
-def record_heldout_persons(db: Path, persons: Sequence[str], skills: Sequence[str]) -> None:
+def record_sessions(db: Path, persons: Sequence[str], skills: Sequence[str]) -> None:
     """Record one glove session per person and skill into ``db`` (those missing there)."""
     from tqdm import tqdm
 
@@ -103,10 +110,31 @@ def record_heldout_persons(db: Path, persons: Sequence[str], skills: Sequence[st
         with SkillDB(db, readonly=True) as store:
             have = {(s.person_id, s.name) for s in store.list_skills()}
     todo = [(p, s) for p in persons for s in skills if (p, s) not in have]
-    for person, skill in tqdm(todo, desc="held-out persons' glove sessions", unit="session"):
+    for person, skill in tqdm(todo, desc="glove sessions", unit="session"):
         record_skills_spec(
             "IAS-GloveGrasp-v0", "teleop", 1, db, progress=False, person_id=person, skill=skill
         )
+
+
+def extend_library(
+    source: Path, target: Path, persons: Sequence[str], heldout_skills: Sequence[str]
+) -> Path:
+    """``target``: a copy of ``source``'s skills (made once) plus one glove session of each
+    of ``persons`` per skill not held out (those missing there are recorded).
+    """
+    from ias_gym.glove.skills import SKILLS
+    from ias_gym.skills.db import SkillDB
+
+    if not target.exists():
+        tmp = target.with_name(f".{target.name}.partial")
+        for suffix in ("", "-wal", "-shm"):
+            Path(f"{tmp}{suffix}").unlink(missing_ok=True)
+        with SkillDB(source, readonly=True) as src, SkillDB(tmp) as dst:
+            for summary in src.list_skills():
+                dst.add(src.get(summary.id))
+        tmp.rename(target)  # closed cleanly: the write-ahead log is folded into the file
+    record_sessions(target, persons, [s for s in SKILLS if s not in heldout_skills])
+    return target
 
 
 def first_per_person_and_skill(summaries: Sequence[Any]) -> list[Any]:
@@ -304,6 +332,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     torch.set_num_threads(args.threads)
     heldout_skills, heldout_persons = _names(args.heldout_skills), _names(args.heldout_persons)
     train_db = Path(args.train_db) if args.train_db else shipped_skill_db()
+    extra = _names(args.extra_train_persons)
+    if set(extra) & set(heldout_persons):
+        print(f"error: {sorted(set(extra) & set(heldout_persons))} are held out", file=sys.stderr)
+        return 2
+    if extra:
+        train_db = extend_library(train_db, out / "train_library.db", extra, heldout_skills)
     with SkillDB(train_db, readonly=True) as db:
         summaries = db.list_skills()
     split = split_skills(summaries, heldout_skills, heldout_persons)
@@ -321,8 +355,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise AssertionError(f"held-out persons {leaked} in the training data")
 
     env_kwargs: dict[str, Any] = {"hand": args.hand, "skill_ids": list(split.train)}
-    if args.train_db:
-        env_kwargs["skill_db"] = str(train_db)
+    library = None if train_db == shipped_skill_db() else str(train_db)  # None: the env's default
+    if library is not None:
+        env_kwargs["skill_db"] = library
     demos_db = out / "demos.db"
     if demos_db.exists():  # --overwrite: a fresh recording, not appended to the old one
         for suffix in ("", "-wal", "-shm"):
@@ -370,7 +405,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ias_gym.glove.skills import SKILLS
 
     # Recorded after training (missing sessions only): nothing of them can reach training.
-    record_heldout_persons(heldout_db, heldout_persons, SKILLS)
+    record_sessions(heldout_db, heldout_persons, SKILLS)
     with SkillDB(heldout_db, readonly=True) as db:
         heldout_split = split_skills(
             first_per_person_and_skill(db.list_skills()), heldout_skills, heldout_persons
@@ -383,8 +418,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "random": "random",
     }
     libraries = {
-        "train": (args.train_db, split.train),
-        "heldout_skill": (args.train_db, split.heldout_skill),
+        "train": (library, split.train),
+        "heldout_skill": (library, split.heldout_skill),
         "heldout_person": (str(heldout_db), heldout_split.heldout_person),
         "heldout_both": (str(heldout_db), heldout_split.heldout_both),
     }
