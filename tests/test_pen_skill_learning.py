@@ -24,6 +24,9 @@ from hypothesis import strategies as st
 torch = pytest.importorskip("torch")
 pytest.importorskip("stable_baselines3")
 
+import cloudpickle  # noqa: E402
+from stable_baselines3 import PPO  # noqa: E402
+
 from ias_gym.baselines.policies import load_policy  # noqa: E402
 from ias_gym.glove.skills import SKILLS  # noqa: E402
 from ias_gym.learning.cloning import action_mse, behaviour_clone  # noqa: E402
@@ -149,8 +152,12 @@ def test_pipeline_records_clones_saves_and_acts(
     def no_unpickling(*args: object, **kwargs: object) -> None:
         raise AssertionError("the policy file was unpickled")
 
+    # SB3's own load unpickles (cloudpickle.loads on the zip's data, torch.load of the
+    # optimiser state): none of them may run.
     monkeypatch.setattr(pickle, "loads", no_unpickling)
     monkeypatch.setattr(pickle, "load", no_unpickling)
+    monkeypatch.setattr(cloudpickle, "loads", no_unpickling)
+    monkeypatch.setattr(PPO, "load", no_unpickling)
     policy = load_policy(str(path), env)
     monkeypatch.undo()
     obs, _ = env.reset(seed=5)
