@@ -31,6 +31,7 @@ from ias_gym.cli.args import (
     parse_env_kwargs,
     positive_int,
 )
+from ias_gym.cli.assist import add_assist_commands
 from ias_gym.cli.evaluate import add_evaluate_command
 from ias_gym.cli.figures import add_figure_commands
 from ias_gym.cli.glove import add_glove_commands
@@ -62,6 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_skills_commands(commands)
     add_glove_commands(commands)
     add_hardware_commands(commands)
+    add_assist_commands(commands)
     return parser
 
 
