@@ -1,0 +1,299 @@
+"""Intent recognition (issue #14): posterior, known/unknown sessions, on-line acquisition."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("dtaidistance")
+
+from ias_gym.assist.metrics import (
+    LabelledSession,
+    auroc,
+    labelled_session,
+    motion_time,
+    posterior_trace,
+    record_sessions,
+    score_trace,
+)
+from ias_gym.assist.recognition import (
+    DTW_STRIDE,
+    UNKNOWN,
+    DTWRecogniser,
+    LibrarySession,
+    PhaseRecogniser,
+    Posterior,
+    Recogniser,
+    acquire_skill,
+    make_recogniser,
+    open_end_dtw_cost,
+)
+from ias_gym.assist.stream import frames_from_skill
+from ias_gym.cli import main
+from ias_gym.errors import InputError
+from ias_gym.skills import SkillDB
+
+#: The small library: two persons, three skills; seesaw_fast is the skill it does not know.
+KNOWN = ("lift_hold", "tilt_left", "tilt_right")
+NEW = "seesaw_fast"
+LIB_PERSONS = ("p1", "p2")
+TEST_PERSON = "p3"
+
+
+@pytest.fixture(scope="session")
+def recorded(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
+    """One small recorded library (stored in a DB) and the test sessions, for all tests."""
+    path = tmp_path_factory.mktemp("recog") / "lib.db"
+    with SkillDB(path) as db:
+        record_sessions(LIB_PERSONS, KNOWN, 1, seed=0, db=db)
+        new_demos = record_sessions(LIB_PERSONS, (NEW,), 1, seed=0)
+        with SkillDB(path, readonly=True) as ro:
+            library = [labelled_session(ro.get(i)) for i in ro.ids()]
+    tests = {s.skill: s for s in record_sessions((TEST_PERSON,), ("tilt_left", NEW), 1, seed=100)}
+    return {"path": path, "library": library, "new_demos": new_demos, "tests": tests}
+
+
+def _lib(recorded: dict[str, object]) -> list[LibrarySession]:
+    return [s.library() for s in recorded["library"]]  # type: ignore[attr-defined]
+
+
+def _session(recorded: dict[str, object], skill: str) -> LabelledSession:
+    return recorded["tests"][skill]  # type: ignore[index]
+
+
+def test_library_round_trips_through_the_db(recorded: dict[str, object]) -> None:
+    """The stored sessions keep Ψ and Θ: frames rebuilt from the DB equal the recorded ones."""
+    library = recorded["library"]
+    assert {(s.skill, s.person_id) for s in library} == {  # type: ignore[attr-defined]
+        (k, p) for k in KNOWN for p in LIB_PERSONS
+    }
+    s = library[0]  # type: ignore[index]
+    assert np.isfinite(np.stack([f.readings for f in s.frames])).all()
+    assert len(s.frames) == 401
+    # the motion window follows the person's style
+    assert s.t_end > s.t_start > 1.6
+
+
+@pytest.mark.parametrize("method", ["dtw", "phase"])
+def test_posterior_sums_to_one_and_is_updated_every_step(
+    recorded: dict[str, object], method: str
+) -> None:
+    rec = make_recogniser(method, _lib(recorded))
+    assert isinstance(rec, Recogniser)
+    session = _session(recorded, "tilt_left")
+    rec.reset()
+    previous = None
+    changed = 0
+    start = int(np.searchsorted([f.time_s for f in session.frames], session.t_start))
+    for i, frame in enumerate(session.frames):
+        post = rec.update(frame)
+        assert set(post) == {*KNOWN, UNKNOWN}
+        assert sum(post.values()) == pytest.approx(1.0, abs=1e-12)
+        assert all(0.0 <= p <= 1.0 for p in post.values())
+        values = tuple(post.values())
+        if i > start and values != previous:
+            changed += 1
+        previous = values
+    steps = len(session.frames) - 1 - start
+    # phase: a new posterior at every step of the motion; DTW: on its stride's grid
+    expected = steps if method == "phase" else steps // DTW_STRIDE
+    assert changed >= expected - 1
+
+
+@pytest.mark.parametrize("method", ["dtw", "phase"])
+def test_a_known_skill_is_recognised_and_a_left_out_one_ends_unknown(
+    recorded: dict[str, object], method: str
+) -> None:
+    rec = make_recogniser(method, _lib(recorded))
+    known = _session(recorded, "tilt_left")
+    P, names, times = posterior_trace(rec, known.frames)
+    result = score_trace(P, names, times, known)
+    assert result.final == "tilt_left"
+    assert not result.false_trigger
+    new = _session(recorded, NEW)
+    P, names, times = posterior_trace(rec, new.frames)
+    assert names[int(np.argmax(P[-1]))] == UNKNOWN
+    # before the skill's motion every session is the same pinch-lift: not unknown yet
+    before = int(np.searchsorted(times, new.t_start)) - 1
+    assert names[int(np.argmax(P[before]))] != UNKNOWN
+    # the whole-session score agrees with the step-by-step one
+    post, _ = rec.score_session(new.frames)
+    assert post.best == UNKNOWN
+    assert post[UNKNOWN] == pytest.approx(P[-1, -1], abs=1e-6 if method == "phase" else 1e-9)
+
+
+@pytest.mark.parametrize("method", ["dtw", "phase"])
+def test_add_skill_makes_the_new_skill_recognised_without_rebuilding(
+    recorded: dict[str, object], method: str
+) -> None:
+    rec = make_recogniser(method, _lib(recorded))
+    loo_before = rec.loo_scores
+    models_before = dict(getattr(rec, "_models", {}))
+    demos = recorded["new_demos"]  # two persons' sessions of the new skill
+    rec.add_skill(NEW, [d.frames for d in demos])  # type: ignore[attr-defined]
+    assert rec.skills == (*KNOWN, NEW)
+    # nothing refitted: the old skills' models are the same objects, the old scores kept
+    assert rec.loo_scores[: len(loo_before)] == loo_before
+    for name, model in models_before.items():
+        assert rec._models[name] is model
+    post, _ = rec.score_session(_session(recorded, NEW).frames)
+    assert post.best == NEW
+    post, _ = rec.score_session(_session(recorded, "tilt_left").frames)
+    assert post.best == "tilt_left"
+    with pytest.raises(InputError, match="unknown"):
+        rec.add_skill(UNKNOWN, [demos[0].frames])  # type: ignore[index]
+
+
+def _dtw_numpy(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Textbook DTW: the last row of the cumulative squared-cost matrix."""
+    cost = ((a[:, None, :] - b[None, :, :]) ** 2).sum(axis=-1)
+    D = np.full((len(a) + 1, len(b) + 1), np.inf)
+    D[0, 0] = 0.0
+    for i in range(1, len(a) + 1):
+        for j in range(1, len(b) + 1):
+            D[i, j] = cost[i - 1, j - 1] + min(D[i - 1, j], D[i, j - 1], D[i - 1, j - 1])
+    return D[len(a), 1:]
+
+
+def test_open_end_dtw_agrees_with_dtaidistance_and_a_textbook_dtw() -> None:
+    from dtaidistance import dtw_ndim
+
+    rng = np.random.default_rng(3)
+    template = np.cumsum(rng.normal(size=(40, 3)), axis=0)
+    query = template[:17] + 0.1 * rng.normal(size=(17, 3))
+    got = open_end_dtw_cost(query, template)
+    # open end: the best prefix of the template
+    prefixes = [dtw_ndim.distance(query, template[:m], use_c=True) ** 2 for m in range(1, 41)]
+    assert got * len(query) == pytest.approx(min(prefixes), rel=1e-9)
+    assert got * len(query) == pytest.approx(_dtw_numpy(query, template).min(), rel=1e-9)
+    # the full pair: dtaidistance's own distance
+    full = open_end_dtw_cost(template, template[::-1].copy())
+    last = dtw_ndim.distance(template, template[::-1].copy(), use_c=True) ** 2
+    assert full * len(template) <= last + 1e-9
+    # a partial query matches the prefix far better than the whole template
+    assert got * len(query) < 0.2 * dtw_ndim.distance(query, template, use_c=True) ** 2
+
+
+def test_posterior_checks_and_best() -> None:
+    post = Posterior({"a": 2.0, "b": 1.0, UNKNOWN: 1.0})
+    assert post["a"] == pytest.approx(0.5) and post.best == "a"
+    with pytest.raises(ValueError):
+        Posterior({"a": float("nan"), UNKNOWN: 0.0})
+    with pytest.raises(ValueError):
+        Posterior({"a": 1.0})
+
+
+def test_auroc_is_the_rank_statistic() -> None:
+    assert auroc([3.0, 4.0], [1.0, 2.0]) == 1.0
+    assert auroc([1.0], [2.0]) == 0.0
+    assert auroc([1.0, 3.0], [2.0, 2.0]) == 0.5
+    assert auroc([2.0], [2.0]) == 0.5
+
+
+def test_motion_time_matches_the_operator() -> None:
+    import gymnasium as gym
+
+    env = gym.make("IAS-GloveGrasp-v0", person_id="p2", skill="seesaw_slow")
+    try:
+        op = env.unwrapped.glove_factory(0).operator.operator  # SimulatedGlove(FromPreShape)
+        assert motion_time("seesaw_slow", "p2") == pytest.approx(op.motion_time)
+    finally:
+        env.close()
+
+
+def test_acquisition_is_atomic(recorded: dict[str, object], tmp_path: Path) -> None:
+    """A failure while the session is written leaves the DB and the recogniser unchanged;
+    a successful one stores it and the recogniser knows it from then on."""
+    rec = DTWRecogniser(_lib(recorded))
+    path = tmp_path / "acq.db"
+    demo = recorded["new_demos"][0]  # type: ignore[index]
+    with SkillDB(recorded["path"], readonly=True) as src:  # type: ignore[arg-type]
+        skill = src.get(src.ids()[0])
+    with SkillDB(path) as db:
+        n = len(db)
+
+        class FailingArrays:
+            """The connection, failing when the arrays are written (after the skill's row)."""
+
+            def __init__(self, conn: sqlite3.Connection) -> None:
+                self.conn = conn
+
+            def __getattr__(self, name: str) -> object:
+                return getattr(self.conn, name)
+
+            def executemany(self, *args: object) -> None:
+                raise sqlite3.OperationalError("disk I/O error (injected)")
+
+        real = db._conn
+        db._conn = FailingArrays(real)  # type: ignore[assignment]
+        try:
+            with pytest.raises(Exception, match="injected"):
+                acquire_skill(db, rec, skill, demo.frames, "new_skill")
+        finally:
+            db._conn = real
+        assert len(db) == n
+        assert "new_skill" not in rec.skills
+        skill_id = acquire_skill(db, rec, skill, demo.frames, "new_skill")
+        assert len(db) == n + 1
+        assert db.get(skill_id).name == "new_skill"
+        assert rec.skills[-1] == "new_skill"
+        stored = frames_from_skill(db.get(skill_id))
+        assert np.array_equal(stored[-1].theta, skill.demonstration.infos["glove_theta"][-1])
+
+
+def test_recogniser_refuses_an_uncalibrated_library(recorded: dict[str, object]) -> None:
+    one_person = [s for s in _lib(recorded) if s.group == "p1"]
+    with pytest.raises(InputError, match="two persons"):
+        PhaseRecogniser(one_person)
+    with pytest.raises(InputError, match="choose one of"):
+        make_recogniser("hmm", _lib(recorded))
+
+
+def test_cli_recognise_json(
+    recorded: dict[str, object], capsys: pytest.CaptureFixture[str]
+) -> None:
+    code = main(
+        [
+            "assist",
+            "recognise",
+            "--db",
+            str(recorded["path"]),
+            "--persons",
+            TEST_PERSON,
+            "--method",
+            "phase",
+            "--episodes",
+            "1",
+            "--json",
+        ]
+    )
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in (
+        "recog_acc_at_33",
+        "recog_acc_at_60",
+        "time_to_recognise_s",
+        "false_trigger_rate",
+        "unknown_auroc",
+    ):
+        assert key in out
+    assert out["sessions"] == len(KNOWN)
+    assert out["final_accuracy"] == 1.0
+
+
+def test_cli_recognise_errors(
+    recorded: dict[str, object], capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = str(recorded["path"])
+    for args, message in (
+        (["--db", "/nonexistent.db", "--persons", "p9"], "no such file"),
+        (["--db", path, "--persons", "p1"], "in the library"),
+        (["--db", path, "--persons", "p9", "--method", "knn"], "choose one of"),
+    ):
+        assert main(["assist", "recognise", *args]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and message in err
