@@ -44,6 +44,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--db", default=None, help="skill library (default: shipped)")
     parser.add_argument("--residual", default=None, help="a trained residual assistant (.zip)")
+    parser.add_argument(
+        "--assistants",
+        default="analytic,residual",
+        help="which to measure (residual needs --residual)",
+    )
+    parser.add_argument("--recogniser", default="oracle", help="oracle, dtw or phase")
+    parser.add_argument("--strength", type=float, default=None, help="override (one impairment)")
     parser.add_argument("--switch-time", type=float, default=2.2, help="episode time [s]")
     parser.add_argument("--out", default="out/assist_table", help="writes OUT.md and OUT.json")
     parser.add_argument("--overwrite", action="store_true")
@@ -58,16 +65,34 @@ def main(argv: list[str] | None = None) -> int:
     imps = list(IMPAIRMENTS) if args.impairments == "all" else args.impairments.split(",")
     templates = load_templates(args.db)
     assistants: dict[str, Any] = {"analytic": lambda: AnalyticAssistant(templates)}
+    if args.recogniser != "oracle":
+        from ias_gym.assist.recognition import make_recogniser
+        from ias_gym.skills import SkillDB
+        from ias_gym.skills.transfer import shipped_skill_db
+
+        with SkillDB(args.db or shipped_skill_db(), readonly=True) as db:
+            recogniser = make_recogniser(args.recogniser, db)
+        assistants = {
+            f"analytic+{args.recogniser}": lambda: AnalyticAssistant(templates, recogniser)
+        }
     if args.residual:
         from ias_gym.learning.assist_residual import ResidualAssistant
 
         assistants["residual"] = lambda: ResidualAssistant.load(args.residual, templates)
+    wanted = args.assistants.split(",")
+    assistants = {k: v for k, v in assistants.items() if k.split("+")[0] in wanted}
     results: dict[str, Any] = {"persons": persons, "skills": list(SKILLS), "seed": args.seed}
     total = len(assistants) * len(imps) * len(persons) * len(SKILLS)
     with tqdm(total=total, desc="session pairs") as bar:
         for name, make in assistants.items():
             scores = evaluate_assistance(
-                make, persons, imps, len(SKILLS), args.seed, progress=lambda: bar.update(1)
+                make,
+                persons,
+                imps,
+                len(SKILLS),
+                args.seed,
+                progress=lambda: bar.update(1),
+                env_kwargs=None if args.strength is None else {"strength": args.strength},
             )
             results[name] = {k: v.to_json() for k, v in scores.items()}
     latency: dict[str, Any] = {}
@@ -94,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
         first = next(iter(assistants))
         row = [
             imp,
-            f"{DEFAULT_STRENGTHS[imp]:g}",
+            f"{DEFAULT_STRENGTHS[imp] if args.strength is None else args.strength:g}",
             f"{100 * results[first][imp]['success_unassisted']:.0f} %",
         ]
         for n in assistants:

@@ -8,7 +8,8 @@ for the posterior over the library's skills and returns joint-target offsets, th
 1. **tremor removal**: a causal band-stop (2nd-order Butterworth, :data:`TREMOR_STOP` Hz,
    scipy) on the wrist and pinching joints; offset = filtered Θ - Θ. Intended motion
    (the fastest skill, the fast see-saw, is 1.5 Hz) passes almost unchanged;
-2. **lag compensation**: the lag of the readings is estimated once, when the operator's
+2. **lag compensation** (off by default: it made the held-out sessions worse,
+   docs/assistance.md): the lag of the readings is estimated once, when the operator's
    lift crosses half its wrist extension, against the protocol's lift (the pinch-lift is
    timed alike for every person, :data:`~ias_gym.glove.skills.SKILL_TIMINGS`, seen through
    the env's low-pass); the wrist then gets the motion its own recent past predicts over
@@ -55,6 +56,7 @@ from numpy.typing import NDArray
 from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from ias_gym.assist.impairments import TREMOR_JOINTS, pinch_direction
+from ias_gym.assist.stream import SessionFrame, frames_from_env
 from ias_gym.errors import InputError
 from ias_gym.glove.device import ReachPinchLift
 from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS, WRIST_JOINTS, PersonParams, joint_index
@@ -244,19 +246,7 @@ class OracleRecogniser:
             self._skills = (*self._skills, name)
 
 
-@dataclass(frozen=True)
-class _Frame:
-    """The part of a session frame the oracle reads (until the stream module is merged)."""
-
-    time_s: float
-    theta: FloatArray
-
-
-def _session_frame(env: Any) -> Any:
-    try:
-        from ias_gym.assist.stream import frames_from_env
-    except ImportError:
-        return _Frame(env._steps * env.config.control_dt, env._theta.copy())
+def _session_frame(env: Any) -> SessionFrame:
     return frames_from_env(env)
 
 
@@ -308,7 +298,9 @@ class AnalyticAssistant:
         templates: the library's templates (:func:`load_templates`).
         recogniser: gives the posterior (the recogniser protocol); None: an
             :class:`OracleRecogniser` on the env's intent, made at every :meth:`reset`.
-        tremor_filter, lag_compensation, squeeze, height: switch the four terms (ablations).
+        tremor_filter, lag_compensation, squeeze, height: switch the four terms (ablations;
+            the lag compensation is off by default: it made held-out sessions worse,
+            docs/assistance.md).
     """
 
     def __init__(
@@ -317,7 +309,7 @@ class AnalyticAssistant:
         recogniser: Any = None,
         *,
         tremor_filter: bool = True,
-        lag_compensation: bool = True,
+        lag_compensation: bool = False,
         squeeze: bool = True,
         height: bool = True,
     ) -> None:

@@ -74,7 +74,8 @@ class SessionResult:
         held: both pads touch the pen at the end.
         skill_start: episode time of the skill's start [s].
         intervention: mean |offset| over mean operator motion [-] (module docstring).
-        top_skill: ``(T,)`` the recogniser's most probable skill at each step ("" if none).
+        top_skill: ``(T,)`` the recogniser's most probable skill (or ``"unknown"``) at each
+            step ("" without a recogniser).
         switch_latency_s: intent-switch latency [s] (NaN without a switch).
         success: filled in by :func:`session_success` against a reference.
     """
@@ -136,8 +137,7 @@ def run_session(
         else:
             action = np.clip(np.asarray(assistant.act(u), dtype=np.float64), -1.0, 1.0)
             post = assistant.posterior()
-            known = {k: v for k, v in post.items() if k != "unknown"}
-            top.append(max(known, key=known.__getitem__) if known else "")
+            top.append(max(post, key=post.__getitem__) if post else "")
         obs, _, terminated, truncated, info = env.step(action)
         theta = np.asarray(info["operator_theta"])
         theta0 = theta if theta0 is None else theta0
@@ -220,21 +220,30 @@ class ImpairmentScore:
         success_unassisted: share of sessions that succeed without the assistant [-].
         success_assisted: with it [-].
         intervention: the assistant's mean intervention [-] (module docstring).
-        sessions: number of sessions of each kind.
+        sessions: number of sessions of each kind that count.
+        excluded: sessions left out because the unimpaired person's own session failed
+            (the pen not lifted 3 cm or not held at the end: no reference to reach).
     """
 
     success_unassisted: float
     success_assisted: float
     intervention: float
     sessions: int
+    excluded: int = 0
 
-    def to_json(self) -> dict[str, float]:
-        """The three shares as a JSON object (``sessions`` as well)."""
+    def to_json(self) -> dict[str, float | None]:
+        """The three shares as a JSON object (``sessions`` and ``excluded`` as well; null
+        for a share of no session)."""
+
+        def number(x: float) -> float | None:
+            return None if math.isnan(x) else x
+
         return {
-            "success_unassisted": self.success_unassisted,
-            "success_assisted": self.success_assisted,
-            "intervention": self.intervention,
+            "success_unassisted": number(self.success_unassisted),
+            "success_assisted": number(self.success_assisted),
+            "intervention": number(self.intervention),
             "sessions": self.sessions,
+            "excluded": self.excluded,
         }
 
 
@@ -253,7 +262,8 @@ def evaluate_assistance(
     For every person and impairment, ``episodes`` sessions: session ``i`` performs skill
     ``skills[i % len(skills)]`` from reset seed ``seed + i``, once without and once with
     the assistant, each judged against the unimpaired session of the same person, skill and
-    seed (run once and reused).
+    seed (run once and reused). A session whose unimpaired reference fails itself (the
+    env's success or the pinch at the end) is left out and counted in ``excluded``.
 
     Args:
         make_assistant: ``() -> Assistant``, a fresh assistant.
@@ -276,6 +286,7 @@ def evaluate_assistance(
     out = {}
     for imp in impairments:
         ok_u, ok_a, interv = [], [], []
+        excluded = 0
         for person in persons:
             for i in range(episodes):
                 skill, s = skills[i % len(skills)], seed + i
@@ -284,6 +295,12 @@ def evaluate_assistance(
                     ref_env = gym.make("IAS-GloveAssist-v0", person_id=person, skill=skill)
                     references[key] = run_session(ref_env, None, s)
                     ref_env.close()
+                ref = references[key]
+                if not (ref.env_success and ref.held):
+                    excluded += 1
+                    if progress is not None:
+                        progress()
+                    continue
                 env = gym.make(
                     "IAS-GloveAssist-v0", person_id=person, skill=skill, impairment=imp, **extra
                 )
@@ -295,8 +312,13 @@ def evaluate_assistance(
                 interv.append(assisted.intervention)
                 if progress is not None:
                     progress()
+        nan = math.nan
         out[imp] = ImpairmentScore(
-            float(np.mean(ok_u)), float(np.mean(ok_a)), float(np.mean(interv)), len(ok_u)
+            float(np.mean(ok_u)) if ok_u else nan,
+            float(np.mean(ok_a)) if ok_a else nan,
+            float(np.mean(interv)) if interv else nan,
+            len(ok_u),
+            excluded,
         )
     return out
 

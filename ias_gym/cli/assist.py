@@ -124,6 +124,23 @@ def _recognition_metrics(db: Path, persons: list[str], episodes: int, seed: int)
     return {k: result.get(k) for k in RECOGNITION_KEYS}
 
 
+def _recogniser_factory(method: str, db: Path | None) -> Any:
+    """``() -> recogniser`` for the assistant: ``oracle`` (None: the assistant's oracle on
+    the env's true intent) or a recogniser of :mod:`ias_gym.assist.recognition` built once
+    on ``db`` (default: the shipped library) and reset by the assistant every session."""
+    if method == "oracle":
+        return lambda: None
+    from ias_gym.assist.recognition import METHODS, make_recogniser
+    from ias_gym.skills import SkillDB
+    from ias_gym.skills.transfer import shipped_skill_db
+
+    if method not in METHODS:
+        raise InputError(f"--recogniser {method!r}: choose oracle or one of {', '.join(METHODS)}")
+    with SkillDB(db if db is not None else shipped_skill_db(), readonly=True) as handle:
+        recogniser = make_recogniser(method, handle)
+    return lambda: recogniser
+
+
 def _evaluate(args: argparse.Namespace) -> int:
     persons = _persons(args.persons)
     impairments = _impairments(args.impairment)
@@ -136,10 +153,11 @@ def _evaluate(args: argparse.Namespace) -> int:
     from ias_gym.assist.evaluation import evaluate_assistance
 
     templates = load_templates(db)
+    make_recogniser = _recogniser_factory(args.recogniser, db)
     total = len(persons) * len(impairments) * args.episodes
     with tqdm(total=total, desc="sessions", disable=args.json, file=sys.stderr) as bar:
         scores = evaluate_assistance(
-            lambda: AnalyticAssistant(templates),
+            lambda: AnalyticAssistant(templates, make_recogniser()),
             persons,
             impairments,
             args.episodes,
@@ -155,7 +173,8 @@ def _evaluate(args: argparse.Namespace) -> int:
             print(
                 f"{name}: success {100 * s.success_unassisted:.0f} % unassisted, "
                 f"{100 * s.success_assisted:.0f} % assisted, intervention "
-                f"{s.intervention:.3f} ({s.sessions} sessions)"
+                f"{s.intervention:.3f} ({s.sessions} sessions, {s.excluded} left out: the "
+                "unimpaired session failed itself)"
             )
     return 0
 
@@ -174,6 +193,7 @@ def _demo(args: argparse.Namespace) -> int:
     from ias_gym.evaluation import write_video
 
     templates = load_templates(args.db)
+    recogniser = _recogniser_factory(args.recogniser, None if args.db is None else Path(args.db))()
     runs: list[list[Any]] = []
     for assisted in (False, True):
         env = gym.make(
@@ -185,7 +205,7 @@ def _demo(args: argparse.Namespace) -> int:
         )
         u: Any = env.unwrapped
         env.reset(seed=args.seed)
-        assistant = AnalyticAssistant(templates) if assisted else None
+        assistant = AnalyticAssistant(templates, recogniser) if assisted else None
         if assistant is not None:
             assistant.reset(u)
         frames: list[Any] = [env.render()]
@@ -235,6 +255,12 @@ def add_assist_evaluate(commands: argparse._SubParsersAction[Any]) -> argparse.A
         "--episodes", type=positive_int, default=6, metavar="N", help="sessions per person"
     )
     p.add_argument("--seed", type=non_negative_int, default=0, metavar="S", help="first seed")
+    p.add_argument(
+        "--recogniser",
+        default=ASSIST_METHOD,
+        metavar="oracle|dtw|phase",
+        help="how the assistant knows the intent (oracle: the true skill)",
+    )
     p.add_argument("--json", action="store_true", help="one JSON object on the last line")
     p.set_defaults(run=_evaluate)
     return p
@@ -263,6 +289,9 @@ def add_assist_demo(commands: argparse._SubParsersAction[Any]) -> argparse.Argum
     p.add_argument("--skill", default="seesaw_slow", metavar="NAME", help="the skill")
     p.add_argument("--impairment", default="weak_grip", metavar="NAME", help="the impairment")
     p.add_argument("--seed", type=non_negative_int, default=0, metavar="S", help="reset seed")
+    p.add_argument(
+        "--recogniser", default=ASSIST_METHOD, metavar="oracle|dtw|phase", help="intent source"
+    )
     p.set_defaults(run=_demo)
     return p
 
