@@ -21,7 +21,7 @@ for the posterior over the library's skills and returns joint-target offsets, th
    cones, :func:`~ias_gym.grasp.grasp_margin.grasp_margin`, mu = 0.25 and the pads'
    torsional friction, as :func:`~ias_gym.skills.transfer.demonstrated_margin` measures the
    library) is driven up to ``m* = sum_k p_k m_k`` (``m_k``: the median margin of skill k's
-   demonstrations from their skill start; the unknown share gets the largest) by an
+   demonstrations from their skill start; the unknown share gets the library's median) by an
    integrator on a closing offset ``g >= 0`` [rad] along the pinch's closing direction
    (:func:`~ias_gym.assist.impairments.pinch_direction`: index MCP, PIP/2, thumb
    flexion), on the larger of the relative margin error and the relative error of the pinch
@@ -410,11 +410,11 @@ class AnalyticAssistant:
             known = [m.margin for m in self.templates.values()]
             forces = [m.force for m in self.templates.values()]
             target = MARGIN_FACTOR * sum(
-                p * (self.templates[k].margin if k in self.templates else max(known))
+                p * (self.templates[k].margin if k in self.templates else float(np.median(known)))
                 for k, p in post.items()
             )
             force = sum(
-                p * (self.templates[k].force if k in self.templates else max(forces))
+                p * (self.templates[k].force if k in self.templates else float(np.median(forces)))
                 for k, p in post.items()
             )
             m = live_margin(env)
