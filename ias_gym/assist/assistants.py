@@ -79,6 +79,9 @@ TREMOR_STOP = (7.0, 13.0)
 #: dips to ~1.0 in fast motions (10th percentile), which an unimpaired grip survives and a
 #: weakened one, held at the median only, does not.
 MARGIN_FACTOR = 1.0
+#: Share of the library's pinch force below which the squeeze is raised [-] (unimpaired
+#: persons squeeze 1.2-1.6 N, the library 1.43 N; a weak grip of 0.08 rad ~0.7 N).
+FORCE_SHARE = 0.75
 #: Gain of the squeeze integrator [rad/s per unit of relative margin or force error].
 SQUEEZE_GAIN = 1.0
 #: Closing rate of a pinch with a pad off the pen after the close phase [rad/s].
@@ -424,7 +427,9 @@ class AnalyticAssistant:
                 # the margin, and before the lift (the support carries the pen, the margin
                 # says nothing) the pinch force against the library's
                 err_m = (target - min(m, 2.0 * target)) / target
-                err_f = (force - min(float(env._pinch_force), 2.0 * force)) / force
+                # a person's own squeeze differs from the library's by tens of percent:
+                # only a clearly weaker one (below FORCE_SHARE of it) is a weak grip
+                err_f = (FORCE_SHARE * force - min(float(env._pinch_force), force)) / force
                 self.g += SQUEEZE_GAIN * max(err_m, err_f) * self._dt
             self.g = float(min(max(self.g, 0.0), MAX_SQUEEZE))
             offset += self.g * self._pinch
