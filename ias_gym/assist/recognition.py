@@ -34,6 +34,7 @@ the :class:`~ias_gym.skills.SkillDB` (one transaction) before the recogniser lea
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -74,15 +75,23 @@ FEATURE_SCALE = np.array([0.05, 0.05, 0.05, 0.05, 0.05, 0.005, 0.005, 0.005])
 _THETA_IDX = np.array(
     [joint_index(j) for j in ("wrist_flexion", "wrist_deviation", "wrist_pronation")]
 )
+#: Episode time [s] from which skills may differ: the end of the scripted lift of the glove
+#: protocol, the same for everyone (before it every session is the same reach-pinch-lift).
+FEATURE_T0 = SKILL_TIMINGS.lift - SKILL_TIMINGS.reach
 #: DTW: costs are recomputed every this many control steps on the session sub-sampled by it.
 DTW_STRIDE = 5
+#: DTW: the Sakoe-Chiba window [samples of the sub-sampled session]: 0.4 s, the largest
+#: shift a person's delay (<= 0.15 s) and speed (+-15 % over <= 2 s) make.
+DTW_WINDOW = 8
+#: DTW: the time stretch and amplitude factor of a template's scale, and the floor of the
+#: scale (feature units squared: (0.1 x FEATURE_SCALE)^2, sensor-noise sized).
+DTW_SELF_STRETCH = 1.1
+DTW_COST_FLOOR = 0.01
 #: Leave-one-out quantile where p(unknown) = 0.5; p(unknown) = 0.01 at the median.
 UNKNOWN_QUANTILE = 0.95
 UNKNOWN_AT_MEDIAN = 0.01
-#: Phase model: episode time [s] from which skills may differ (the end of the scripted
-#: lift of the glove protocol, the same for everyone; before it every session is the same
-#: reach-pinch-lift and the phase is the time).
-PHASE_T0 = SKILL_TIMINGS.lift - SKILL_TIMINGS.reach
+#: Phase model: up to this time [s] the phase is the time (:data:`FEATURE_T0`).
+PHASE_T0 = FEATURE_T0
 #: Phase model: the delay [s] and speed [-] hypotheses of a skill's own motion.
 PHASE_DELAYS = np.linspace(0.0, 0.2, 5)
 PHASE_SPEEDS = np.linspace(0.8, 1.2, 9)
@@ -91,12 +100,14 @@ PHASE_SPEEDS = np.linspace(0.8, 1.2, 9)
 #: 10 control steps, ~0.1 s: consecutive frames of the smooth motion are far from independent).
 PHASE_SIGMA_FLOOR = 0.1
 PHASE_TEMPER = 0.1
+#: Phase model: the weight [sessions] of the variance prior (fit_phase_model).
+PHASE_PRIOR_WEIGHT = 2.0
 #: Phase model: the phase grid's step [s] (one control step).
 PHASE_DT = 0.01
 
 
 def features(frame: SessionFrame) -> FloatArray:
-    """The recogniser's feature vector of a frame (:data:`FEATURE_NAMES` / FEATURE_SCALE).
+    """The frame's raw feature vector (:data:`FEATURE_NAMES` / FEATURE_SCALE).
 
     Args:
         frame: one step of a session.
@@ -104,17 +115,34 @@ def features(frame: SessionFrame) -> FloatArray:
     Returns:
         ``(8,)`` dimensionless features.
     """
-    raw = np.concatenate([frame.theta[_THETA_IDX], frame.pen_rpy[1:3], frame.pen_position]).astype(
-        np.float64
-    )
-    return raw / FEATURE_SCALE
+    raw = np.concatenate([frame.theta[_THETA_IDX], frame.pen_rpy[1:3], frame.pen_position])
+    return raw.astype(np.float64) / FEATURE_SCALE
 
 
 def feature_matrix(frames: Sequence[SessionFrame]) -> FloatArray:
-    """``(T, 8)`` features of a session's frames (:func:`features`)."""
+    """``(T, 8)`` recogniser features of a session: :func:`features` relative to the frame at
+    :data:`FEATURE_T0`, zero before it.
+
+    Where a person's hand holds the pen (its lateral offset, a few mm) is theirs, not the
+    skill's: the recognisers see how the features move from the end of the lift on, when
+    the skills may begin, and nothing of the shared pinch-lift before.
+
+    Raises:
+        InputError: no frames.
+    """
     if not frames:
         raise InputError("a session needs at least one frame")
-    return np.stack([features(f) for f in frames])
+    raw = np.stack([features(f) for f in frames])
+    times = np.array([f.time_s for f in frames])
+    return _relative(raw, times)
+
+
+def _relative(raw: FloatArray, times: FloatArray) -> FloatArray:
+    after = times >= FEATURE_T0 - 1e-9
+    if not after.any():
+        return np.zeros_like(raw)
+    ref = raw[int(np.argmax(after))]
+    return np.where(after[:, None], raw - ref, 0.0)
 
 
 class Posterior(Mapping[str, float]):
@@ -312,6 +340,7 @@ class LibraryRecogniser:
         """Start a new session (forget the frames seen so far)."""
         self._feats = []
         self._times = []
+        self._ref: FloatArray | None = None  # the raw features at FEATURE_T0
         self._reset_state()
         n = len(self._classes)
         self._posterior = Posterior({**dict.fromkeys(self._classes, 1.0 / n), UNKNOWN: 0.0})
@@ -337,7 +366,10 @@ class LibraryRecogniser:
         Returns:
             The posterior now.
         """
-        self._feats.append(features(frame))
+        raw = features(frame)
+        if self._ref is None and frame.time_s >= FEATURE_T0 - 1e-9:
+            self._ref = raw
+        self._feats.append(np.zeros_like(raw) if self._ref is None else raw - self._ref)
         self._times.append(frame.time_s)
         result = self._evidence()
         if result is not None:
@@ -427,16 +459,23 @@ class LibraryRecogniser:
 
 
 # ---------------------------------------------------------------------------------- DTW
-def open_end_dtw_cost(query: FloatArray, template: FloatArray) -> float:
+def open_end_dtw_cost(query: FloatArray, template: FloatArray, window: int | None = None) -> float:
     """Mean squared cost per query sample of the open-end DTW of ``query`` on ``template``.
 
     The query (a partial session) is aligned with the best prefix of the template (a full
-    session): dtaidistance's ``dtw_ndim.distance`` with psi relaxation on the template's
-    end, squared Euclidean inner distance (it returns the root of the path's summed cost).
+    session): the smallest entry of the last row of dtaidistance's accumulated-cost matrix
+    (``dtw_ndim.warping_paths``, squared Euclidean inner distance; its entries are the roots
+    of the paths' summed costs). With a ``window`` the template is first cut to
+    ``len(query) + window`` samples and the path kept in dtaidistance's band (Sakoe-Chiba,
+    widened by the length difference): an open end alone lets the query's last samples
+    stall on one template sample for ever, so a session that holds still would match every
+    skill "not started yet". (dtaidistance's psi relaxation would give the open end in one
+    call, but combined with a window its C code returns garbage in 2.5.1: 1e-161 or NaN.)
 
     Args:
         query: ``(n, d)`` samples.
         template: ``(m, d)`` samples.
+        window: the largest shift between the two in samples, or ``None`` (unconstrained).
 
     Returns:
         ``distance^2 / n``.
@@ -444,19 +483,25 @@ def open_end_dtw_cost(query: FloatArray, template: FloatArray) -> float:
     from dtaidistance import dtw_ndim  # the [assist] extra
 
     q = np.ascontiguousarray(query, dtype=np.float64)
-    t = np.ascontiguousarray(template, dtype=np.float64)
-    d = dtw_ndim.distance(q, t, psi=(0, 0, 0, len(t) - 1), use_c=True)
-    return float(d) ** 2 / len(q)
+    t = template if window is None else template[: len(q) + window]
+    t = np.ascontiguousarray(t, dtype=np.float64)
+    _, paths = dtw_ndim.warping_paths(q, t, window=window, use_c=True)
+    d = float(np.min(paths[-1, 1:]))  # inf outside the band
+    return d * d / len(q)
 
 
 class DTWRecogniser(LibraryRecogniser):
     """1-nearest-neighbour open-end DTW on the stored sessions (the baseline).
 
-    A skill's evidence is ``-cost / tau``, its nearest template's cost
-    (:func:`open_end_dtw_cost` of the session so far, both sub-sampled by
-    :data:`DTW_STRIDE`) over the temperature ``tau``, the median of the library's
-    leave-one-person-out costs (the cost of a right match for a new person); the novelty
-    score is the smallest cost.
+    A skill's evidence is ``-cost / tau``: its nearest template's cost (the
+    :func:`open_end_dtw_cost` of the session so far on the template, both sub-sampled by
+    :data:`DTW_STRIDE`, window :data:`DTW_WINDOW`) over the temperature ``tau``, a right
+    match's typical cost (the median leave-one-person-out score times the median template
+    scale). The novelty score is the smallest cost relative to its template's scale: the
+    cost of the template's own motion performed 10 % larger and slower, plus
+    :data:`DTW_COST_FLOOR`. Another person misses a template by a share of its motion, and
+    a fast see-saw's right match costs far more than a still hold's, so raw costs would
+    need a threshold per skill.
 
     Args:
         sessions: the library.
@@ -473,29 +518,59 @@ class DTWRecogniser(LibraryRecogniser):
         return cls(load_library(db, task))
 
     def _fit_class(self, name: str) -> None:
-        pass  # 1-NN: the sessions are the model
+        if not hasattr(self, "_scales"):
+            self._scales: dict[int, float] = {}
+        for s in self._classes[name]:
+            self._scale(s)  # 1-NN: the sessions (and their cost scales) are the model
 
     def _reset_state(self) -> None:
         pass  # the costs are recomputed from the whole session so far
 
     def _costs(
         self, query: FloatArray, classes: Mapping[str, Sequence[LibrarySession]]
-    ) -> dict[str, float]:
-        return {
-            name: min(open_end_dtw_cost(query, s.features[::DTW_STRIDE]) for s in sessions)
-            for name, sessions in classes.items()
-        }
+    ) -> tuple[dict[str, float], float]:
+        """Each skill's nearest-template cost and the novelty score (the smallest cost
+        relative to its template's scale)."""
+        costs: dict[str, float] = {}
+        novelty = math.inf
+        for name, sessions in classes.items():
+            best = math.inf
+            for s in sessions:
+                cost = open_end_dtw_cost(query, s.features[::DTW_STRIDE], DTW_WINDOW)
+                best = min(best, cost)
+                novelty = min(novelty, cost / self._scale(s))
+            costs[name] = best
+        return costs, novelty
 
-    def _from_costs(self, costs: Mapping[str, float]) -> tuple[dict[str, float], float]:
-        # the median leave-one-out cost; 1 while the library is being calibrated
-        tau = max(float(np.median(self._loo)), 1e-9) if self._loo else 1.0
-        return {k: -c / tau for k, c in costs.items()}, min(costs.values())
+    def _scale(self, s: LibrarySession) -> float:
+        """The cost a 10 % larger and slower performance of ``s``'s motion has on it."""
+        key = id(s)
+        if key not in self._scales:
+            t = s.features[::DTW_STRIDE]
+            n = len(t)
+            stretched = np.stack(
+                [np.interp(np.arange(n) / DTW_SELF_STRETCH, np.arange(n), c) for c in t.T], axis=1
+            )
+            self._scales[key] = DTW_COST_FLOOR + open_end_dtw_cost(
+                DTW_SELF_STRETCH * stretched, t, DTW_WINDOW
+            )
+        return self._scales[key]
+
+    def _from_costs(
+        self, costs: Mapping[str, float], novelty: float
+    ) -> tuple[dict[str, float], float]:
+        # a right match's typical raw cost: the median leave-one-out (relative) score times
+        # the median template scale; 1 while the library is being calibrated
+        tau = 1.0
+        if self._loo:
+            tau = max(float(np.median(self._loo) * np.median(list(self._scales.values()))), 1e-9)
+        return {k: -c / tau for k, c in costs.items()}, novelty
 
     def _evidence(self) -> tuple[dict[str, float], float] | None:
         if (len(self._feats) - 1) % DTW_STRIDE:
             return None  # recomputed on the stride's grid only
         query = np.stack(self._feats[::DTW_STRIDE])
-        return self._from_costs(self._costs(query, self._classes))
+        return self._from_costs(*self._costs(query, self._classes))
 
     def _batch_evidence(
         self,
@@ -505,7 +580,7 @@ class DTWRecogniser(LibraryRecogniser):
         refit: str | None = None,
     ) -> tuple[dict[str, float], float]:
         del times, refit  # DTW needs neither: its sessions are the model
-        return self._from_costs(self._costs(feats[::DTW_STRIDE], classes))
+        return self._from_costs(*self._costs(feats[::DTW_STRIDE], classes))
 
 
 # -------------------------------------------------------------------------- phase model
@@ -520,6 +595,16 @@ class PhaseModel:
 
     mean: FloatArray
     std: FloatArray
+
+    @functools.cached_property
+    def inv_std(self) -> FloatArray:
+        """``(G, 8)`` 1 / std."""
+        return 1.0 / self.std
+
+    @functools.cached_property
+    def log_norm(self) -> FloatArray:
+        """``(G,)`` the Gaussian's log normaliser, ``sum_d log(2 pi std_d^2)``."""
+        return np.log(2.0 * np.pi * self.std**2).sum(axis=-1)
 
 
 def _hypotheses() -> tuple[FloatArray, FloatArray]:
@@ -559,19 +644,28 @@ def _resample(s: LibrarySession, times: FloatArray) -> FloatArray:
     )
 
 
-def fit_phase_model(sessions: Sequence[LibrarySession], iterations: int = 2) -> PhaseModel:
+def fit_phase_model(
+    sessions: Sequence[LibrarySession],
+    prior_var: FloatArray | None = None,
+    iterations: int = 2,
+) -> PhaseModel:
     """Fit a skill's :class:`PhaseModel`: align each session to the class mean, average.
 
     Starts from the sessions on their own time (delay 0, speed 1); each iteration picks,
     per session, the delay/speed hypothesis whose warped mean fits it best (least squares)
-    and recomputes the mean and standard deviation on the phase grid.
+    and recomputes the mean and the variance on the phase grid. The variance of n sessions
+    is shrunk towards ``prior_var`` with :data:`PHASE_PRIOR_WEIGHT` pseudo-sessions
+    (``(n var + w prior) / (n + w)``, a conjugate prior's posterior mean), so that a skill
+    learnt from one or two demonstrations gets a library-like spread, not the floor alone.
 
     Args:
         sessions: the skill's sessions (>= 1).
+        prior_var: ``(G', 8)`` prior variance on the phase grid (held beyond its end), or
+            ``None``: the sessions' own variance.
         iterations: alignment rounds.
 
     Returns:
-        The model (a single session: its own trajectory with the floor as std).
+        The model.
     """
     end = max(float(s.time_s[-1]) for s in sessions)
     # the grid reaches the phase of the slowest hypothesis' faster runs
@@ -583,7 +677,12 @@ def fit_phase_model(sessions: Sequence[LibrarySession], iterations: int = 2) -> 
         warped = np.stack(
             [_resample(s, _time_of(grid, d, v)) for s, (d, v) in zip(sessions, h_of, strict=True)]
         )
-        std = np.sqrt(warped.var(axis=0) + PHASE_SIGMA_FLOOR**2)
+        var = warped.var(axis=0)
+        if prior_var is not None:
+            prior = prior_var[np.minimum(np.arange(len(grid)), len(prior_var) - 1)]
+            n, w = len(sessions), PHASE_PRIOR_WEIGHT
+            var = (n * var + w * prior) / (n + w)
+        std = np.sqrt(var + PHASE_SIGMA_FLOOR**2)
         model = PhaseModel(mean=warped.mean(axis=0), std=std)
         if it == iterations or len(sessions) == 1:
             break
@@ -622,10 +721,26 @@ class PhaseRecogniser(LibraryRecogniser):
         """The recogniser of the glove sessions in ``db`` (:func:`load_library`)."""
         return cls(load_library(db, task))
 
+    def _fit_all(self) -> None:
+        # The variance prior: the mean variance over the phase of the skills that several
+        # persons performed, from a first fit without it; fixed from then on (add_skill
+        # uses it as it is).
+        self._prior_var: FloatArray | None = None
+        self._models: dict[str, PhaseModel] = {}
+        first = {k: fit_phase_model(v) for k, v in self._classes.items()}
+        spread = [
+            m.std**2 - PHASE_SIGMA_FLOOR**2
+            for k, m in first.items()
+            if len({s.group for s in self._classes[k]}) > 1
+        ]
+        if spread:
+            g = min(len(v) for v in spread)
+            self._prior_var = np.mean([v[:g] for v in spread], axis=0)
+        for name in self._classes:
+            self._fit_class(name)
+
     def _fit_class(self, name: str) -> None:
-        if not hasattr(self, "_models"):
-            self._models: dict[str, PhaseModel] = {}
-        self._models[name] = fit_phase_model(self._classes[name])
+        self._models[name] = fit_phase_model(self._classes[name], self._prior_var)
 
     def _reset_state(self) -> None:
         self._delays, self._speeds = _hypotheses()
@@ -639,10 +754,9 @@ class PhaseRecogniser(LibraryRecogniser):
     ) -> tuple[FloatArray, FloatArray]:
         """Per hypothesis (and frame): tempered log-likelihood and summed squared z."""
         idx = np.minimum(np.rint(phase / PHASE_DT).astype(int), len(model.mean) - 1)
-        mu, sd = model.mean[idx], model.std[idx]
-        z2 = ((x - mu) / sd) ** 2
-        ll = -0.5 * (z2 + np.log(2.0 * np.pi * sd * sd)).sum(axis=-1)
-        return PHASE_TEMPER * ll, z2.sum(axis=-1)
+        z2 = (((x - model.mean[idx]) * model.inv_std[idx]) ** 2).sum(axis=-1)
+        ll = -0.5 * (z2 + model.log_norm[idx])
+        return PHASE_TEMPER * ll, z2
 
     def _evidence(self) -> tuple[dict[str, float], float] | None:
         x = self._feats[-1]
@@ -676,7 +790,7 @@ class PhaseRecogniser(LibraryRecogniser):
         maha = np.zeros_like(loglik)
         for i, name in enumerate(classes):
             model = (
-                fit_phase_model(classes[name])
+                fit_phase_model(classes[name], self._prior_var)
                 if name == refit or name not in self._models
                 else self._models[name]
             )

@@ -42,9 +42,11 @@ FloatArray = NDArray[np.float64]
 #: Demonstration info keys under which :func:`record_session` stores Ψ and Θ ``(T + 1, 10)``.
 READINGS_INFO = "glove_readings"
 THETA_INFO = "glove_theta"
-#: Columns of a glove observation (``IAS-GloveGrasp-v0``): joint angles, force display.
+#: Columns of a glove observation (``IAS-GloveGrasp-v0``): joint angles (10), then after
+#: their velocities (10) and the pen's position, quaternion, velocity and angular velocity
+#: (13), the force display (5); the episode time is the last column.
 _OBS_JOINTS = slice(0, N_JOINTS)
-_OBS_TAU = slice(34, 34 + len(ACTUATED_JOINTS))
+_OBS_TAU = slice(33, 33 + len(ACTUATED_JOINTS))
 
 
 @dataclass(frozen=True, eq=False)

@@ -315,7 +315,7 @@ def add_assist_commands(subparsers: argparse._SubParsersAction[Any]) -> None:
         help="evaluate the recognisers on held-out persons",
         description="Build the recognisers on the IAS-GloveGrasp-v0 sessions of --db, record "
         "--episodes sessions of each of its glove skills for every person of --persons (who "
-        "must not be in the library) and report accuracy after 33 %% and 60 %% of the skill's "
+        "must not be in the library) and report accuracy after 33 % and 60 % of the skill's "
         "motion, time to recognise, false triggers and the unknown-skill AUROC (each skill "
         'left out in turn). With --json: one object (per method under "methods" for all).',
         formatter_class=HelpFormatter,
