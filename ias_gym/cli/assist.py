@@ -1,9 +1,16 @@
-"""``ias-gym assist ...``: intent recognition of glove sessions (issue #14, paper Flow 3).
+"""``ias-gym assist ...``: intent recognition and assistance of glove sessions (issue #14).
 
 ``assist recognise`` builds the recognisers on the glove sessions of a skill database,
 records sessions of held-out persons and reports accuracy over the observed fraction of the
 skill's motion, time to recognise, false triggers and the unknown-skill AUROC
 (:mod:`ias_gym.assist.metrics`). The library is imported when the command runs.
+
+``assist evaluate`` runs ``IAS-GloveAssist-v0`` sessions with and without the analytic
+assistant per operator impairment; with ``--json`` the last line is one object with the
+recognition keys (the recogniser the assistant uses, :data:`ASSIST_METHOD`, on the same
+persons; null when they are in the library) and ``by_impairment``: impairment ->
+``success_unassisted``, ``success_assisted``, ``intervention``. ``assist demo`` writes a
+video of an assisted session beside the same session unassisted.
 """
 
 from __future__ import annotations
@@ -25,6 +32,8 @@ RECOGNITION_KEYS = (
     "false_trigger_rate",
     "unknown_auroc",
 )
+#: The recogniser the assistant uses in ``assist evaluate`` (the better one of issue #14).
+ASSIST_METHOD = "phase"
 
 
 def _recognise(args: argparse.Namespace) -> int:
@@ -74,6 +83,219 @@ def _recognise(args: argparse.Namespace) -> int:
     return 0
 
 
+def _persons(text: str) -> list[str]:
+    from ias_gym.glove.ids import check_id
+
+    persons = [p.strip() for p in text.split(",") if p.strip()]
+    if not persons:
+        raise InputError("--persons needs at least one person id, e.g. p7,p8,p9")
+    return [check_id(p, "--persons") for p in persons]
+
+
+def _impairments(text: str) -> list[str]:
+    from ias_gym.assist.impairments import IMPAIRMENTS
+
+    if text == "all":
+        return list(IMPAIRMENTS)
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    for name in names:
+        if name not in IMPAIRMENTS:
+            raise InputError(
+                f"--impairment {name!r} is not known; choose from {', '.join(IMPAIRMENTS)} or all"
+            )
+    return names
+
+
+def _recognition_metrics(db: Path, persons: list[str], episodes: int, seed: int) -> dict[str, Any]:
+    """The better recogniser's metrics (:mod:`ias_gym.assist.metrics`) on ``episodes``
+    sessions per skill of ``persons``; nulls if they are in the library (not held out)."""
+    from ias_gym.assist.metrics import evaluate_methods, record_sessions
+    from ias_gym.assist.recognition import load_library
+    from ias_gym.glove.skills import SKILLS
+    from ias_gym.skills import SkillDB
+
+    with SkillDB(db, readonly=True) as handle:
+        library = load_library(handle)
+    if {s.group for s in library} & set(persons):
+        return dict.fromkeys(RECOGNITION_KEYS)
+    skills = [s for s in SKILLS if s in {x.skill for x in library}]
+    sessions = record_sessions(persons, skills, episodes, seed=seed)
+    result = evaluate_methods(library, sessions, [ASSIST_METHOD])[ASSIST_METHOD]
+    return {k: result.get(k) for k in RECOGNITION_KEYS}
+
+
+def _recogniser_factory(method: str, db: Path | None) -> Any:
+    """``() -> recogniser`` for the assistant: ``oracle`` (None: the assistant's oracle on
+    the env's true intent) or a recogniser of :mod:`ias_gym.assist.recognition` built once
+    on ``db`` (default: the shipped library) and reset by the assistant every session."""
+    if method == "oracle":
+        return lambda: None
+    from ias_gym.assist.recognition import METHODS, make_recogniser
+    from ias_gym.skills import SkillDB
+    from ias_gym.skills.transfer import shipped_skill_db
+
+    if method not in METHODS:
+        raise InputError(f"--recogniser {method!r}: choose oracle or one of {', '.join(METHODS)}")
+    with SkillDB(db if db is not None else shipped_skill_db(), readonly=True) as handle:
+        recogniser = make_recogniser(method, handle)
+    return lambda: recogniser
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    persons = _persons(args.persons)
+    impairments = _impairments(args.impairment)
+    db = Path(args.db)
+    if not db.is_file():
+        raise InputError(f"--db {db} does not exist; give a skill library (skills record)")
+    from tqdm import tqdm
+
+    from ias_gym.assist.assistants import AnalyticAssistant, load_templates
+    from ias_gym.assist.evaluation import evaluate_assistance
+
+    templates = load_templates(db)
+    make_recogniser = _recogniser_factory(args.recogniser, db)
+    total = len(persons) * len(impairments) * args.episodes
+    with tqdm(total=total, desc="sessions", disable=args.json, file=sys.stderr) as bar:
+        scores = evaluate_assistance(
+            lambda: AnalyticAssistant(templates, make_recogniser()),
+            persons,
+            impairments,
+            args.episodes,
+            args.seed,
+            progress=lambda: bar.update(1),
+        )
+    if args.json:
+        out = _recognition_metrics(db, persons, max(1, args.episodes // 6), args.seed)
+        out["by_impairment"] = {k: v.to_json() for k, v in scores.items()}
+        print(json.dumps(out))
+    else:
+        for name, s in scores.items():
+            print(
+                f"{name}: success {100 * s.success_unassisted:.0f} % unassisted, "
+                f"{100 * s.success_assisted:.0f} % assisted, intervention "
+                f"{s.intervention:.3f} ({s.sessions} sessions, {s.excluded} left out: the "
+                "unimpaired session failed itself)"
+            )
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from ias_gym.evaluation import VIDEO_SUFFIXES
+    from ias_gym.outputs import check_output_file
+
+    video = check_output_file(
+        args.video, overwrite=args.overwrite, suffixes=VIDEO_SUFFIXES, what="--video"
+    )
+    import gymnasium as gym
+    import numpy as np
+
+    from ias_gym.assist.assistants import AnalyticAssistant, load_templates
+    from ias_gym.evaluation import write_video
+
+    templates = load_templates(args.db)
+    recogniser = _recogniser_factory(args.recogniser, None if args.db is None else Path(args.db))()
+    runs: list[list[Any]] = []
+    for assisted in (False, True):
+        env = gym.make(
+            "IAS-GloveAssist-v0",
+            person_id=args.person,
+            skill=args.skill,
+            impairment=args.impairment,
+            render_mode="rgb_array",
+        )
+        u: Any = env.unwrapped
+        env.reset(seed=args.seed)
+        assistant = AnalyticAssistant(templates, recogniser) if assisted else None
+        if assistant is not None:
+            assistant.reset(u)
+        frames: list[Any] = [env.render()]
+        done = False
+        while not done:
+            action = assistant.act(u) if assistant is not None else np.zeros(10)
+            _, _, terminated, truncated, _ = env.step(action)
+            frames.append(env.render())
+            done = bool(terminated or truncated)
+        env.close()
+        runs.append(frames)
+    n = max(len(r) for r in runs)
+    # the shorter session (a dropped pen ends it) holds its last frame
+    side = [np.hstack([r[min(i, len(r) - 1)] for r in runs]) for i in range(0, n, 2)]
+    write_video(video, side, fps=50.0, overwrite=args.overwrite)
+    print(f"wrote {video}: left unassisted, right assisted ({args.impairment}, {args.skill})")
+    return 0
+
+
+def add_assist_evaluate(commands: argparse._SubParsersAction[Any]) -> argparse.ArgumentParser:
+    """Add ``assist evaluate`` to the ``assist`` sub-commands.
+
+    Args:
+        commands: the ``assist`` group's sub-parsers.
+
+    Returns:
+        The parser.
+    """
+    p = commands.add_parser(
+        "evaluate",
+        help="success with and without the assistant per impairment",
+        description="Run IAS-GloveAssist-v0 sessions of every skill for each person and "
+        "impairment, without and with the analytic assistant, and judge them against the "
+        "unimpaired person's session (docs/assistance.md). With --json the last line is "
+        "one object: " + ", ".join(RECOGNITION_KEYS) + " and by_impairment.",
+        formatter_class=HelpFormatter,
+    )
+    p.add_argument("--db", required=True, metavar="F", help="the skill library (SQLite)")
+    p.add_argument("--persons", default="p7,p8,p9", metavar="ID,ID,...", help="person ids")
+    p.add_argument(
+        "--impairment",
+        default="all",
+        metavar="NAME|none|all",
+        help="impairment(s), comma-separated",
+    )
+    p.add_argument(
+        "--episodes", type=positive_int, default=6, metavar="N", help="sessions per person"
+    )
+    p.add_argument("--seed", type=non_negative_int, default=0, metavar="S", help="first seed")
+    p.add_argument(
+        "--recogniser",
+        default=ASSIST_METHOD,
+        metavar="oracle|dtw|phase",
+        help="how the assistant knows the intent (oracle: the true skill)",
+    )
+    p.add_argument("--json", action="store_true", help="one JSON object on the last line")
+    p.set_defaults(run=_evaluate)
+    return p
+
+
+def add_assist_demo(commands: argparse._SubParsersAction[Any]) -> argparse.ArgumentParser:
+    """Add ``assist demo`` to the ``assist`` sub-commands.
+
+    Args:
+        commands: the ``assist`` group's sub-parsers.
+
+    Returns:
+        The parser.
+    """
+    p = commands.add_parser(
+        "demo",
+        help="video: an assisted session beside the same session unassisted",
+        description="Render one IAS-GloveAssist-v0 session without (left) and with (right) "
+        "the analytic assistant, side by side, into an MP4.",
+        formatter_class=HelpFormatter,
+    )
+    p.add_argument("--video", required=True, metavar="FILE", help="the MP4 to write")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --video")
+    p.add_argument("--db", default=None, metavar="F", help="skill library (default: shipped)")
+    p.add_argument("--person", default="p1", metavar="ID", help="the operator")
+    p.add_argument("--skill", default="seesaw_slow", metavar="NAME", help="the skill")
+    p.add_argument("--impairment", default="weak_grip", metavar="NAME", help="the impairment")
+    p.add_argument("--seed", type=non_negative_int, default=0, metavar="S", help="reset seed")
+    p.add_argument(
+        "--recogniser", default=ASSIST_METHOD, metavar="oracle|dtw|phase", help="intent source"
+    )
+    p.set_defaults(run=_demo)
+    return p
+
+
 def add_assist_commands(subparsers: argparse._SubParsersAction[Any]) -> None:
     """Add ``assist`` and its sub-commands.
 
@@ -121,3 +343,5 @@ def add_assist_commands(subparsers: argparse._SubParsersAction[Any]) -> None:
     )
     recognise.add_argument("--json", action="store_true", help="print one JSON object")
     recognise.set_defaults(run=_recognise)
+    add_assist_evaluate(commands)
+    add_assist_demo(commands)

@@ -1,0 +1,221 @@
+"""IAS-GloveAssist-v0: the glove world with an impaired operator, for an assistant to help.
+
+Paper, Flow 3: the assistant "identifies and anticipates the action the human operator wants
+to perform, and if the necessary skill has been stored in the skill data base before, it is
+applied". The world is ``IAS-GloveGrasp-v0``'s (physics, calibration, force display, reward,
+success) with a skill always set, an operator impaired as :mod:`ias_gym.assist.impairments`
+says, and the assistant as the agent: its action is the env's action, offsets of the hand's
+joint targets on top of the operator's calibrated Θ.
+
+The assistant sits between the glove and the hand: the glove is read one sample ahead
+(:class:`~ias_gym.assist.impairments.PeekGlove`), and the observation ends with the joint
+targets the operator's next reading will give (:attr:`GloveAssistEnv.upcoming_theta`), so
+an offset corrects the command the hand is about to get, not the one it got 10 ms ago.
+
+An intent switch (``switch_to``, ``switch_time``): the operator performs ``skill`` until
+``switch_time`` [s], then, blended over :data:`SWITCH_BLEND` [s], ``switch_to`` (its motion
+at the phase it has then); :meth:`GloveAssistEnv.intent` is the skill intended at a time.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from ias_gym.assist.impairments import (
+    Impairment,
+    LaggedGlove,
+    PeekGlove,
+    TremorOperator,
+    WeakGripOperator,
+    biased_calibration,
+    small_hand_person,
+    stock_person,
+)
+from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.errors import InputError
+from ias_gym.glove.device import GloveDevice, ReachPinchLiftTimings, SimulatedGlove
+from ias_gym.glove.hand import JOINT_HIGH, JOINT_LOW, N_JOINTS, PersonParams
+from ias_gym.glove.operator import FromPreShape, ScriptedOperator, skill_operator
+from ias_gym.glove.profile_cache import default_calibration
+from ias_gym.glove.skills import SKILL_TIMINGS, SkillOperator, check_skill
+
+FloatArray = NDArray[np.float64]
+
+#: Length of the blend from one skill's motion to the other's at an intent switch [s].
+SWITCH_BLEND = 0.2
+#: Size of the observation: IAS-GloveGrasp-v0's 39 and the upcoming joint targets (10).
+OBS_SIZE = 39 + N_JOINTS
+
+
+def _min_jerk(s: float) -> float:
+    s = min(max(s, 0.0), 1.0)
+    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+class SwitchingOperator:
+    """Skill ``a`` until script time ``t_switch`` [s], then ``b`` (the same pinch-lift and
+    person; only the skill's joint offsets blend, over :data:`SWITCH_BLEND`).
+
+    Args:
+        a, b: the two skills' operators (same base script).
+        t_switch: script time of the switch [s].
+    """
+
+    def __init__(self, a: SkillOperator, b: SkillOperator, t_switch: float) -> None:
+        self.a, self.b, self.t_switch = a, b, float(t_switch)
+
+    @property
+    def timings(self) -> ReachPinchLiftTimings:
+        """The script's phase times."""
+        return self.a.timings
+
+    def __call__(self, t: float) -> FloatArray:
+        """Θ(t) [rad]."""
+        w = _min_jerk((t - self.t_switch) / SWITCH_BLEND)
+        offsets = (1.0 - w) * self.a.offsets(t) + w * self.b.offsets(t)
+        return np.asarray(self.a.base(t) + offsets + self.a.tremor(t))
+
+
+class GloveAssistEnv(GloveGraspEnv):
+    """The glove world with an impaired operator and an assistant as the agent
+    (``IAS-GloveAssist-v0``).
+
+    ## Description
+    ``IAS-GloveGrasp-v0`` performing ``skill`` (default ``lift_hold``), its operator impaired
+    by ``impairment`` (:mod:`ias_gym.assist.impairments`: ``none``, ``tremor``,
+    ``weak_grip``, ``lag``, ``biased_calibration``, ``small_hand``) of ``strength``
+    (default :data:`~ias_gym.assist.impairments.DEFAULT_STRENGTHS`). With zero action the
+    session is the impaired operator alone.
+
+    ## Action Space
+    As IAS-GloveGrasp-v0: ``Box(-1, 1, (10,))``, offsets of the joint targets times
+    ``action_scale`` [rad].
+
+    ## Observation Space
+    ``(49,)`` float64: IAS-GloveGrasp-v0's 39, then the joint targets the operator's next
+    reading gives (10) [rad] (:attr:`upcoming_theta`).
+
+    ## Rewards
+    As IAS-GloveGrasp-v0: ``lift``, ``pinch``, ``effort``.
+
+    ## Starting State
+    As IAS-GloveGrasp-v0.
+
+    ## Episode End
+    As IAS-GloveGrasp-v0.
+
+    ## Arguments
+    ``render_mode``; ``impairment`` [``"none"``]; ``strength`` [the impairment's default];
+    ``switch_to`` [None]: a skill the operator switches to at ``switch_time`` [s, episode
+    time]; and the fields of :class:`~ias_gym.envs.glove_grasp.GloveGraspConfig`
+    (``person_id``, ``skill``, ``control_dt``, ``duration``, ``action_scale``, ...).
+
+    ## Version History
+    - v0: first version.
+
+    Attributes:
+        impairment: the :class:`~ias_gym.assist.impairments.Impairment`.
+        operator_person: whose hand the operator's script plans for (``small_hand``: the
+            stock hand; else the hand's owner).
+    """
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        impairment: str = "none",
+        strength: float | None = None,
+        switch_to: str | None = None,
+        switch_time: float | None = None,
+        **config: Any,
+    ) -> None:
+        """Build the env.
+
+        Args:
+            render_mode: ``None`` or ``"rgb_array"``.
+            impairment: the operator's impairment.
+            strength: its strength (unit per impairment; default its tuned default).
+            switch_to: a skill the operator switches to (None: no switch).
+            switch_time: episode time of the switch [s] (needed with ``switch_to``).
+            **config: fields of :class:`~ias_gym.envs.glove_grasp.GloveGraspConfig`.
+
+        Raises:
+            InputError: an unknown impairment or skill, a strength out of range, or
+                ``switch_to`` without a non-negative ``switch_time``.
+        """
+        self.impairment = Impairment.make(impairment, strength)
+        config.setdefault("skill", "lift_hold")
+        if switch_to is not None:
+            check_skill(switch_to, "switch_to")
+            if switch_time is None or not switch_time >= 0:
+                raise InputError("switch_to needs switch_time >= 0 [s, episode time]")
+        self.switch_to = switch_to
+        self.switch_time = None if switch_to is None else float(switch_time)  # type: ignore[arg-type]
+        owner = PersonParams.sample(str(config.get("person_id", "p1")))
+        imp = self.impairment
+        hand = small_hand_person(owner, imp.strength) if imp.name == "small_hand" else owner
+        self.operator_person = stock_person(owner) if imp.name == "small_hand" else owner
+        calibration = default_calibration(hand)
+        if imp.name == "biased_calibration":
+            calibration = biased_calibration(calibration, imp.strength)
+        super().__init__(render_mode, person=hand, calibration=calibration, **config)
+        m = self.model
+        radius = float(m.geom_size[m.geom("pen").id, 0])
+        skill = str(self.config.skill)
+        script: ScriptedOperator = skill_operator(self.operator_person, radius, skill)
+        if switch_to is not None:
+            assert self.switch_time is not None
+            other = skill_operator(self.operator_person, radius, switch_to)
+            assert isinstance(script, SkillOperator)
+            script = SwitchingOperator(script, other, self.switch_time + SKILL_TIMINGS.reach)
+        self.script = script
+        self.glove_factory = self._impaired_glove
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(OBS_SIZE,), dtype=np.float64)
+        #: The joint targets [rad] the operator's next reading gives (IAS-GloveGrasp-v0's
+        #: calibration, clipping and low-pass applied), before any action.
+        self.upcoming_theta = np.zeros(N_JOINTS)
+
+    def _impaired_glove(self, seed: int) -> GloveDevice:
+        imp = self.impairment
+        script: ScriptedOperator = self.script
+        if imp.name == "weak_grip":
+            script = WeakGripOperator(script, imp.strength)
+        elif imp.name == "tremor":
+            script = TremorOperator(script, imp.strength, self.person.person_id, seed)
+        glove: GloveDevice = SimulatedGlove(self.person, FromPreShape(script), seed)
+        if imp.name == "lag":
+            glove = LaggedGlove(glove, round(imp.strength / self.config.control_dt))
+        return PeekGlove(glove)
+
+    def intent(self, time_s: float) -> str:
+        """The skill the operator intends at episode time ``time_s`` [s]."""
+        if self.switch_to is not None and self.switch_time is not None:
+            if time_s >= self.switch_time:
+                return self.switch_to
+        return str(self.config.skill)
+
+    def _observation(self) -> FloatArray:
+        base = super()._observation()
+        glove = self.glove
+        if isinstance(glove, PeekGlove):
+            psi = glove.upcoming.psi
+            theta = np.asarray(self.calibration.predict(psi), dtype=np.float64)
+            if np.isfinite(theta).all():
+                theta = np.clip(theta, JOINT_LOW, JOINT_HIGH)
+                self.upcoming_theta = self._theta + self._alpha * (theta - self._theta)
+            else:
+                self.upcoming_theta = self._theta.copy()
+        else:
+            self.upcoming_theta = self._theta.copy()
+        return np.concatenate([base, self.upcoming_theta])
+
+    def _info(self, terms: dict[str, float], rest: bool, fault: str) -> dict[str, Any]:
+        info = super()._info(terms, rest, fault)
+        info["intent"] = self.intent(self._steps * self.config.control_dt)
+        info["impairment"] = self.impairment.name
+        info["operator_theta"] = self._theta.copy()
+        return info

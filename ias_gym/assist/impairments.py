@@ -1,0 +1,369 @@
+"""Impaired glove operators (issue #14): what goes wrong between a person's intent and the hand.
+
+Each impairment changes one link of the glove chain of ``IAS-GloveGrasp-v0`` (intent Θ(t) ->
+glove readings Ψ -> calibration Θ = f(Ψ) -> the hand's joint targets) and has one strength
+(:data:`DEFAULT_STRENGTHS`, tuned so that each one makes the unassisted skill fail in at least
+half of the sessions: the measurements are in docs/assistance.md):
+
+=======================  ===========================================================  ========
+name                     what                                                         strength
+=======================  ===========================================================  ========
+``tremor``               a pathological tremor of one frequency in 8-12 Hz on the     [rad]
+                         wrist and the pinching fingers (:class:`TremorOperator`)
+``weak_grip``            the operator closes index and thumb less than the pinch      [rad]
+                         needs (:class:`WeakGripOperator`): too small a squeeze
+``lag``                  the glove's readings arrive late (:class:`LaggedGlove`)      [s]
+``biased_calibration``   the calibration ANN's output is offset on the pinching       [rad]
+                         joints, opening the pinch (:func:`biased_calibration`)
+``small_hand``           the operator runs the stock pinch (planned for a nominal     scale [-]
+                         hand) with a hand of this scale (:func:`small_hand_person`)
+=======================  ===========================================================  ========
+
+Pure numpy on the glove layer's types (no MuJoCo): the env (:mod:`ias_gym.assist.env`) puts
+them together.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ias_gym.errors import InputError
+from ias_gym.glove.calibration import Calibration
+from ias_gym.glove.device import GloveDevice, GloveReading, ReachPinchLiftTimings
+from ias_gym.glove.hand import (
+    N_JOINTS,
+    NOMINAL_INDEX_LENGTHS,
+    NOMINAL_THUMB_BASE,
+    NOMINAL_THUMB_LENGTHS,
+    PersonParams,
+    joint_index,
+)
+from ias_gym.glove.operator import ScriptedOperator
+
+FloatArray = NDArray[np.float64]
+
+#: The impairments, ``"none"`` first.
+IMPAIRMENTS: tuple[str, ...] = (
+    "none",
+    "tremor",
+    "weak_grip",
+    "lag",
+    "biased_calibration",
+    "small_hand",
+)
+#: Default strength of each impairment (units in the module docstring; tuned: docs/assistance.md).
+DEFAULT_STRENGTHS: dict[str, float] = {
+    "none": 0.0,
+    "tremor": 0.06,
+    "weak_grip": 0.08,
+    "lag": 0.1,
+    "biased_calibration": 0.10,
+    "small_hand": 0.8,
+}
+#: Joints that tremor: the wrist and the pinching fingers (as the persons' own physiological
+#: tremor of :mod:`ias_gym.glove.skills`, but tens of times stronger).
+TREMOR_JOINTS: tuple[str, ...] = (
+    "wrist_flexion",
+    "wrist_deviation",
+    "wrist_pronation",
+    "index_mcp",
+    "index_pip",
+    "thumb_cmc",
+    "thumb_flexion",
+)
+#: Joints whose flexion closes the pinch on the pen, and how much of an opening each takes.
+PINCH_JOINTS: dict[str, float] = {"index_mcp": 1.0, "index_pip": 0.5, "thumb_flexion": 1.0}
+#: Band of a pathological (essential / parkinsonian action) tremor [Hz].
+TREMOR_BAND = (8.0, 12.0)
+
+
+def pinch_direction() -> FloatArray:
+    """``(10,)`` the joint direction that closes the pinch (:data:`PINCH_JOINTS`) [-]."""
+    out = np.zeros(N_JOINTS)
+    for name, share in PINCH_JOINTS.items():
+        out[joint_index(name)] = share
+    return out
+
+
+@dataclass(frozen=True)
+class Impairment:
+    """One impairment and its strength.
+
+    Attributes:
+        name: one of :data:`IMPAIRMENTS`.
+        strength: its size in the unit of the module docstring's table.
+    """
+
+    name: str
+    strength: float
+
+    @classmethod
+    def make(cls, name: str, strength: float | None = None) -> Impairment:
+        """The impairment ``name`` with ``strength`` (default :data:`DEFAULT_STRENGTHS`).
+
+        Raises:
+            InputError: an unknown name, or a strength out of its range (lag < 0, a scale
+                not in (0, 2], a negative amplitude).
+        """
+        if name not in IMPAIRMENTS:
+            raise InputError(
+                f"impairment {name!r} is not known; choose one of {', '.join(IMPAIRMENTS)}"
+            )
+        value = DEFAULT_STRENGTHS[name] if strength is None else float(strength)
+        if not math.isfinite(value):
+            raise InputError(f"impairment strength must be finite, got {value}")
+        if name == "small_hand" and not 0.0 < value <= 2.0:
+            raise InputError(f"small_hand's strength is a hand scale in (0, 2], got {value}")
+        if name != "small_hand" and value < 0:
+            raise InputError(f"{name}'s strength must be >= 0, got {value}")
+        return cls(name, value)
+
+
+def _rng(tag: str, person_id: str, seed: int) -> np.random.Generator:
+    # sha256, not hash(): Python salts str hashes per process.
+    digest = hashlib.sha256(f"{tag}:{person_id}".encode()).digest()
+    return np.random.default_rng([int.from_bytes(digest[:8], "little"), seed])
+
+
+class TremorOperator:
+    """A script with a tremor: ``Θ(t) + A sin(2 pi f t + phi_j)`` on :data:`TREMOR_JOINTS`.
+
+    Args:
+        operator: the script Θ(t) [rad], t [s].
+        amplitude: ``A`` [rad].
+        person_id, seed: draw the frequency ``f`` ~ U(8.5, 11.5) Hz (inside
+            :data:`TREMOR_BAND`) and the phases, reproducibly.
+    """
+
+    def __init__(
+        self, operator: ScriptedOperator, amplitude: float, person_id: str, seed: int
+    ) -> None:
+        self.operator = operator
+        self.amplitude = float(amplitude)
+        rng = _rng("tremor", person_id, seed)
+        #: The tremor's frequency [Hz].
+        self.hz = float(rng.uniform(TREMOR_BAND[0] + 0.5, TREMOR_BAND[1] - 0.5))
+        self._idx = np.array([joint_index(j) for j in TREMOR_JOINTS])
+        self._phase = rng.uniform(0.0, 2.0 * math.pi, size=len(TREMOR_JOINTS))
+
+    @property
+    def timings(self) -> ReachPinchLiftTimings:
+        """The wrapped script's phase times."""
+        return self.operator.timings
+
+    def __call__(self, t: float) -> FloatArray:
+        """Θ(t) [rad] with the tremor."""
+        out = np.array(self.operator(t), dtype=np.float64)
+        out[self._idx] += self.amplitude * np.sin(2.0 * math.pi * self.hz * t + self._phase)
+        return out
+
+
+def _min_jerk(s: float) -> float:
+    s = min(max(s, 0.0), 1.0)
+    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+class WeakGripOperator:
+    """A script that closes the pinch less: ``Θ(t) - w(t) opening d`` with d the pinch's
+    closing direction (:func:`pinch_direction`) and ``w`` rising with the close phase
+    (minimum jerk from ``timings.reach`` to ``timings.close``), so the fingers still meet
+    the pen but squeeze it less.
+
+    A squeeze along the direction in which the operator's pinch closes for a thinner pen
+    (its inverse kinematics: index MCP up, PIP down) was tried first: it moves the index pad
+    along the pen's surface rather than into it, and the pen fell out at an unchanged force.
+
+    Args:
+        operator: the script Θ(t) [rad].
+        opening: how much less the pinch closes [rad] on index MCP and thumb flexion.
+    """
+
+    def __init__(self, operator: ScriptedOperator, opening: float) -> None:
+        self.operator = operator
+        self.opening = float(opening)
+        self._d = pinch_direction()
+
+    @property
+    def timings(self) -> ReachPinchLiftTimings:
+        """The wrapped script's phase times."""
+        return self.operator.timings
+
+    def __call__(self, t: float) -> FloatArray:
+        """Θ(t) [rad] with the weaker pinch."""
+        t0, t1 = self.timings.reach, self.timings.close
+        w = _min_jerk((t - t0) / (t1 - t0))
+        return np.asarray(self.operator(t), dtype=np.float64) - w * self.opening * self._d
+
+
+class LaggedGlove(GloveDevice):
+    """A glove whose readings arrive ``lag`` late: each read returns the sample read
+    ``round(lag * rate)`` reads before (the first sample until then).
+
+    Args:
+        inner: the glove.
+        lag_steps: the delay in reads (at 100 Hz, 10 reads = 100 ms).
+    """
+
+    def __init__(self, inner: GloveDevice, lag_steps: int) -> None:
+        if lag_steps < 0:
+            raise ValueError(f"lag_steps must be >= 0, got {lag_steps}")
+        self.inner = inner
+        self.glove_id = inner.glove_id
+        self.lag_steps = int(lag_steps)
+        self._buffer: deque[GloveReading] = deque(maxlen=self.lag_steps + 1)
+
+    def read(self) -> GloveReading:
+        """The reading of ``lag_steps`` reads ago (the first one while the buffer fills)."""
+        self._buffer.append(self.inner.read())
+        return self._buffer[0]
+
+    def write_feedback(self, torques: ArrayLike) -> None:
+        """Pass the force display [N m] on (the actuators are not delayed)."""
+        self.inner.write_feedback(torques)
+
+    @property
+    def n_actuators(self) -> int:
+        """The inner glove's actuators."""
+        return self.inner.n_actuators
+
+    @property
+    def fault(self) -> str | None:
+        """The inner glove's fault."""
+        return self.inner.fault
+
+    def enable(self) -> None:
+        """Arm the inner glove."""
+        self.inner.enable()
+
+    def close(self) -> None:
+        """Close the inner glove."""
+        self.inner.close()
+
+
+class PeekGlove(GloveDevice):
+    """A glove read one sample ahead: :meth:`read` returns the sample :attr:`upcoming`
+    announced and reads the next. The assistant sits between the glove and the hand: it
+    sees the reading the hand is about to get (a scripted operator does not react to the
+    force display, so reading ahead changes nothing of the session).
+
+    Args:
+        inner: the glove.
+    """
+
+    def __init__(self, inner: GloveDevice) -> None:
+        self.inner = inner
+        self.glove_id = inner.glove_id
+        self._next: GloveReading | None = None
+        #: The reading :meth:`read` returned last (``None`` before the first).
+        self.last_reading: GloveReading | None = None
+
+    @property
+    def upcoming(self) -> GloveReading:
+        """The reading the next :meth:`read` returns."""
+        if self._next is None:
+            self._next = self.inner.read()
+        return self._next
+
+    def read(self) -> GloveReading:
+        """The announced reading; the next one is read now."""
+        out = self.upcoming
+        self._next = self.inner.read()
+        self.last_reading = out
+        return out
+
+    def write_feedback(self, torques: ArrayLike) -> None:
+        """Pass the force display [N m] on."""
+        self.inner.write_feedback(torques)
+
+    @property
+    def n_actuators(self) -> int:
+        """The inner glove's actuators."""
+        return self.inner.n_actuators
+
+    @property
+    def fault(self) -> str | None:
+        """The inner glove's fault."""
+        return self.inner.fault
+
+    def enable(self) -> None:
+        """Arm the inner glove."""
+        self.inner.enable()
+
+    def close(self) -> None:
+        """Close the inner glove."""
+        self.inner.close()
+
+
+def calibration_bias(offset: float) -> FloatArray:
+    """``(10,)`` the output offset [rad] of :func:`biased_calibration`: ``-offset`` on the
+    pinch's closing joints (:data:`PINCH_JOINTS`, index PIP half), 0 elsewhere."""
+    return -float(offset) * pinch_direction()
+
+
+def biased_calibration(calibration: Calibration, offset: float) -> Calibration:
+    """The calibration with its output offset on the pinching joints: every group's
+    ``y_mean`` (the ANN's output shift) moved by :func:`calibration_bias` ``(offset)``, so
+    ``predict`` returns Θ + bias for every reading (an ANN that learned the pinch poses
+    with a constant error, e.g. from a glove that sat differently when calibrated).
+
+    Args:
+        calibration: the person's calibration.
+        offset: [rad], > 0 opens the pinch.
+
+    Returns:
+        A new :class:`Calibration` (the input is unchanged).
+    """
+    bias = calibration_bias(offset)
+    groups = []
+    for g in calibration.groups:
+        shift = np.array([bias[joint_index(j)] for j in g.outputs])
+        groups.append(dataclasses.replace(g, y_mean=np.asarray(g.y_mean) + shift))
+    return Calibration(tuple(groups))
+
+
+def stock_person(person: PersonParams) -> PersonParams:
+    """``person`` with the nominal hand geometry (scale 1): whose pinch the stock script
+    plans. The style (the id) and the glove fit stay the person's."""
+    return dataclasses.replace(
+        person,
+        hand_scale=1.0,
+        index_lengths=NOMINAL_INDEX_LENGTHS,
+        thumb_lengths=NOMINAL_THUMB_LENGTHS,
+        thumb_base=NOMINAL_THUMB_BASE,
+        finger_thickness=0.009,
+        pad_contact=0.006,
+    )
+
+
+#: Added to a resized person's seed, so its calibration is cached apart from the original's
+#: (the cache names profiles by id and seed).
+SMALL_HAND_SEED_OFFSET = 7919
+
+
+def small_hand_person(person: PersonParams, scale: float) -> PersonParams:
+    """``person`` with a hand of overall scale ``scale``: segment lengths, thumb base,
+    finger thickness and pad size of the nominal hand times ``scale`` (the person's own
+    proportions, glove fit and style kept), and another seed (its own calibration).
+
+    Args:
+        person: the person.
+        scale: hand scale [-] (the sampled persons span 0.85-1.15).
+    """
+    k = scale / person.hand_scale
+    return dataclasses.replace(
+        person,
+        seed=person.seed + SMALL_HAND_SEED_OFFSET,
+        hand_scale=float(scale),
+        index_lengths=tuple(float(v * k) for v in person.index_lengths),  # type: ignore[arg-type]
+        thumb_lengths=tuple(float(v * k) for v in person.thumb_lengths),  # type: ignore[arg-type]
+        thumb_base=(person.thumb_base[0] * k, person.thumb_base[1] * k),
+        finger_thickness=person.finger_thickness * k,
+        pad_contact=person.pad_contact * k,
+    )

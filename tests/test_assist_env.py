@@ -1,0 +1,263 @@
+"""IAS-GloveAssist-v0 (ias_gym.assist): spaces, determinism, the impairments as specified,
+the analytic assistant rescuing a weak grip from perturbed starts without harming an
+unimpaired operator, the intervention metric, the CLI's JSON and the assistant on the CAN
+glove's env."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import ias_gym  # noqa: F401  (registers the ids)
+from ias_gym.assist.assistants import AnalyticAssistant, load_templates
+from ias_gym.assist.evaluation import run_session, session_success
+from ias_gym.assist.impairments import (
+    DEFAULT_STRENGTHS,
+    TREMOR_BAND,
+    calibration_bias,
+    pinch_direction,
+)
+from ias_gym.errors import InputError
+from ias_gym.glove.hand import joint_index
+from ias_gym.glove.profile_cache import default_calibration
+from tests.closed_loop import perturbed_starts
+
+#: A development person (never one of the table's held-out persons p7-p9).
+PERSON = "p3"
+
+
+@pytest.fixture(scope="module")
+def templates() -> dict:
+    return load_templates()
+
+
+def make(**kw):
+    return gym.make("IAS-GloveAssist-v0", person_id=PERSON, **kw)
+
+
+def test_spaces_and_the_upcoming_targets_are_the_next_steps() -> None:
+    env = make(skill="tilt_left")
+    obs, info = env.reset(seed=0)
+    assert env.action_space.shape == (10,)
+    assert obs.shape == env.observation_space.shape == (49,)
+    for _ in range(3):
+        upcoming = obs[39:].copy()
+        obs, *_, info = env.step(np.zeros(10))
+        # the assistant sees the targets the hand gets in the next step, not the last ones
+        np.testing.assert_array_equal(info["operator_theta"], upcoming)
+    assert info["intent"] == "tilt_left" and info["impairment"] == "none"
+    with pytest.raises(InputError, match="impairment"):
+        make(impairment="palsy")
+    with pytest.raises(InputError, match="switch_time"):
+        make(switch_to="tilt_right")
+
+
+def test_same_seed_same_session() -> None:
+    a, b = make(impairment="tremor"), make(impairment="tremor")
+    oa, _ = a.reset(seed=3)
+    ob, _ = b.reset(seed=3)
+    for _ in range(20):
+        oa, *_ = a.step(np.full(10, 0.1))
+        ob, *_ = b.step(np.full(10, 0.1))
+    np.testing.assert_array_equal(oa, ob)
+
+
+def _operator_thetas(impairment: str, steps: int, seed: int = 0) -> np.ndarray:
+    """The operator's calibrated targets over ``steps`` steps (no physics needed: the
+    glove is read ahead, so the targets come from the glove chain alone)."""
+    env = make(impairment=impairment).unwrapped
+    env.reset(seed=seed)
+    out = [env.upcoming_theta.copy()]
+    for _ in range(steps):
+        env.step(np.zeros(10))
+        out.append(env.upcoming_theta.copy())
+    return np.array(out)
+
+
+def test_tremor_peaks_in_8_to_12_hz_and_matters() -> None:
+    n = 128
+    diff = _operator_thetas("tremor", n) - _operator_thetas("none", n)
+    pron = diff[:, joint_index("wrist_pronation")]
+    spectrum = np.abs(np.fft.rfft(pron - pron.mean()))
+    freqs = np.fft.rfftfreq(len(pron), d=0.01)
+    peak = freqs[np.argmax(spectrum)]
+    assert TREMOR_BAND[0] <= peak <= TREMOR_BAND[1]
+    # after the env's low-pass still several times the persons' own tremor (<= 3 mrad)
+    assert np.ptp(pron[20:]) > 0.03
+
+
+def test_lag_delays_the_readings_by_100_ms() -> None:
+    lagged, plain = make(impairment="lag").unwrapped, make().unwrapped
+    ga, gb = lagged._impaired_glove(7), plain._impaired_glove(7)
+    a = np.array([ga.read().psi for _ in range(40)])
+    b = np.array([gb.read().psi for _ in range(40)])
+    k = round(DEFAULT_STRENGTHS["lag"] / 0.01)
+    assert k == 10
+    np.testing.assert_array_equal(a[k:], b[:-k])
+    np.testing.assert_array_equal(a[:k], np.repeat(b[:1], k, axis=0))
+
+
+def test_biased_calibration_offsets_the_pinching_joints() -> None:
+    env = make(impairment="biased_calibration").unwrapped
+    psi = np.random.default_rng(0).normal(0.0, 0.3, size=(20, 10))
+    shift = env.calibration.predict(psi) - default_calibration(env.person).predict(psi)
+    bias = calibration_bias(DEFAULT_STRENGTHS["biased_calibration"])
+    np.testing.assert_allclose(shift, np.broadcast_to(bias, shift.shape), atol=1e-12)
+    assert bias[joint_index("index_mcp")] < 0 and bias[joint_index("wrist_flexion")] == 0
+
+
+def test_weak_grip_opens_the_pinch_after_the_close() -> None:
+    diff = _operator_thetas("weak_grip", 90) - _operator_thetas("none", 90)
+    # after the close phase (0.7 s) the targets are opened along the pinch direction (seen
+    # through the person's calibration, which couples the index PIP and DIP a little)
+    late = diff[80:].mean(axis=0)
+    expected = -DEFAULT_STRENGTHS["weak_grip"] * pinch_direction()
+    main = [joint_index("index_mcp"), joint_index("thumb_flexion")]
+    np.testing.assert_allclose(late[main], expected[main], atol=0.005)
+    assert np.abs(late[:3]).max() < 1e-3  # the wrist is untouched
+    assert np.abs(diff[0]).max() < 0.01  # the pre-shape is the person's own
+
+
+def test_small_hand_is_a_smaller_hand_running_the_stock_pinch() -> None:
+    env = make(impairment="small_hand").unwrapped
+    assert env.person.hand_scale == pytest.approx(DEFAULT_STRENGTHS["small_hand"])
+    assert env.operator_person.hand_scale == 1.0
+    assert env.person.person_id == PERSON
+
+
+def test_assistant_turns_a_weak_grip_into_a_success(templates) -> None:
+    kw = {"skill": "lift_hold", "duration": 2.5}
+    reference = run_session(make(**kw), None, 0)
+    env = make(impairment="weak_grip", **kw)
+    unassisted = run_session(env, None, 0)
+    assert not session_success(unassisted, reference)  # the pen falls without help
+    for options in perturbed_starts(env, 0, n=2):
+        assisted = run_session(env, AnalyticAssistant(templates), 0, options)
+        assert session_success(assisted, reference), options is None
+
+
+def test_no_loss_for_the_unimpaired_operator(templates) -> None:
+    kw = {"skill": "tilt_right", "duration": 2.5}
+    env = make(**kw)
+    reference = run_session(env, None, 0)
+    assistant = AnalyticAssistant(templates)
+    assisted = run_session(env, assistant, 0)
+    assert session_success(assisted, reference)
+    assert assistant.lag_s < 0.05  # no lag where there is none
+    assert 0.0 < assisted.intervention < 0.1
+
+
+def test_with_the_phase_recogniser_the_assistant_follows_an_intent_switch(templates) -> None:
+    from ias_gym.assist.recognition import make_recogniser
+    from ias_gym.skills import SkillDB
+    from ias_gym.skills.transfer import shipped_skill_db
+
+    with SkillDB(shipped_skill_db(), readonly=True) as db:
+        recogniser = make_recogniser("phase", db)
+    env = make(skill="lift_hold", switch_to="tilt_left", switch_time=2.2, duration=3.5)
+    assistant = AnalyticAssistant(templates, recogniser)
+    result = run_session(env, assistant, 0)
+    assert sum(assistant.posterior().values()) == pytest.approx(1.0)
+    top = result.top_skill
+    assert top[150] == "lift_hold"  # before the switch: the pinch-lift-hold
+    # within 0.5 s of the switch the recogniser names the new intent (it may call the late
+    # tilt unknown afterwards: no library session tilts that late)
+    assert "tilt_left" in top[220:270]
+    # the oracle follows at once: the step whose time crosses the switch, 2 steps
+    oracle = run_session(env, AnalyticAssistant(templates), 0)
+    assert oracle.switch_latency_s == pytest.approx(0.02)
+    assert oracle.top_skill[-1] == "tilt_left"
+
+
+class _Constant:
+    def __init__(self, value: float) -> None:
+        self.value = value
+
+    def reset(self, env) -> None:
+        pass
+
+    def act(self, env) -> np.ndarray:
+        return np.full(10, self.value)
+
+    def posterior(self) -> dict[str, float]:
+        return {}
+
+
+def test_intervention_is_offsets_over_the_operators_motion() -> None:
+    env = make(skill="lift_hold", duration=1.0)
+    none = run_session(env, None, 0)
+    const = run_session(env, _Constant(0.05), 0)
+    assert none.intervention == 0.0
+    # the operator's motion over the same steps, from its targets
+    u = env.unwrapped
+    env.reset(seed=0)
+    thetas = []
+    for _ in range(len(const.times)):
+        thetas.append(env.step(np.full(10, 0.05))[4]["operator_theta"])
+    motion = np.mean(np.abs(np.array(thetas) - thetas[0]).sum(axis=1))
+    expected = 10 * 0.05 * u.config.action_scale / motion
+    assert const.intervention == pytest.approx(expected, rel=1e-9)
+
+
+def test_cli_evaluate_json_keys(capsys, monkeypatch) -> None:
+    from ias_gym.cli import assist as cli_assist
+    from ias_gym.cli import main
+    from ias_gym.skills.transfer import shipped_skill_db
+
+    # the recognition metrics themselves are tests/test_assist_recognition.py's (recording
+    # their sessions takes ~40 s); here: that they reach the JSON for these persons
+    calls = []
+
+    def metrics(db, persons, episodes, seed):
+        calls.append(persons)
+        return dict.fromkeys(cli_assist.RECOGNITION_KEYS, 0.5)
+
+    monkeypatch.setattr(cli_assist, "_recognition_metrics", metrics)
+
+    argv = ["assist", "evaluate", "--db", str(shipped_skill_db()), "--persons", PERSON]
+    argv += ["--recogniser", "oracle"]
+    code = main([*argv, "--impairment", "none", "--episodes", "1", "--json"])
+    assert code == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    for key in (
+        "recog_acc_at_33",
+        "recog_acc_at_60",
+        "time_to_recognise_s",
+        "false_trigger_rate",
+        "unknown_auroc",
+    ):
+        assert out[key] == 0.5
+    assert calls == [[PERSON]]
+    row = out["by_impairment"]["none"]
+    assert set(row) >= {"success_unassisted", "success_assisted", "intervention"}
+    assert row["success_unassisted"] == 1.0  # the unimpaired operator against itself
+    assert main([*argv, "--impairment", "palsy", "--episodes", "1"]) == 2
+
+
+@pytest.mark.usefixtures("no_python_can_warnings", "no_gc_pauses")
+def test_the_assistant_runs_on_the_can_glove(channel: str, templates) -> None:
+    from ias_gym.hardware import GloveEmulator, GloveHardwareEnv
+
+    with GloveEmulator(channel=channel, rate_hz=500, watchdog_timeout=0.2):
+        env = GloveHardwareEnv(channel=channel, watchdog_timeout=0.2, skill="lift_hold")
+        try:
+            env.reset(seed=0)
+            assistant = AnalyticAssistant(templates)
+            assistant.reset(env)
+            for _ in range(30):
+                action = assistant.act(env)
+                assert action.shape == (10,) and np.all(np.abs(action) <= 1.0)
+                theta = env._theta.copy()
+                *_, info = env.step(action)
+                assert not info["fault"]
+            # the offsets reached the hand: targets = operator + scale x action (clipped)
+            lo, hi = env._ctrl_lo, env._ctrl_hi
+            target = np.clip(env._theta + env.config.action_scale * action, lo, hi)
+            np.testing.assert_allclose(env.data.ctrl[env._act], target)
+            assert not math.isnan(assistant.lag_s) and theta.shape == (10,)
+        finally:
+            env.close()
