@@ -1,0 +1,483 @@
+"""An SB3 agent across human skills: BC from the expert's executions, then PPO fine-tuning.
+
+    python train/pen_skill_bc.py --hand ias4f --n-demos 40 --out out/pen_skill_bc_ias4f
+
+Issue #13, learning across skills. The training library is the shipped human skills
+(``--train-db``) minus the held-out skills (``--heldout-skills``) and persons
+(:func:`ias_gym.learning.skill_split.split_skills`). On ``IAS-PenSkill-v0`` restricted to
+it, the expert (Theorem 1 following the transferred skill) is recorded with noise injection
+(DART, :func:`ias_gym.learning.dart.record_noisy_expert`, as ``train/bc.py``), cloned into
+an SB3 PPO model (:func:`ias_gym.learning.cloning.behaviour_clone`) and fine-tuned briefly
+by PPO (:func:`ias_gym.learning.finetune.fine_tune`, the best policy on validation seeds of
+the training skills kept). Expert, cloned, fine-tuned and random policies are then run once
+per skill and ``--eval-seeds`` seed on four groups: training skills of training persons
+(new seeds), held-out skills of training persons, and training and held-out skills of
+held-out persons (``--heldout-persons``, glove sessions recorded into
+``OUT/heldout_persons.db`` unless ``--heldout-db`` gives them).
+
+Writes into ``--out``: ``demos.db``, ``bc.zip``, ``bc_ppo.zip`` (SB3 zips that load
+without unpickling: ``ias-gym evaluate --env IAS-PenSkill-v0 --policy OUT/bc.zip``),
+``results.json`` and ``results.md``. Refuses to replace them without ``--overwrite``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+ENV_ID = "IAS-PenSkill-v0"
+OUTPUTS = ("demos.db", "bc.zip", "bc_ppo.zip", "results.json", "results.md")
+#: Three person ids never used while developing (random strings).
+HELDOUT_PERSONS = "hx-7f3a,hx-b21c,hx-e9d4"
+#: Held out of training: a faster variant of a trained motion (extrapolation in speed) and
+#: a motion of its own (the pen put down, not held).
+HELDOUT_SKILLS = "seesaw_fast,lift_place"
+POLICIES = ("expert", "bc", "bc_ppo", "random")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Command-line options."""
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    parser.add_argument("--hand", default="ias4f", choices=("ias4f", "ias3f"), help="robot hand")
+    parser.add_argument("--n-demos", type=int, default=40, help="DART expert episodes")
+    parser.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    parser.add_argument("--overwrite", action="store_true", help="replace existing outputs")
+    parser.add_argument(
+        "--train-db", default=None, help="training library (default: the shipped human skills)"
+    )
+    parser.add_argument(
+        "--heldout-db",
+        default=None,
+        help="glove sessions of the held-out persons (default: recorded into "
+        "OUT/heldout_persons.db, reused if there)",
+    )
+    parser.add_argument("--heldout-skills", default=HELDOUT_SKILLS, help="comma-separated")
+    parser.add_argument("--heldout-persons", default=HELDOUT_PERSONS, help="comma-separated")
+    parser.add_argument(
+        "--extra-train-persons",
+        default="",
+        help="comma-separated ids: their glove sessions of the training skills are recorded "
+        "into OUT/train_library.db beside a copy of --train-db (missing ones only), and that "
+        "library is trained on (e.g. tr-k4m2,tr-q8s1,tr-w3n7)",
+    )
+    parser.add_argument(
+        "--noise", type=float, default=0.001, help="DART noise std [normalised torque]"
+    )
+    parser.add_argument("--record-seed", type=int, default=0, help="seed of the first demo")
+    parser.add_argument("--epochs", type=int, default=100, help="cloning: passes over the data")
+    parser.add_argument("--net-arch", default="256,256", help="hidden layers of actor, critic")
+    parser.add_argument(
+        "--ppo-steps", type=int, default=8192, help="PPO fine-tuning environment steps"
+    )
+    parser.add_argument(
+        "--critic-warmup", type=int, default=4096, help="first PPO steps, actor frozen"
+    )
+    parser.add_argument("--n-envs", type=int, default=2, help="PPO envs (sequential)")
+    parser.add_argument("--val-episodes", type=int, default=4, help="validation episodes")
+    parser.add_argument("--val-seed", type=int, default=2000, help="first validation seed")
+    parser.add_argument("--eval-seeds", type=int, default=1, help="evaluation seeds per skill")
+    parser.add_argument("--eval-seed", type=int, default=1000, help="first evaluation seed")
+    parser.add_argument(
+        "--max-eval-skills", type=int, default=0, help="per group at most N skills (0: all)"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="training seed")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads")
+    return parser
+
+
+def _names(text: str) -> list[str]:
+    return [t.strip() for t in text.split(",") if t.strip()]
+
+
+def record_sessions(db: Path, persons: Sequence[str], skills: Sequence[str]) -> None:
+    """Record one glove session per person and skill into ``db`` (those missing there)."""
+    from tqdm import tqdm
+
+    from ias_gym.skills.db import SkillDB
+    from ias_gym.skills.record import record_skills_spec
+
+    have: set[tuple[str | None, str]] = set()
+    if db.is_file():
+        with SkillDB(db, readonly=True) as store:
+            have = {(s.person_id, s.name) for s in store.list_skills()}
+    todo = [(p, s) for p in persons for s in skills if (p, s) not in have]
+    for person, skill in tqdm(todo, desc="glove sessions", unit="session"):
+        record_skills_spec(
+            "IAS-GloveGrasp-v0", "teleop", 1, db, progress=False, person_id=person, skill=skill
+        )
+
+
+def extend_library(
+    source: Path, target: Path, persons: Sequence[str], heldout_skills: Sequence[str]
+) -> Path:
+    """``target``: a copy of ``source``'s skills (made once) plus one glove session of each
+    of ``persons`` per skill not held out (those missing there are recorded).
+    """
+    from ias_gym.glove.skills import SKILLS
+    from ias_gym.skills.db import SkillDB
+
+    if not target.exists():
+        tmp = target.with_name(f".{target.name}.partial")
+        for suffix in ("", "-wal", "-shm"):
+            Path(f"{tmp}{suffix}").unlink(missing_ok=True)
+        with SkillDB(source, readonly=True) as src, SkillDB(tmp) as dst:
+            for summary in src.list_skills():
+                dst.add(src.get(summary.id))
+        tmp.rename(target)  # closed cleanly: the write-ahead log is folded into the file
+    record_sessions(target, persons, [s for s in SKILLS if s not in heldout_skills])
+    return target
+
+
+def first_per_person_and_skill(summaries: Sequence[Any]) -> list[Any]:
+    """The first session of each (person, skill) pair (a library may hold repeats)."""
+    seen: set[tuple[str, str]] = set()
+    out = []
+    for s in sorted(summaries, key=lambda s: s.id):
+        if (s.person_id, s.name) not in seen:
+            seen.add((s.person_id, s.name))
+            out.append(s)
+    return out
+
+
+def evaluate_group(
+    policy_spec: str,
+    db: str | None,
+    ids: Sequence[int],
+    hand: str,
+    seeds: Sequence[int],
+    label: str,
+    visited: list[tuple[Any, Any]] | None = None,
+) -> dict[str, Any]:
+    """Run ``policy_spec`` once per skill of ``ids`` and seed; success and tracking errors.
+
+    ``visited`` collects each step's (observation, action) when given.
+    """
+    from tqdm import tqdm
+
+    from ias_gym.baselines.policies import load_policy
+    from ias_gym.evaluation import make_env
+
+    env = make_env(ENV_ID, hand=hand, skill_db=db, skill_ids=list(ids))
+    policy = load_policy(policy_spec, env, seed=seeds[0])
+    rows: list[dict[str, Any]] = []
+    runs = [(i, s) for i in range(len(ids)) for s in seeds]
+    try:
+        for index, seed in tqdm(runs, desc=label, unit="episode", leave=False):
+            obs, info = env.reset(seed=seed, options={"skill": index})
+            done, length, state = False, 0, None
+            while not done:
+                action, state = policy.predict(
+                    obs, state=state, episode_start=length == 0, deterministic=True
+                )
+                if visited is not None:
+                    visited.append((obs, action))
+                obs, _, terminated, truncated, info = env.step(action)
+                length += 1
+                done = terminated or truncated
+            held = not terminated and not info.get("sim_unstable", False)  # pen not dropped
+            rows.append(
+                {
+                    "skill_id": int(ids[index]),
+                    "success": bool(info["is_success"]),
+                    "held": bool(held),
+                    "length_s": length * env.unwrapped.config.control_dt,  # type: ignore[attr-defined]
+                    "rms_position_error_mm": 1e3 * float(info["rms_position_error"]),
+                    "rms_rotation_error_deg": math.degrees(float(info["rms_rotation_error"])),
+                    "margin_error": float(info["margin_error"]),
+                }
+            )
+    finally:
+        env.close()
+    return summarise(rows)
+
+
+def open_loop_diagnosis(
+    visited: Sequence[tuple[Any, Any]],
+    train_observations: Any,
+    models: dict[str, str],
+    env_kwargs: dict[str, Any],
+) -> dict[str, Any]:
+    """Why a cloned policy fails where it does, measured on the expert's own states.
+
+    Two numbers per group: how far the expert's observations lie outside the training
+    data, in the policy's normalisation (largest ``|obs - mean| / std`` and its feature
+    index), and each model's open-loop action error there (RMS over steps and
+    components of model action minus expert action [normalised torque]; the expert itself
+    drops the pen under action noise of about 0.002, ias_gym/learning/dart.py).
+    """
+    import numpy as np
+
+    from ias_gym.baselines.policies import load_policy
+    from ias_gym.evaluation import make_env
+    from ias_gym.learning.normalisation import OBS_STD_FLOOR, observation_statistics
+
+    obs = np.array([o for o, _ in visited], dtype=np.float32)
+    expert = np.array([a for _, a in visited], dtype=np.float32)
+    mean, std = observation_statistics(train_observations, OBS_STD_FLOOR)
+    z = np.abs((obs - mean) / std).max(axis=0)
+    out: dict[str, Any] = {
+        "steps": len(obs),
+        "max_abs_z": float(z.max()),
+        "feature_of_max_z": int(z.argmax()),
+    }
+    env = make_env(ENV_ID, **env_kwargs)
+    try:
+        for name, path in models.items():
+            policy = load_policy(path, env)
+            actions = np.array([policy.predict(o, deterministic=True)[0] for o in obs])
+            out[f"{name}_action_rms_error"] = float(np.sqrt(np.mean((actions - expert) ** 2)))
+    finally:
+        env.close()
+    return out
+
+
+def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """Success rate, held rate, and the tracking errors' means over the held episodes."""
+    import numpy as np
+
+    held = [r for r in rows if r["held"]]
+
+    def mean(key: str) -> float | None:
+        values = [r[key] for r in held if math.isfinite(r[key])]
+        return float(np.mean(values)) if values else None
+
+    return {
+        "episodes": len(rows),
+        "success_rate": float(np.mean([r["success"] for r in rows])) if rows else 0.0,
+        "held_rate": len(held) / len(rows) if rows else 0.0,
+        "mean_length_s": float(np.mean([r["length_s"] for r in rows])) if rows else 0.0,
+        "rms_position_error_mean_mm": mean("rms_position_error_mm"),
+        "rms_rotation_error_mean_deg": mean("rms_rotation_error_deg"),
+        "margin_error_mean": mean("margin_error"),
+        "episodes_detail": list(rows),
+    }
+
+
+def markdown(results: dict[str, Any]) -> str:
+    """The results as a markdown table (one row per group and policy)."""
+
+    def fmt(value: float | None, digits: int) -> str:
+        return "-" if value is None else f"{value:.{digits}f}"
+
+    lines = [
+        f"hand {results['hand']}; training: {results['train_persons']} x "
+        f"{results['train_skills']}; held-out skills {results['heldout_skills']}, "
+        f"held-out persons {results['heldout_persons']}",
+        "",
+        "| group | policy | episodes | success | held | mean length [s] | RMS pos. err. [mm] | "
+        "RMS axis err. [deg] | margin err. [-] |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for group, per_policy in results["groups"].items():
+        for name, s in per_policy.items():
+            lines.append(
+                f"| {group} | {name} | {s['episodes']} | {s['success_rate']:.0%} | "
+                f"{s['held_rate']:.0%} | {s['mean_length_s']:.2f} | "
+                f"{fmt(s['rms_position_error_mean_mm'], 2)} | "
+                f"{fmt(s['rms_rotation_error_mean_deg'], 2)} | "
+                f"{fmt(s['margin_error_mean'], 2)} |"
+            )
+    lines.append("")
+    lines.append(
+        "Errors are means over the episodes in which the pen was held to the end (`held`)."
+    )
+    lines += [
+        "",
+        "On the expert's states of each group: the largest |z| of an observation feature "
+        "in the policy's normalisation, and the open-loop action error [normalised torque]:",
+        "",
+        "| group | steps | max abs z (feature) | BC action RMS error | BC+PPO action RMS error |",
+        "|---|---|---|---|---|",
+    ]
+    for group, d in results.get("open_loop", {}).items():
+        lines.append(
+            f"| {group} | {d['steps']} | {d['max_abs_z']:.0f} (#{d['feature_of_max_z']}) | "
+            f"{d['bc_action_rms_error']:.4f} | {d['bc_ppo_action_rms_error']:.4f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Split, record, clone, fine-tune, evaluate, write the table."""
+    args = build_parser().parse_args(argv)
+    from ias_gym.errors import IasGymError, InputError
+    from ias_gym.outputs import atomic_output, prepare_output_dir
+
+    try:  # before the heavy imports and any work
+        if args.n_demos < 1:
+            raise InputError(f"--n-demos must be >= 1, got {args.n_demos}")
+        out = prepare_output_dir(args.out, OUTPUTS, overwrite=args.overwrite)
+    except IasGymError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    import torch
+
+    from ias_gym.learning.cloning import behaviour_clone
+    from ias_gym.learning.dart import record_noisy_expert
+    from ias_gym.learning.demonstrations import load_demonstrations
+    from ias_gym.learning.finetune import KeepBestPolicy, fine_tune, make_vec_env
+    from ias_gym.learning.skill_split import split_skills
+    from ias_gym.skills.db import SkillDB
+    from ias_gym.skills.transfer import shipped_skill_db
+
+    torch.set_num_threads(args.threads)
+    heldout_skills, heldout_persons = _names(args.heldout_skills), _names(args.heldout_persons)
+    train_db = Path(args.train_db) if args.train_db else shipped_skill_db()
+    extra = _names(args.extra_train_persons)
+    if set(extra) & set(heldout_persons):
+        print(f"error: {sorted(set(extra) & set(heldout_persons))} are held out", file=sys.stderr)
+        return 2
+    if extra:
+        train_db = extend_library(train_db, out / "train_library.db", extra, heldout_skills)
+    with SkillDB(train_db, readonly=True) as db:
+        summaries = db.list_skills()
+    split = split_skills(summaries, heldout_skills, heldout_persons)
+    if not split.train:
+        print(f"error: no training skills left in {train_db}", file=sys.stderr)
+        return 2
+    by_id = {s.id: s for s in summaries}
+    train_persons = sorted({by_id[i].person_id or "" for i in split.train})
+    train_skills = sorted({by_id[i].name for i in split.train})
+    print(f"training on {len(split.train)} skills: {train_persons} x {train_skills}")
+
+    heldout_db = Path(args.heldout_db) if args.heldout_db else out / "heldout_persons.db"
+    leaked = sorted(set(heldout_persons) & set(train_persons))
+    if leaked:  # split_skills excludes them; a second check costs nothing
+        raise AssertionError(f"held-out persons {leaked} in the training data")
+
+    env_kwargs: dict[str, Any] = {"hand": args.hand, "skill_ids": list(split.train)}
+    library = None if train_db == shipped_skill_db() else str(train_db)  # None: the env's default
+    if library is not None:
+        env_kwargs["skill_db"] = library
+    demos_db = out / "demos.db"
+    if demos_db.exists():  # --overwrite: a fresh recording, not appended to the old one
+        for suffix in ("", "-wal", "-shm"):
+            Path(f"{demos_db}{suffix}").unlink(missing_ok=True)
+    start = time.perf_counter()
+    record_noisy_expert(
+        ENV_ID, args.n_demos, demos_db, args.noise, seed=args.record_seed, env_kwargs=env_kwargs
+    )
+    demos = load_demonstrations(demos_db, ENV_ID, source="expert")
+    print(
+        f"recorded {args.n_demos} demonstrations ({len(demos.actions)} successful steps) in "
+        f"{time.perf_counter() - start:.0f} s"
+    )
+
+    env = make_vec_env(ENV_ID, args.n_envs, seed=args.seed, env_kwargs=env_kwargs)
+    start = time.perf_counter()
+    model = behaviour_clone(
+        env,
+        demos.observations,
+        demos.actions,
+        demos.returns,
+        epochs=args.epochs,
+        net_arch=[int(n) for n in args.net_arch.split(",")],
+        seed=args.seed,
+    )
+    with atomic_output(out / "bc.zip", overwrite=True) as tmp:
+        model.save(tmp)
+    print(f"saved the cloned policy to {out / 'bc.zip'} ({time.perf_counter() - start:.0f} s)")
+
+    start = time.perf_counter()
+    keep_best = None
+    if args.val_episodes > 0:
+        seeds = range(args.val_seed, args.val_seed + args.val_episodes)
+        keep_best = KeepBestPolicy(ENV_ID, seeds, args.ppo_steps // 2, env_kwargs=env_kwargs)
+    fine_tune(model, args.ppo_steps, critic_warmup=args.critic_warmup, keep_best=keep_best)
+    with atomic_output(out / "bc_ppo.zip", overwrite=True) as tmp:
+        model.save(tmp)
+    history = [] if keep_best is None else keep_best.history
+    print(
+        f"saved the fine-tuned policy to {out / 'bc_ppo.zip'} ({model.num_timesteps} steps, "
+        f"{time.perf_counter() - start:.0f} s; validation {history})"
+    )
+    env.close()
+
+    from ias_gym.glove.skills import SKILLS
+
+    # Recorded after training (missing sessions only): nothing of them can reach training.
+    record_sessions(heldout_db, heldout_persons, SKILLS)
+    with SkillDB(heldout_db, readonly=True) as db:
+        heldout_split = split_skills(
+            first_per_person_and_skill(db.list_skills()), heldout_skills, heldout_persons
+        )
+    eval_seeds = list(range(args.eval_seed, args.eval_seed + args.eval_seeds))
+    specs = {
+        "expert": "expert",
+        "bc": str(out / "bc.zip"),
+        "bc_ppo": str(out / "bc_ppo.zip"),
+        "random": "random",
+    }
+    libraries = {
+        "train": (library, split.train),
+        "heldout_skill": (library, split.heldout_skill),
+        "heldout_person": (str(heldout_db), heldout_split.heldout_person),
+        "heldout_both": (str(heldout_db), heldout_split.heldout_both),
+    }
+    groups: dict[str, dict[str, Any]] = {}
+    diagnosis: dict[str, dict[str, Any]] = {}
+    for group, (db_path, ids) in libraries.items():
+        if args.max_eval_skills > 0:
+            ids = ids[: args.max_eval_skills]
+        if not ids:
+            continue
+        visited: list[tuple[Any, Any]] = []
+        groups[group] = {
+            name: evaluate_group(
+                spec,
+                db_path,
+                ids,
+                args.hand,
+                eval_seeds,
+                f"{group} / {name}",
+                visited if name == "expert" else None,
+            )
+            for name, spec in specs.items()
+        }
+        diagnosis[group] = open_loop_diagnosis(
+            visited, demos.observations, {n: specs[n] for n in ("bc", "bc_ppo")}, env_kwargs
+        )
+        print(
+            group,
+            {n: f"{s['success_rate']:.0%}" for n, s in groups[group].items()},
+            flush=True,
+        )
+    results = {
+        "env": ENV_ID,
+        "hand": args.hand,
+        "train_db": str(train_db),
+        "heldout_db": str(heldout_db),
+        "train_persons": train_persons,
+        "train_skills": train_skills,
+        "heldout_skills": heldout_skills,
+        "heldout_persons": heldout_persons,
+        "n_demos": args.n_demos,
+        "demo_steps": len(demos.actions),
+        "noise": args.noise,
+        "epochs": args.epochs,
+        "ppo_steps": int(model.num_timesteps),
+        "validation": [list(h) for h in history],
+        "eval_seeds": eval_seeds,
+        "groups": groups,
+        "open_loop": diagnosis,
+    }
+    with atomic_output(out / "results.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(results, indent=1) + "\n")
+    table = markdown(results)
+    with atomic_output(out / "results.md", overwrite=True) as tmp:
+        tmp.write_text(table)
+    print(table)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
