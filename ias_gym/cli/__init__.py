@@ -3,7 +3,8 @@
 - :mod:`~ias_gym.cli.args`: argparse types and options shared by the groups;
 - :mod:`~ias_gym.cli.figures`: ``figure wrench-intensities|control-error``;
 - :mod:`~ias_gym.cli.evaluate`: ``evaluate``; :mod:`~ias_gym.cli.robustness`: ``robustness``;
-- :mod:`~ias_gym.cli.skills`: ``skills record|list|show|export|check|delete|migrate``;
+- :mod:`~ias_gym.cli.skills`: ``skills record|list|show|export|check|delete|migrate|merge``;
+  :mod:`~ias_gym.cli.transfer`: ``skills transfer``;
 - :mod:`~ias_gym.cli.glove`: ``calibrate``;
 - :mod:`~ias_gym.cli.hardware`: ``glove-emulator``, ``glove-bench``.
 
