@@ -37,12 +37,13 @@ from ias_gym.cli import main
 from ias_gym.errors import InputError
 from ias_gym.skills import SkillDB
 
-#: The small library: two persons, three skills; lift_place is the skill it does not know.
+#: The small library: four persons, three skills; seesaw_slow is the skill it does not know.
+#: (lift_place is the skill the recognisers need the most demonstrations of: its placing
+#: depth is the person's own lift height; measured in docs/assist.md.)
 KNOWN = ("lift_hold", "tilt_left", "tilt_right")
-NEW = "lift_place"
-LIB_PERSONS = ("p1", "p2")
-#: Its style (amplitude 0.97, speed 0.98) lies within the library persons' (0.97-1.04,
-#: 0.86-1.04): a two-person library's unknown threshold is calibrated for the styles it spans.
+NEW = "seesaw_slow"
+LIB_PERSONS = ("p1", "p2", "p3", "p4")
+#: A person outside the library.
 TEST_PERSON = "p5"
 
 
@@ -148,7 +149,7 @@ def test_add_skill_makes_the_new_skill_recognised_without_rebuilding(
     rec = make_recogniser(method, _lib(recorded))
     loo_before = rec.loo_scores
     models_before = dict(getattr(rec, "_models", {}))
-    demos = recorded["new_demos"]  # two persons' sessions of the new skill
+    demos = recorded["new_demos"]  # the library persons' sessions of the new skill
     rec.add_skill(NEW, [d.frames for d in demos])  # type: ignore[attr-defined]
     assert rec.skills == (*KNOWN, NEW)
     # nothing refitted: the old skills' models are the same objects, the old scores kept

@@ -85,7 +85,24 @@ FORCE_SHARE = 0.75
 #: Gain of the squeeze integrator [rad/s per unit of relative margin or force error].
 SQUEEZE_GAIN = 1.0
 #: Closing rate of a pinch with a pad off the pen after the close phase [rad/s].
-CLOSE_RATE = 0.3
+CLOSE_RATE = 1.0
+#: The slip reflex: below this grasp margin the pads slide on the pen (1 is the cones'
+#: boundary, where MuJoCo's sliding contacts sit) [-] ...
+SLIP_MARGIN = 1.02
+#: ... and the pinch then closes at this rate [rad/s] while the lift loads the grasp (a human
+#: grip's slip reflex raises the grip force within ~0.1 s of a slip) ...
+SLIP_RATE = 0.75
+#: ... and at this rate during the skill's own motion, where unimpaired grips slip briefly too.
+SLIP_RATE_SKILL = 0.3
+#: The pinch's opening against the library's joint template is estimated over this window
+#: of episode time [s] (the hold before the lift: the pinch is closed and every skill's
+#: template is the same pinch-lift) ...
+OPENING_WINDOW = (SKILL_TIMINGS.close - SKILL_TIMINGS.reach + 0.1, SKILL_TIMINGS.hold - SKILL_TIMINGS.reach)
+#: ... and the part of it up to this is a person's own pinch (unimpaired persons p1-p8 lie
+#: within -0.037..+0.029 rad of the template), not closed by the assistant [rad].
+OPENING_DEADBAND = 0.03
+#: Episode time at which the lift ends and the skill's motion may begin [s].
+LIFT_END = SKILL_TIMINGS.lift - SKILL_TIMINGS.reach
 #: Largest closing offset [rad].
 MAX_SQUEEZE = 0.35
 #: Episode time after which the pinch is closed and the squeeze is regulated [s] (the close
@@ -351,6 +368,8 @@ class AnalyticAssistant:
         self.lag_s = 0.0
         self.g = 0.0
         self.h = 0.0
+        self._openings: list[float] = []
+        self.opening = 0.0
         self._person_start = skill_start_time(
             str(cfg.skill) if cfg.skill else SKILLS[0], env.person.person_id
         )
@@ -409,6 +428,11 @@ class AnalyticAssistant:
         self._history.append(filtered[list(WRIST_JOINTS)])
         if self.lag_compensation and self.lag_s > LAG_DEADBAND and len(self._history) >= 3:
             offset[list(WRIST_JOINTS)] += self._extrapolate(self.lag_s)
+        if self.squeeze and OPENING_WINDOW[0] <= t <= OPENING_WINDOW[1]:
+            template = next(iter(self.templates.values()))  # the shared pinch-lift
+            d = self._pinch
+            self._openings.append(float(d @ (template.at(t) - theta) / (d @ d)))
+            self.opening = max(float(np.mean(self._openings)) - OPENING_DEADBAND, 0.0)
         if self.squeeze and t >= SQUEEZE_FROM:
             known = [m.margin for m in self.templates.values()]
             forces = [m.force for m in self.templates.values()]
@@ -431,7 +455,9 @@ class AnalyticAssistant:
                 # only a clearly weaker one (below FORCE_SHARE of it) is a weak grip
                 err_f = (FORCE_SHARE * force - min(float(env._pinch_force), force)) / force
                 self.g += SQUEEZE_GAIN * max(err_m, err_f) * self._dt
-            self.g = float(min(max(self.g, 0.0), MAX_SQUEEZE))
+                if m < SLIP_MARGIN:
+                    self.g += (SLIP_RATE if t <= LIFT_END else SLIP_RATE_SKILL) * self._dt
+            self.g = float(min(max(self.g, self.opening), MAX_SQUEEZE))
             offset += self.g * self._pinch
         if self.height and t >= HEIGHT_FROM:
             z_t = sum(
