@@ -6,36 +6,38 @@ another glove env, e.g. ``IAS-GloveHardware-v0``, the last applied ones), asks i
 for the posterior over the library's skills and returns joint-target offsets, the sum of
 
 1. **tremor removal**: a causal band-stop (2nd-order Butterworth, :data:`TREMOR_STOP` Hz,
-   scipy) on the wrist and pinching joints; offset = filtered Θ - Θ. Intended motion
-   (the fastest skill, the fast see-saw, is 1.5 Hz) passes almost unchanged;
-2. **lag compensation** (off by default: it made the held-out sessions worse,
-   docs/assistance.md): the lag of the readings is estimated once, when the operator's
-   lift crosses half its wrist extension, against the protocol's lift (the pinch-lift is
-   timed alike for every person, :data:`~ias_gym.glove.skills.SKILL_TIMINGS`, seen through
-   the env's low-pass); the wrist then gets the motion its own recent past predicts over
-   that lag (a quadratic fitted to the last :data:`EXTRAPOLATION_WINDOW` filtered samples).
-   The library's joint templates were tried first (``T_k(tau(t)) - T_k(tau(t - lag))``
-   blended by the posterior) and made the fast see-saw worse: another person's speed
-   (+-15 %) puts the template's phase off by more than the lag it should make up;
-3. **the squeeze at the library's grasp margin**: the live grasp margin m (the soft-finger
-   cones, :func:`~ias_gym.grasp.grasp_margin.grasp_margin`, mu = 0.25 and the pads'
-   torsional friction, as :func:`~ias_gym.skills.transfer.demonstrated_margin` measures the
-   library) is driven up to ``m* = sum_k p_k m_k`` (``m_k``: the median margin of skill k's
-   demonstrations from their skill start; the unknown share gets the library's median) by an
-   integrator on a closing offset ``g >= 0`` [rad] along the pinch's closing direction
-   (:func:`~ias_gym.assist.impairments.pinch_direction`: index MCP, PIP/2, thumb
-   flexion), on the larger of the relative margin error and the relative error of the pinch
-   force against the library's (the margin says nothing while the support carries the
-   pen); after the close phase a pinch with a pad off the pen closes at
-   :data:`CLOSE_RATE`. ``g`` never opens the operator's own grip (it is >= 0) and leaks
-   away where the margin is above ``m*``;
-4. **the object's height toward the template**: from the middle of the lift, an integrator on the
-   wrist's flexion drives the pen's height above its start toward the template's
+   scipy) on the wrist and pinching joints; offset = filtered Θ - Θ. It acts only once a
+   band-pass detector has seen a tremor (:data:`TREMOR_DETECT`, within
+   :data:`TREMOR_WINDOW`), so an operator without one is left alone;
+2. **the squeeze**, three parts, none of which ever opens the operator's grip:
+
+   - *the opening*: in the hold before the lift (:data:`OPENING_WINDOW`) the operator's
+     pinch joints are compared with the library's joint template (every skill starts with
+     the same pinch-lift); what the pinch lacks along its closing direction
+     (:func:`~ias_gym.assist.impairments.pinch_direction`: index MCP, PIP/2, thumb
+     flexion) beyond :data:`OPENING_DEADBAND` is added from then on. A weak grip and a
+     biased calibration both open the pinch along that direction;
+   - *reactive closing* until the end of the lift (:data:`LIFT_END`): an integrator on the
+     larger of the live grasp margin's relative error against the library's (the soft
+     fingers' cones, :func:`~ias_gym.grasp.grasp_margin.grasp_margin`, mu = 0.25 and the
+     pads' torsional friction, as :func:`~ias_gym.skills.transfer.demonstrated_margin`
+     measures the library) and the pinch force's against :data:`FORCE_SHARE` of the
+     library's, plus a slip reflex (:data:`SLIP_RATE` while the margin is at the cones'
+     boundary); it closes along the line between the pads (:func:`closing_direction`);
+   - after the close phase, a pinch with a pad off the pen closes at :data:`CLOSE_RATE`;
+3. **the object's height toward the template**: from the middle of the lift, an integrator
+   on the wrist's flexion drives the pen's height above its start toward the template's
    (``sum_k p_k z_k(tau(t))``, the library's mean object trajectory), ignoring errors up
    to :data:`HEIGHT_DEADBAND` (a person's own way of lifting).
 
-Confidence blending: terms 2 and 4 are weighted by the posterior itself (the unknown share
-adds nothing), term 3's target by it; term 1 is the same for every skill.
+Confidence blending: term 3 is weighted by the posterior (the unknown share adds nothing),
+term 2's targets are the posterior's mean (the unknown share takes the library's median);
+term 1 is the same for every skill.
+
+Lag compensation was tried and dropped (docs/assistance.md): a scripted operator does not
+close a loop through the lag, so a lag only delays the session, and predicting the
+operator's motion 0.1 s ahead from the library (another person's speed) or from its own
+recent past made lagged sessions worse.
 
 :class:`OracleRecogniser` has the recogniser protocol (``reset``, ``update``, ``add_skill``,
 ``skills``) and knows the true intent (the env's :meth:`~ias_gym.assist.env.GloveAssistEnv.intent`):
@@ -55,11 +57,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import butter, sosfilt, sosfilt_zi
 
-from ias_gym.assist.impairments import TREMOR_JOINTS, pinch_direction
+from ias_gym.assist.impairments import TREMOR_BAND, TREMOR_JOINTS, pinch_direction
 from ias_gym.assist.stream import SessionFrame, frames_from_env
 from ias_gym.errors import InputError
-from ias_gym.glove.device import ReachPinchLift
-from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS, WRIST_JOINTS, PersonParams, joint_index
+from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS, joint_index
 from ias_gym.glove.skills import SKILL_TIMINGS, SKILLS, skill_start_time
 from ias_gym.grasp.grasp_margin import grasp_margin
 from ias_gym.skills.db import SkillDB
@@ -75,54 +76,51 @@ FloatArray = NDArray[np.float64]
 
 #: Stop band of the tremor filter [Hz] (the tremor band 8-12 Hz, widened by 1 Hz).
 TREMOR_STOP = (7.0, 13.0)
-#: Factor on the library's margin the squeeze is held at [-]: the library's median margin
-#: dips to ~1.0 in fast motions (10th percentile), which an unimpaired grip survives and a
-#: weakened one, held at the median only, does not.
-MARGIN_FACTOR = 1.0
-#: Share of the library's pinch force below which the squeeze is raised [-] (unimpaired
-#: persons squeeze 1.2-1.6 N, the library 1.43 N; a weak grip of 0.08 rad ~0.7 N).
+#: The tremor filter acts once the RMS of the operator's tremor joints in the tremor band
+#: (a 2nd-order Butterworth band-pass, :data:`~ias_gym.assist.impairments.TREMOR_BAND`) over
+#: :data:`TREMOR_WINDOW` exceeds this [rad]. Measured over the first 0.5 s of 30 sessions
+#: (p1, p3, p5, p6, p8, six skills) after the env's low-pass: unimpaired <= 0.0017, a
+#: 0.06 rad tremor >= 0.0091.
+TREMOR_DETECT = 0.004
+#: Window of the tremor detector [s].
+TREMOR_WINDOW = 0.15
+#: The pinch's opening against the library's joint template is estimated over this window
+#: of episode time [s]: the hold before the lift, where the pinch is closed and every
+#: skill's template is the same pinch-lift ...
+OPENING_WINDOW = (
+    SKILL_TIMINGS.close - SKILL_TIMINGS.reach + 0.1,
+    SKILL_TIMINGS.hold - SKILL_TIMINGS.reach,
+)
+#: ... and the part of it up to this is a person's own pinch, not closed by the assistant
+#: [rad] (unimpaired persons p1-p8 lie within -0.037..+0.029 rad of the template).
+OPENING_DEADBAND = 0.03
+#: Share of the library's pinch force below which the squeeze is raised [-] (a person's own
+#: squeeze differs from the library's by tens of percent).
 FORCE_SHARE = 0.75
 #: Gain of the squeeze integrator [rad/s per unit of relative margin or force error].
 SQUEEZE_GAIN = 1.0
-#: Closing rate of a pinch with a pad off the pen after the close phase [rad/s].
-CLOSE_RATE = 1.0
 #: The slip reflex: below this grasp margin the pads slide on the pen (1 is the cones'
 #: boundary, where MuJoCo's sliding contacts sit) [-] ...
 SLIP_MARGIN = 1.02
-#: ... and the pinch then closes at this rate [rad/s] while the lift loads the grasp (a human
-#: grip's slip reflex raises the grip force within ~0.1 s of a slip) ...
+#: ... and the pinch then closes at this rate while the lift loads the grasp [rad/s] (a
+#: human grip's slip reflex raises the grip force within ~0.1 s of a slip).
 SLIP_RATE = 0.75
-#: ... and at this rate during the skill's own motion, where unimpaired grips slip briefly too.
-SLIP_RATE_SKILL = 0.3
-#: The pinch's opening against the library's joint template is estimated over this window
-#: of episode time [s] (the hold before the lift: the pinch is closed and every skill's
-#: template is the same pinch-lift) ...
-OPENING_WINDOW = (SKILL_TIMINGS.close - SKILL_TIMINGS.reach + 0.1, SKILL_TIMINGS.hold - SKILL_TIMINGS.reach)
-#: ... and the part of it up to this is a person's own pinch (unimpaired persons p1-p8 lie
-#: within -0.037..+0.029 rad of the template), not closed by the assistant [rad].
-OPENING_DEADBAND = 0.03
-#: Episode time at which the lift ends and the skill's motion may begin [s].
-LIFT_END = SKILL_TIMINGS.lift - SKILL_TIMINGS.reach
-#: Largest closing offset [rad].
-MAX_SQUEEZE = 0.35
+#: Closing rate of a pinch with a pad off the pen after the close phase [rad/s].
+CLOSE_RATE = 1.0
+#: Largest reactive closing offset [rad].
+MAX_SQUEEZE = 0.15
 #: Episode time after which the pinch is closed and the squeeze is regulated [s] (the close
 #: phase of the skills' pinch-lift lasts SKILL_TIMINGS.close - .reach = 0.7 s).
 SQUEEZE_FROM = SKILL_TIMINGS.close - SKILL_TIMINGS.reach
-#: Largest lag the estimator reports [s].
-MAX_LAG = 0.3
-#: Samples of the wrist's filtered motion the lag's extrapolation fits (15 = 150 ms).
-EXTRAPOLATION_WINDOW = 15
-#: Order of the polynomial the lag's extrapolation fits (1: the velocity; 2 was noisier).
-EXTRAPOLATION_ORDER = 1
-#: Lags below this are not compensated [s]: the estimator's spread on unimpaired operators
-#: (their hands differ from the nominal one the protocol time is computed for).
-LAG_DEADBAND = 0.04
-#: The wrist's extension in the protocol's lift [rad] (ReachPinchLift's lifted pose).
-LIFT_EXTENSION = 0.3
+#: Episode time at which the lift ends and the skill's own motion may begin [s]; from here
+#: on the squeeze only closes a pinch with a pad off the pen (unimpaired grips slip briefly
+#: in every fast skill: reacting to it pushed their sessions out of tolerance, measured).
+LIFT_END = SKILL_TIMINGS.lift - SKILL_TIMINGS.reach
 #: Gain of the height integrator on the wrist's flexion [rad/s per m of height error].
 HEIGHT_GAIN = 40.0
-#: Height errors up to this are the person's own way of lifting, not corrected [m].
-HEIGHT_DEADBAND = 0.003
+#: Height errors up to this are the person's own way of lifting (or a late one), not
+#: corrected [m].
+HEIGHT_DEADBAND = 0.006
 #: Largest wrist offset of the height correction [rad].
 MAX_HEIGHT_OFFSET = 0.3
 #: Episode time from which the pen's height follows the template [s] (the middle of the lift).
@@ -293,22 +291,52 @@ def live_margin(env: Any) -> float:
     return grasp_margin(c - c_h, c_h, GLOVE_PEN_MU, GLOVE_PAD_TORSION, 4)
 
 
-def protocol_half_lift_time(control_dt: float, filter_tau: float) -> float:
-    """Episode time [s] at which the protocol's lift, seen through the env's low-pass, has
-    extended the wrist by half of :data:`LIFT_EXTENSION`, with readings on time."""
-    script = ReachPinchLift(PersonParams.nominal(), SKILL_TIMINGS)
-    wf = joint_index("wrist_flexion")
-    alpha = control_dt / (filter_tau + control_dt)
-    start = SKILL_TIMINGS.reach
-    y = float(script(start)[wf])
-    hold = float(script(SKILL_TIMINGS.hold)[wf])
-    k = 0
-    while k < 10_000:
-        k += 1
-        y += alpha * (float(script(start + k * control_dt)[wf]) - y)
-        if y <= hold - 0.5 * LIFT_EXTENSION:
-            return k * control_dt
-    raise ValueError("the protocol's lift never reaches half its extension")
+#: Joints that close the pinch along the pads' line: the index's MCP and PIP, the thumb's
+#: CMC and flexion (with the thumb's coupled hinges).
+CLOSING_JOINTS: dict[str, tuple[str, ...]] = {
+    "index_tip": ("index_mcp", "index_pip"),
+    "thumb_tip": ("thumb_cmc", "thumb_flexion"),
+}
+
+
+def closing_direction(env: Any) -> FloatArray:
+    """``(10,)`` the joint-target direction that moves the index pad and the thumb pad
+    straight toward each other (along the line between them, where the pinch's internal
+    force acts: paper eq. 20), scaled to the 1-norm of
+    :func:`~ias_gym.assist.impairments.pinch_direction` [rad per unit].
+
+    Each finger's joints solve ``J dq = +-n`` in the least-squares sense with MuJoCo's site
+    Jacobian (the thumb's coupled hinges folded into its flexion). Closing along the
+    joints' own flexion instead (:func:`pinch_direction`) also slides the index pad along
+    the pen's surface, which pushes the pen out of a firm pinch (measured:
+    docs/assistance.md).
+
+    Args:
+        env: an unwrapped glove env after ``reset`` or ``step``.
+    """
+    import mujoco  # MuJoCo scene code
+
+    m, d = env.model, env.data
+    tips = {name: m.site(name).id for name in CLOSING_JOINTS}
+    line = d.site_xpos[tips["thumb_tip"]] - d.site_xpos[tips["index_tip"]]
+    n = line / max(float(np.linalg.norm(line)), 1e-9)
+    out = np.zeros(N_JOINTS)
+    jac = np.zeros((3, m.nv))
+    flex = joint_index("thumb_flexion")
+    for site, sign in (("index_tip", 1.0), ("thumb_tip", -1.0)):
+        mujoco.mj_jacSite(m, d, jac, None, tips[site])
+        cols = []
+        for name in CLOSING_JOINTS[site]:
+            col = jac[:, m.jnt_dofadr[m.joint(name).id]].copy()
+            if joint_index(name) == flex:
+                for j, ratio in zip(env._coupled_dofs, env._coupling, strict=True):
+                    col += ratio * jac[:, j]
+            cols.append(col)
+        dq, *_ = np.linalg.lstsq(np.stack(cols, axis=1), sign * n, rcond=None)
+        for name, v in zip(CLOSING_JOINTS[site], dq, strict=True):
+            out[joint_index(name)] = v
+    norm = float(np.abs(out).sum())
+    return out * (float(np.abs(pinch_direction()).sum()) / norm) if norm > 0 else pinch_direction()
 
 
 class AnalyticAssistant:
@@ -318,9 +346,7 @@ class AnalyticAssistant:
         templates: the library's templates (:func:`load_templates`).
         recogniser: gives the posterior (the recogniser protocol); None: an
             :class:`OracleRecogniser` on the env's intent, made at every :meth:`reset`.
-        tremor_filter, lag_compensation, squeeze, height: switch the four terms (ablations;
-            the lag compensation is off by default: it made held-out sessions worse,
-            docs/assistance.md).
+        tremor_filter, squeeze, height: switch the three terms (ablations).
     """
 
     def __init__(
@@ -329,7 +355,6 @@ class AnalyticAssistant:
         recogniser: Any = None,
         *,
         tremor_filter: bool = True,
-        lag_compensation: bool = False,
         squeeze: bool = True,
         height: bool = True,
     ) -> None:
@@ -337,16 +362,20 @@ class AnalyticAssistant:
         self.recogniser = recogniser
         self._oracle = recogniser is None
         self.tremor_filter = tremor_filter
-        self.lag_compensation = lag_compensation
         self.squeeze = squeeze
         self.height = height
-        self.h = 0.0
         self._tremor_idx = np.array([joint_index(j) for j in TREMOR_JOINTS])
         self._wf = JOINT_NAMES.index("wrist_flexion")
         self._pinch = pinch_direction()
         self._post: dict[str, float] = {}
-        self.lag_s = 0.0
+        #: The height correction on the wrist's flexion [rad].
+        self.h = 0.0
+        #: The reactive closing offset along the pads' line [rad].
         self.g = 0.0
+        #: The pinch's estimated opening, closed along the pinch's joints [rad].
+        self.opening = 0.0
+        #: Whether the tremor detector has fired in this session.
+        self.tremor_detected = False
 
     def reset(self, env: Any) -> None:
         """Start a session on ``env`` (unwrapped, just reset)."""
@@ -358,23 +387,22 @@ class AnalyticAssistant:
             intent: Callable[[float], str] = getattr(env, "intent", lambda _t: skill)
             self.recogniser = OracleRecogniser(intent)
         self.recogniser.reset()
-        sos = butter(2, TREMOR_STOP, btype="bandstop", fs=1.0 / self._dt, output="sos")
-        self._sos = sos
-        theta = self._operator_theta(env)
-        self._zi = sosfilt_zi(sos)[:, :, None] * theta[self._tremor_idx][None, None, :]
-        self._half_lift = protocol_half_lift_time(self._dt, float(cfg.filter_tau))
-        self._hold_wf: float | None = None
-        self._lag_known = False
-        self.lag_s = 0.0
+        fs = 1.0 / self._dt
+        theta = self._operator_theta(env)[self._tremor_idx][None, None, :]
+        self._stop = butter(2, TREMOR_STOP, btype="bandstop", fs=fs, output="sos")
+        self._stop_z = sosfilt_zi(self._stop)[:, :, None] * theta
+        self._band = butter(2, TREMOR_BAND, btype="bandpass", fs=fs, output="sos")
+        self._band_z = sosfilt_zi(self._band)[:, :, None] * theta
+        self._band_power: deque[float] = deque(maxlen=round(TREMOR_WINDOW / self._dt))
+        self.tremor_detected = False
         self.g = 0.0
         self.h = 0.0
-        self._openings: list[float] = []
         self.opening = 0.0
+        self._openings: list[float] = []
         self._person_start = skill_start_time(
             str(cfg.skill) if cfg.skill else SKILLS[0], env.person.person_id
         )
         self._post = {}
-        self._history: deque[FloatArray] = deque(maxlen=EXTRAPOLATION_WINDOW)
 
     @staticmethod
     def _operator_theta(env: Any) -> FloatArray:
@@ -385,32 +413,77 @@ class AnalyticAssistant:
         """The recogniser's posterior of the last :meth:`act`."""
         return dict(self._post)
 
-    def _extrapolate(self, ahead: float) -> FloatArray:
-        """The wrist's motion over the next ``ahead`` [s]: a quadratic fitted (least squares)
-        to its last :data:`EXTRAPOLATION_WINDOW` filtered samples, evaluated ``ahead`` past
-        the newest minus its value there."""
-        y = np.asarray(self._history)
-        n = len(y)
-        x = (np.arange(n) - (n - 1)) * self._dt
-        coef = np.polyfit(x, y, EXTRAPOLATION_ORDER)
-        out: FloatArray = np.polyval(coef, ahead) - coef[-1]
-        return out
-
     def _template_time(self, template: SkillTemplate, t: float) -> float:
         """Template time of the operator's intent at episode time ``t`` [s]."""
         if t < self._person_start:
             return t
         return t - self._person_start + template.start
 
-    def _estimate_lag(self, t: float, wf: float) -> None:
-        if self._lag_known:
-            return
-        if t < SKILL_TIMINGS.hold - SKILL_TIMINGS.reach - 0.05:
-            self._hold_wf = wf  # the pinch held before the lift
-            return
-        if self._hold_wf is not None and wf <= self._hold_wf - 0.5 * LIFT_EXTENSION:
-            self.lag_s = float(min(max(t - self._half_lift, 0.0), MAX_LAG))
-            self._lag_known = True
+    def _tremor_offset(self, theta: FloatArray) -> FloatArray:
+        """Term 1: the band-stop's correction, once the detector has seen a tremor."""
+        x = theta[self._tremor_idx][None, :]
+        y, self._stop_z = sosfilt(self._stop, x, axis=0, zi=self._stop_z)
+        band, self._band_z = sosfilt(self._band, x, axis=0, zi=self._band_z)
+        self._band_power.append(float(np.mean(band * band)))
+        if not self.tremor_detected and len(self._band_power) == self._band_power.maxlen:
+            self.tremor_detected = math.sqrt(float(np.mean(self._band_power))) > TREMOR_DETECT
+        out = np.zeros(N_JOINTS)
+        if self.tremor_detected:
+            out[self._tremor_idx] = y[0] - x[0]
+        return out
+
+    def _squeeze_offset(self, env: Any, t: float, theta: FloatArray, post: Any) -> FloatArray:
+        """Term 2: close a pinch opened against the template, and a slipping or lost one."""
+        if OPENING_WINDOW[0] <= t <= OPENING_WINDOW[1]:
+            template = next(iter(self.templates.values()))  # the shared pinch-lift
+            d = self._pinch
+            self._openings.append(float(d @ (template.at(t) - theta) / (d @ d)))
+            self.opening = max(float(np.mean(self._openings)) - OPENING_DEADBAND, 0.0)
+        if t < SQUEEZE_FROM:
+            return np.zeros(N_JOINTS)
+        m = live_margin(env)
+        if math.isnan(m):  # a pad off the pen
+            self.g += CLOSE_RATE * self._dt
+        elif t <= LIFT_END:
+            margins = [k.margin for k in self.templates.values()]
+            forces = [k.force for k in self.templates.values()]
+            target = sum(
+                p * (self.templates[k].margin if k in self.templates else float(np.median(margins)))
+                for k, p in post.items()
+            )
+            force = sum(
+                p * (self.templates[k].force if k in self.templates else float(np.median(forces)))
+                for k, p in post.items()
+            )
+            # the margin, and before the lift (the support carries the pen, the margin says
+            # nothing) the pinch force against a share of the library's
+            err_m = (target - min(m, 2.0 * target)) / target
+            err_f = (FORCE_SHARE * force - min(float(env._pinch_force), force)) / force
+            self.g += SQUEEZE_GAIN * max(err_m, err_f) * self._dt
+            if m < SLIP_MARGIN:
+                self.g += SLIP_RATE * self._dt
+        self.g = float(min(max(self.g, 0.0), MAX_SQUEEZE))
+        out: FloatArray = self.opening * self._pinch + self.g * closing_direction(env)
+        return out
+
+    def _height_offset(self, env: Any, t: float, post: Any) -> FloatArray:
+        """Term 3: the wrist's flexion drives the pen's height toward the template's."""
+        out = np.zeros(N_JOINTS)
+        if t < HEIGHT_FROM:
+            return out
+        z_t = sum(
+            p * self.templates[k].height_at(self._template_time(self.templates[k], t))
+            for k, p in post.items()
+            if k in self.templates
+        )
+        weight = sum(p for k, p in post.items() if k in self.templates)
+        err = z_t - weight * float(env.data.xpos[env._pen_body][2] - env._pen_start[2])
+        err = math.copysign(max(abs(err) - HEIGHT_DEADBAND, 0.0), err)
+        self.h = float(
+            np.clip(self.h + HEIGHT_GAIN * err * self._dt, -MAX_HEIGHT_OFFSET, MAX_HEIGHT_OFFSET)
+        )
+        out[self._wf] = -self.h  # extension (-) lifts the pen
+        return out
 
     def act(self, env: Any) -> FloatArray:
         """The offsets ``(10,)`` (in action units, clipped to [-1, 1]) for the next step."""
@@ -419,60 +492,11 @@ class AnalyticAssistant:
         post = self.recogniser.update(_session_frame(env))
         self._post = dict(post)
         offset = np.zeros(N_JOINTS)
-        filtered = theta.copy()
         if self.tremor_filter:
-            y, self._zi = sosfilt(self._sos, theta[self._tremor_idx][None, :], axis=0, zi=self._zi)
-            filtered[self._tremor_idx] = y[0]
-            offset += filtered - theta
-        self._estimate_lag(t, float(filtered[self._wf]))
-        self._history.append(filtered[list(WRIST_JOINTS)])
-        if self.lag_compensation and self.lag_s > LAG_DEADBAND and len(self._history) >= 3:
-            offset[list(WRIST_JOINTS)] += self._extrapolate(self.lag_s)
-        if self.squeeze and OPENING_WINDOW[0] <= t <= OPENING_WINDOW[1]:
-            template = next(iter(self.templates.values()))  # the shared pinch-lift
-            d = self._pinch
-            self._openings.append(float(d @ (template.at(t) - theta) / (d @ d)))
-            self.opening = max(float(np.mean(self._openings)) - OPENING_DEADBAND, 0.0)
-        if self.squeeze and t >= SQUEEZE_FROM:
-            known = [m.margin for m in self.templates.values()]
-            forces = [m.force for m in self.templates.values()]
-            target = MARGIN_FACTOR * sum(
-                p * (self.templates[k].margin if k in self.templates else float(np.median(known)))
-                for k, p in post.items()
-            )
-            force = sum(
-                p * (self.templates[k].force if k in self.templates else float(np.median(forces)))
-                for k, p in post.items()
-            )
-            m = live_margin(env)
-            if math.isnan(m):
-                self.g += CLOSE_RATE * self._dt
-            else:
-                # the margin, and before the lift (the support carries the pen, the margin
-                # says nothing) the pinch force against the library's
-                err_m = (target - min(m, 2.0 * target)) / target
-                # a person's own squeeze differs from the library's by tens of percent:
-                # only a clearly weaker one (below FORCE_SHARE of it) is a weak grip
-                err_f = (FORCE_SHARE * force - min(float(env._pinch_force), force)) / force
-                self.g += SQUEEZE_GAIN * max(err_m, err_f) * self._dt
-                if m < SLIP_MARGIN:
-                    self.g += (SLIP_RATE if t <= LIFT_END else SLIP_RATE_SKILL) * self._dt
-            self.g = float(min(max(self.g, self.opening), MAX_SQUEEZE))
-            offset += self.g * self._pinch
-        if self.height and t >= HEIGHT_FROM:
-            z_t = sum(
-                p * self.templates[k].height_at(self._template_time(self.templates[k], t))
-                for k, p in post.items()
-                if k in self.templates
-            )
-            weight = sum(p for k, p in post.items() if k in self.templates)
-            err = z_t - weight * float(env.data.xpos[env._pen_body][2] - env._pen_start[2])
-            err = math.copysign(max(abs(err) - HEIGHT_DEADBAND, 0.0), err)
-            self.h = float(
-                np.clip(
-                    self.h + HEIGHT_GAIN * err * self._dt, -MAX_HEIGHT_OFFSET, MAX_HEIGHT_OFFSET
-                )
-            )
-            offset[self._wf] -= self.h  # extension (-) lifts the pen
+            offset += self._tremor_offset(theta)
+        if self.squeeze:
+            offset += self._squeeze_offset(env, t, theta, post)
+        if self.height:
+            offset += self._height_offset(env, t, post)
         out: FloatArray = np.clip(offset / self._scale, -1.0, 1.0)
         return out
