@@ -38,7 +38,7 @@ from ias_gym.errors import InputError
 from ias_gym.skills import SkillDB
 
 #: The small library: four persons, three skills; seesaw_slow is the skill it does not know.
-#: (lift_place is the skill the recognisers need the most demonstrations of: its placing
+#: (lift_place is the skill the phase model needs the most demonstrations of: its placing
 #: depth is the person's own lift height; measured in docs/assist.md.)
 KNOWN = ("lift_hold", "tilt_left", "tilt_right")
 NEW = "seesaw_slow"

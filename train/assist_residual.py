@@ -2,7 +2,7 @@
 
     PYTHONPATH=$PWD python train/assist_residual.py --timesteps 20000 --out out/assist_residual.zip
 
-Persons p3-p6 (development persons; the table's held-out persons are p7-p9), every
+Persons p3-p6 (development persons; the table's held-out persons are others), every
 impairment and skill drawn at random per episode (``ias_gym.learning.assist_residual``).
 Measure the result with ``train/assist_table.py --residual OUT``.
 """

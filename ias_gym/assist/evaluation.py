@@ -45,8 +45,8 @@ POSITION_TOLERANCE = 0.003
 ROTATION_TOLERANCE = math.radians(5.0)
 
 #: Columns of the glove observation: pen centre relative to its start, its quaternion.
-_OBS_PEN = slice(20, 23)
-_OBS_QUAT = slice(23, 27)
+OBS_PEN = slice(20, 23)
+OBS_QUAT = slice(23, 27)
 
 
 class Assistant(Protocol):
@@ -144,8 +144,8 @@ def run_session(
         offsets.append(float(np.abs(scale * action).sum()))
         motion.append(float(np.abs(theta - theta0).sum()))
         times.append(float(obs[38]))
-        pos.append(np.asarray(obs[_OBS_PEN]))
-        quat.append(np.asarray(obs[_OBS_QUAT]))
+        pos.append(np.asarray(obs[OBS_PEN]))
+        quat.append(np.asarray(obs[OBS_QUAT]))
         done = bool(terminated or truncated)
     skill = str(u.config.skill)
     mean_motion = float(np.mean(motion)) if motion else 0.0

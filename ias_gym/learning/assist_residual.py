@@ -5,14 +5,19 @@
 is given), runs the :class:`~ias_gym.assist.assistants.AnalyticAssistant` on it, and the
 agent's action is a residual added to the analytic offsets, ``a = clip(a_analytic +
 RESIDUAL_SCALE r)``. The observation is the env's (49) and the analytic action (10). The
-reward is the env's (lift, pinch, effort) minus ``RESIDUAL_COST |r|^2``: the residual has to
-earn its intervention. :class:`ResidualAssistant` acts with a saved model (loaded without
-unpickling, :mod:`ias_gym.safe_sb3`) through the assistant protocol of
-:mod:`ias_gym.assist.evaluation`.
+reward restores the operator's intent: at every reset the same person, skill and seed is run
+once unimpaired and unassisted (the simulator can; the reward is only needed in training),
+and each step earns ``exp(-(|dp| / 3 mm)^2) + exp(-(|da| / 5 deg)^2)`` for the pen's centre
+``p`` and axis ``a`` against that session's at the same step (the success test's tolerances,
+:mod:`ias_gym.assist.evaluation`), minus ``RESIDUAL_COST |r|^2``: the residual has to earn
+its intervention. A dropped pen ends the episode, and with it the reward.
+:class:`ResidualAssistant` acts with a saved model (loaded without unpickling,
+:mod:`ias_gym.safe_sb3`) through the assistant protocol of :mod:`ias_gym.assist.evaluation`.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +28,14 @@ from numpy.typing import NDArray
 
 from ias_gym.assist.assistants import AnalyticAssistant, SkillTemplate
 from ias_gym.assist.env import OBS_SIZE
+from ias_gym.assist.evaluation import (
+    OBS_PEN,
+    OBS_QUAT,
+    POSITION_TOLERANCE,
+    ROTATION_TOLERANCE,
+    pen_axis,
+    run_session,
+)
 from ias_gym.glove.hand import N_JOINTS
 from ias_gym.glove.skills import SKILLS
 
@@ -64,6 +77,8 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self.env: Any = None
         self._base = np.zeros(N_JOINTS)
         self._steps = 0
+        self._ref_pos = np.zeros((1, 3))
+        self._ref_axis = np.zeros((1, 3))
 
     def _augment(self, obs: FloatArray) -> FloatArray:
         self._base = self.analytic.act(self.env.unwrapped)
@@ -77,13 +92,19 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         rng = self.np_random
         if self.env is not None:
             self.env.close()
+        person, skill = str(rng.choice(self.persons)), str(rng.choice(list(self.skills)))
         self.env = gym.make(
             "IAS-GloveAssist-v0",
-            person_id=str(rng.choice(self.persons)),
-            skill=str(rng.choice(list(self.skills))),
+            person_id=person,
+            skill=skill,
             impairment=str(rng.choice(self.impairments)),
         )
-        obs, info = self.env.reset(seed=int(rng.integers(2**31)))
+        seed = int(rng.integers(2**31))
+        reference = gym.make("IAS-GloveAssist-v0", person_id=person, skill=skill)
+        ref = run_session(reference, None, seed)
+        reference.close()
+        self._ref_pos, self._ref_axis = ref.pen_position, pen_axis(ref.pen_quat)
+        obs, info = self.env.reset(seed=seed)
         self.analytic.reset(self.env.unwrapped)
         self._steps = 0
         return self._augment(obs), info
@@ -92,9 +113,16 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         """Apply the analytic offsets plus the residual."""
         r = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
         total = np.clip(self._base + RESIDUAL_SCALE * r, -1.0, 1.0)
-        obs, reward, terminated, truncated, info = self.env.step(total)
+        obs, _, terminated, truncated, info = self.env.step(total)
+        k = min(self._steps, len(self._ref_pos) - 1)  # the reference may have ended early
         self._steps += 1
-        reward = float(reward) - RESIDUAL_COST * float(np.mean(r * r))
+        dp = float(np.linalg.norm(obs[OBS_PEN] - self._ref_pos[k]))
+        da = float(np.linalg.norm(pen_axis(obs[None, OBS_QUAT])[0] - self._ref_axis[k]))
+        reward = (
+            math.exp(-((dp / POSITION_TOLERANCE) ** 2))
+            + math.exp(-((da / ROTATION_TOLERANCE) ** 2))
+            - RESIDUAL_COST * float(np.mean(r * r))
+        )
         truncated = bool(truncated or self._steps >= self.max_steps)
         return self._augment(obs), reward, bool(terminated), truncated, info
 
