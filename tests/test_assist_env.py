@@ -6,7 +6,10 @@ glove's env."""
 from __future__ import annotations
 
 import json
-import math
+import os
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # before MuJoCo is imported
 
 import gymnasium as gym
 import numpy as np
@@ -282,3 +285,20 @@ def test_the_assistant_runs_on_the_can_glove(channel: str, templates) -> None:
             assert 0.0 <= assistant.g and theta.shape == (10,)
         finally:
             env.close()
+
+
+def test_cli_demo_writes_both_sessions_side_by_side(tmp_path: Path) -> None:
+    import imageio.v3 as iio
+
+    from ias_gym.cli import main
+
+    video = tmp_path / "assist.mp4"
+    argv = ["assist", "demo", "--video", str(video), "--duration", "0.2"]
+    assert main([*argv, "--recogniser", "oracle"]) == 0
+    frames = iio.imread(video)
+    assert frames.shape == (11, 360, 960, 3)  # 20 steps and the reset, every second; two renders
+    # nothing is overwritten silently
+    assert main([*argv, "--recogniser", "oracle"]) == 2
+    with pytest.raises(SystemExit) as bad:  # argparse's usage error
+        main([*argv, "--duration", "0"])
+    assert bad.value.code == 2

@@ -179,6 +179,29 @@ def _evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _duration(text: str) -> float:
+    """A session length in (0, 10] s."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number of seconds, got {text!r}") from None
+    if not 0.0 < value <= 10.0:
+        raise argparse.ArgumentTypeError(f"must be in (0, 10] s, got {text}")
+    return value
+
+
+def _label(frame: Any, text: str) -> Any:
+    """``frame`` (H, W, 3) with ``text`` written in its top left corner."""
+    import numpy as np
+    from PIL import Image, ImageDraw  # pillow: matplotlib's dependency
+
+    image = Image.fromarray(np.ascontiguousarray(frame))
+    draw = ImageDraw.Draw(image)
+    draw.rectangle((0, 0, 8 + 7 * len(text), 22), fill=(255, 255, 255))
+    draw.text((4, 5), text, fill=(0, 0, 0))
+    return np.asarray(image)
+
+
 def _demo(args: argparse.Namespace) -> int:
     from ias_gym.evaluation import VIDEO_SUFFIXES
     from ias_gym.outputs import check_output_file
@@ -201,6 +224,7 @@ def _demo(args: argparse.Namespace) -> int:
             person_id=args.person,
             skill=args.skill,
             impairment=args.impairment,
+            duration=args.duration,
             render_mode="rgb_array",
         )
         u: Any = env.unwrapped
@@ -219,7 +243,16 @@ def _demo(args: argparse.Namespace) -> int:
         runs.append(frames)
     n = max(len(r) for r in runs)
     # the shorter session (a dropped pen ends it) holds its last frame
-    side = [np.hstack([r[min(i, len(r) - 1)] for r in runs]) for i in range(0, n, 2)]
+    names = (f"unassisted ({args.impairment})", f"assisted ({args.impairment})")
+    side = [
+        np.hstack(
+            [
+                _label(r[min(i, len(r) - 1)], f"{name}  t = {min(i, len(r) - 1) * u.dt:.2f} s")
+                for r, name in zip(runs, names, strict=True)
+            ]
+        )
+        for i in range(0, n, 2)
+    ]
     write_video(video, side, fps=50.0, overwrite=args.overwrite)
     print(f"wrote {video}: left unassisted, right assisted ({args.impairment}, {args.skill})")
     return 0
@@ -287,8 +320,13 @@ def add_assist_demo(commands: argparse._SubParsersAction[Any]) -> argparse.Argum
     p.add_argument("--db", default=None, metavar="F", help="skill library (default: shipped)")
     p.add_argument("--person", default="p1", metavar="ID", help="the operator")
     p.add_argument("--skill", default="seesaw_slow", metavar="NAME", help="the skill")
-    p.add_argument("--impairment", default="weak_grip", metavar="NAME", help="the impairment")
+    p.add_argument(
+        "--impairment", default="biased_calibration", metavar="NAME", help="the impairment"
+    )
     p.add_argument("--seed", type=non_negative_int, default=0, metavar="S", help="reset seed")
+    p.add_argument(
+        "--duration", type=_duration, default=4.0, metavar="S", help="session length [s]"
+    )
     p.add_argument(
         "--recogniser", default=ASSIST_METHOD, metavar="oracle|dtw|phase", help="intent source"
     )
