@@ -35,7 +35,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.glove.skills import skill_start_time
+from ias_gym.glove.skills import SKILL_TIMINGS, skill_start_time
 
 FloatArray = NDArray[np.float64]
 
@@ -43,6 +43,10 @@ FloatArray = NDArray[np.float64]
 POSITION_TOLERANCE = 0.003
 #: RMS angle between the pen's orientation and the unimpaired session's [rad] (5 deg).
 ROTATION_TOLERANCE = math.radians(5.0)
+
+#: Episode time from which a reference session must pinch the pen without a break [s]: the
+#: start of the skills' lift.
+HELD_FROM = SKILL_TIMINGS.hold - SKILL_TIMINGS.reach
 
 #: Columns of the glove observation: pen centre relative to its start, its quaternion.
 OBS_PEN = slice(20, 23)
@@ -78,6 +82,7 @@ class SessionResult:
             step ("" without a recogniser).
         switch_latency_s: intent-switch latency [s] (NaN without a switch).
         success: filled in by :func:`session_success` against a reference.
+        pinched: ``(T,)`` both pads touch the pen at the end of each step.
     """
 
     times: FloatArray
@@ -90,6 +95,13 @@ class SessionResult:
     top_skill: list[str] = field(default_factory=list)
     switch_latency_s: float = math.nan
     success: bool = False
+    pinched: FloatArray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+
+    def held_throughout(self) -> bool:
+        """Both pads touched the pen at every step from the lift's start
+        (:data:`HELD_FROM`) to the end, and the env's success held at the end."""
+        after = self.times >= HELD_FROM - 1e-9
+        return bool(self.env_success and self.held and np.all(self.pinched[after]))
 
 
 def _switch_latency(times: FloatArray, top: list[str], target: str, t_switch: float) -> float:
@@ -128,7 +140,7 @@ def run_session(
     if assistant is not None:
         assistant.reset(u)
     scale = float(u.config.action_scale)
-    times, pos, quat, offsets, motion, top = [], [], [], [], [], []
+    times, pos, quat, offsets, motion, top, pinched = [], [], [], [], [], [], []
     theta0: FloatArray | None = None
     done = False
     while not done:
@@ -146,6 +158,7 @@ def run_session(
         times.append(float(obs[38]))
         pos.append(np.asarray(obs[OBS_PEN]))
         quat.append(np.asarray(obs[OBS_QUAT]))
+        pinched.append(bool(info["index_contact"] and info["thumb_contact"]))
         done = bool(terminated or truncated)
     skill = str(u.config.skill)
     mean_motion = float(np.mean(motion)) if motion else 0.0
@@ -158,6 +171,7 @@ def run_session(
         skill_start=skill_start_time(skill, u.person.person_id),
         intervention=float(np.mean(offsets)) / mean_motion if mean_motion > 0 else 0.0,
         top_skill=top,
+        pinched=np.asarray(pinched, dtype=bool),
     )
     if getattr(u, "switch_to", None) is not None:
         result.switch_latency_s = _switch_latency(
@@ -221,8 +235,9 @@ class ImpairmentScore:
         success_assisted: with it [-].
         intervention: the assistant's mean intervention [-] (module docstring).
         sessions: number of sessions of each kind that count.
-        excluded: sessions left out because the unimpaired person's own session failed
-            (the pen not lifted 3 cm or not held at the end: no reference to reach).
+        excluded: sessions left out because the unimpaired person's own session failed (the
+            pen not lifted 3 cm or not held at the end) or lost a pad on the way
+            (:meth:`SessionResult.held_throughout`): no reference to reach.
     """
 
     success_unassisted: float
@@ -263,7 +278,8 @@ def evaluate_assistance(
     ``skills[i % len(skills)]`` from reset seed ``seed + i``, once without and once with
     the assistant, each judged against the unimpaired session of the same person, skill and
     seed (run once and reused). A session whose unimpaired reference fails itself (the
-    env's success or the pinch at the end) is left out and counted in ``excluded``.
+    env's success, or a pad off the pen at any step from the lift on: a re-grasp makes the
+    intended motion chaotic) is left out and counted in ``excluded``.
 
     Args:
         make_assistant: ``() -> Assistant``, a fresh assistant.
@@ -296,7 +312,7 @@ def evaluate_assistance(
                     references[key] = run_session(ref_env, None, s)
                     ref_env.close()
                 ref = references[key]
-                if not (ref.env_success and ref.held):
+                if not ref.held_throughout():
                     excluded += 1
                     if progress is not None:
                         progress()

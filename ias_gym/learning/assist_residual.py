@@ -42,7 +42,7 @@ from ias_gym.glove.skills import SKILLS
 FloatArray = NDArray[np.float64]
 
 #: Size of a full residual relative to the action range [-].
-RESIDUAL_SCALE = 0.3
+RESIDUAL_SCALE = 0.1
 #: Weight of the residual's squared size in the reward [-].
 RESIDUAL_COST = 0.2
 
