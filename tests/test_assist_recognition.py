@@ -372,3 +372,17 @@ def _as_lib(t: np.ndarray, pronation: np.ndarray) -> tuple[np.ndarray, np.ndarra
     from ias_gym.assist.recognition import feature_matrix
 
     return feature_matrix(_frames(t, pronation)), t
+
+
+def test_cli_library_records_sessions_the_recognisers_read(tmp_path: Path) -> None:
+    path = tmp_path / "sub" / "lib.db"
+    argv = ["assist", "library", "--db", str(path), "--persons", "p1", "--episodes", "1"]
+    assert main([*argv, "--skills", "lift_hold,tilt_left"]) == 0
+    with SkillDB(path, readonly=True) as db:
+        sessions = [labelled_session(db.get(i)) for i in db.ids()]
+    assert sorted(s.skill for s in sessions) == ["lift_hold", "tilt_left"]
+    for s in sessions:  # the glove's readings are stored, not NaN as `skills record` leaves them
+        assert np.isfinite(np.stack([f.readings for f in s.frames])).all()
+    assert main([*argv, "--skills", "wobble"]) == 2  # refused, nothing added
+    with SkillDB(path, readonly=True) as db:
+        assert len(db) == 2

@@ -83,6 +83,27 @@ def _recognise(args: argparse.Namespace) -> int:
     return 0
 
 
+def _library(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from ias_gym.assist.metrics import record_sessions
+    from ias_gym.glove.skills import SKILLS
+    from ias_gym.skills import SkillDB
+
+    persons = _persons(args.persons)
+    skills = SKILLS if args.skills == "all" else [s.strip() for s in args.skills.split(",")]
+    for s in skills:
+        if s not in SKILLS:
+            raise InputError(f"--skills {s!r}: choose from {', '.join(SKILLS)} or all")
+    Path(args.db).parent.mkdir(parents=True, exist_ok=True)
+    with SkillDB(args.db) as db:  # a corrupt file is refused here, before any session runs
+        before = len(db)
+        record_sessions(persons, skills, args.episodes, seed=args.seed, db=db, progress=tqdm)
+        after = len(db)
+    print(f"{args.db}: {after - before} sessions added ({after} in all)")
+    return 0
+
+
 def _persons(text: str) -> list[str]:
     from ias_gym.glove.ids import check_id
 
@@ -276,7 +297,9 @@ def add_assist_evaluate(commands: argparse._SubParsersAction[Any]) -> argparse.A
         "one object: " + ", ".join(RECOGNITION_KEYS) + " and by_impairment.",
         formatter_class=HelpFormatter,
     )
-    p.add_argument("--db", required=True, metavar="F", help="the skill library (SQLite)")
+    p.add_argument(
+        "--db", required=True, metavar="F", help="the skill library (`ias-gym assist library`)"
+    )
     p.add_argument("--persons", default="p7,p8,p9", metavar="ID,ID,...", help="person ids")
     p.add_argument(
         "--impairment",
@@ -381,5 +404,33 @@ def add_assist_commands(subparsers: argparse._SubParsersAction[Any]) -> None:
     )
     recognise.add_argument("--json", action="store_true", help="print one JSON object")
     recognise.set_defaults(run=_recognise)
+    library = commands.add_parser(
+        "library",
+        help="record a recognition library (every skill, each person)",
+        description="Record --episodes teleoperated IAS-GloveGrasp-v0 sessions of each skill "
+        "for every person of --persons into --db (created if missing, else added to), with "
+        "the glove's readings and calibrated angles the recognisers read. A library needs "
+        "several persons: its unknown threshold is calibrated leave-one-person-out (the "
+        "shipped two-person library calls most sessions of a new person unknown).",
+        formatter_class=HelpFormatter,
+    )
+    library.add_argument("--db", required=True, metavar="FILE", help="the skill database")
+    library.add_argument(
+        "--persons", default="p1,p2,p3,p4,p5", metavar="ID,ID,...", help="person ids"
+    )
+    library.add_argument(
+        "--skills", default="all", metavar="NAME,...|all", help="the skills to record"
+    )
+    library.add_argument(
+        "--episodes",
+        type=positive_int,
+        default=2,
+        metavar="N",
+        help="sessions per person and skill",
+    )
+    library.add_argument(
+        "--seed", type=non_negative_int, default=0, metavar="S", help="reset seed of the first"
+    )
+    library.set_defaults(run=_library)
     add_assist_evaluate(commands)
     add_assist_demo(commands)
