@@ -44,6 +44,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--persons", default="p3,p4,p5,p6")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
+        "--db", default=None, help="skill library of the analytic assistant (default: shipped)"
+    )
+    parser.add_argument(
         "--learning-rate",
         type=float,
         default=1e-4,
@@ -58,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{out} exists (--overwrite)", file=sys.stderr)
         return 2
     out.parent.mkdir(parents=True, exist_ok=True)
-    env = ResidualAssistEnv(load_templates(), args.persons.split(","), list(IMPAIRMENTS))
+    env = ResidualAssistEnv(load_templates(args.db), args.persons.split(","), list(IMPAIRMENTS))
     model = PPO(
         "MlpPolicy",
         env,
