@@ -53,7 +53,9 @@ def main(argv: list[str] | None = None) -> int:
     impairments = list(first)
     series = {"unassisted": [first[i]["success_unassisted"] for i in impairments]}
     for name, rows in results.items():
-        series[name] = [rows[i]["success_assisted"] for i in impairments]
+        # assist_table.py names an assistant on the oracle intent without a recogniser
+        label = name.replace("+", " + ") if "+" in name else f"{name} + oracle"
+        series[label] = [rows[i]["success_assisted"] for i in impairments]
     fig, ax = plt.subplots(figsize=(10, 3.6))
     width = 0.8 / len(series)
     for k, (name, values) in enumerate(series.items()):
