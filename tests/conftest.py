@@ -1,13 +1,18 @@
-"""Fixtures shared by the CAN tests (python-can's virtual bus)."""
+"""Fixtures shared by the CAN tests (python-can's virtual bus); headless rendering."""
 
 from __future__ import annotations
 
 import gc
 import itertools
 import logging
+import os
 from collections.abc import Iterator
 
 import pytest
+
+# Offscreen rendering without a display, for a bare `pytest` as for `make test`: MuJoCo reads
+# MUJOCO_GL when it is first imported, which may be any test module's collection.
+os.environ.setdefault("MUJOCO_GL", "egl")
 
 _channels = itertools.count()
 

@@ -6,10 +6,7 @@ glove's env."""
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
-
-os.environ.setdefault("MUJOCO_GL", "egl")  # before MuJoCo is imported
 
 import gymnasium as gym
 import numpy as np

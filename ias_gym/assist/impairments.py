@@ -32,11 +32,11 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from ias_gym.errors import InputError
 from ias_gym.glove.calibration import Calibration
-from ias_gym.glove.device import GloveDevice, GloveReading, ReachPinchLiftTimings
+from ias_gym.glove.device import GloveDevice, GloveReading, GloveWrapper, ReachPinchLiftTimings
 from ias_gym.glove.hand import (
     N_JOINTS,
     NOMINAL_INDEX_LENGTHS,
@@ -202,9 +202,10 @@ class WeakGripOperator:
         return np.asarray(self.operator(t), dtype=np.float64) - w * self.opening * self._d
 
 
-class LaggedGlove(GloveDevice):
+class LaggedGlove(GloveWrapper):
     """A glove whose readings arrive ``lag`` late: each read returns the sample read
-    ``round(lag * rate)`` reads before (the first sample until then).
+    ``round(lag * rate)`` reads before (the first sample until then). The force display is
+    not delayed.
 
     Args:
         inner: the glove.
@@ -214,8 +215,7 @@ class LaggedGlove(GloveDevice):
     def __init__(self, inner: GloveDevice, lag_steps: int) -> None:
         if lag_steps < 0:
             raise ValueError(f"lag_steps must be >= 0, got {lag_steps}")
-        self.inner = inner
-        self.glove_id = inner.glove_id
+        super().__init__(inner)
         self.lag_steps = int(lag_steps)
         self._buffer: deque[GloveReading] = deque(maxlen=self.lag_steps + 1)
 
@@ -224,30 +224,8 @@ class LaggedGlove(GloveDevice):
         self._buffer.append(self.inner.read())
         return self._buffer[0]
 
-    def write_feedback(self, torques: ArrayLike) -> None:
-        """Pass the force display [N m] on (the actuators are not delayed)."""
-        self.inner.write_feedback(torques)
 
-    @property
-    def n_actuators(self) -> int:
-        """The inner glove's actuators."""
-        return self.inner.n_actuators
-
-    @property
-    def fault(self) -> str | None:
-        """The inner glove's fault."""
-        return self.inner.fault
-
-    def enable(self) -> None:
-        """Arm the inner glove."""
-        self.inner.enable()
-
-    def close(self) -> None:
-        """Close the inner glove."""
-        self.inner.close()
-
-
-class PeekGlove(GloveDevice):
+class PeekGlove(GloveWrapper):
     """A glove read one sample ahead: :meth:`read` returns the sample :attr:`upcoming`
     announced and reads the next. The assistant sits between the glove and the hand: it
     sees the reading the hand is about to get (a scripted operator does not react to the
@@ -258,8 +236,7 @@ class PeekGlove(GloveDevice):
     """
 
     def __init__(self, inner: GloveDevice) -> None:
-        self.inner = inner
-        self.glove_id = inner.glove_id
+        super().__init__(inner)
         self._next: GloveReading | None = None
         #: The reading :meth:`read` returned last (``None`` before the first).
         self.last_reading: GloveReading | None = None
@@ -277,28 +254,6 @@ class PeekGlove(GloveDevice):
         self._next = self.inner.read()
         self.last_reading = out
         return out
-
-    def write_feedback(self, torques: ArrayLike) -> None:
-        """Pass the force display [N m] on."""
-        self.inner.write_feedback(torques)
-
-    @property
-    def n_actuators(self) -> int:
-        """The inner glove's actuators."""
-        return self.inner.n_actuators
-
-    @property
-    def fault(self) -> str | None:
-        """The inner glove's fault."""
-        return self.inner.fault
-
-    def enable(self) -> None:
-        """Arm the inner glove."""
-        self.inner.enable()
-
-    def close(self) -> None:
-        """Close the inner glove."""
-        self.inner.close()
 
 
 def calibration_bias(offset: float) -> FloatArray:

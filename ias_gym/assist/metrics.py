@@ -38,14 +38,10 @@ from ias_gym.assist.recognition import (
 from ias_gym.assist.stream import SessionFrame, frames_from_skill
 from ias_gym.errors import InputError
 from ias_gym.glove.skills import (
-    PLACE_TIME,
-    SEESAW_FAST_CYCLES,
-    SEESAW_FAST_PERIOD,
-    SEESAW_SLOW_PERIOD,
     SKILLS,
-    TILT_TIME,
     SkillStyle,
     check_skill,
+    skill_motion_time,
     skill_start_time,
 )
 
@@ -87,16 +83,7 @@ def motion_time(skill: str, person_id: str) -> float:
     Raises:
         InputError: unknown skill or invalid id.
     """
-    check_skill(skill)
-    v = SkillStyle.sample(person_id).speed
-    return {
-        "lift_hold": 0.0,
-        "seesaw_slow": SEESAW_SLOW_PERIOD / v,
-        "seesaw_fast": SEESAW_FAST_PERIOD * SEESAW_FAST_CYCLES / v,
-        "tilt_left": TILT_TIME / v,
-        "tilt_right": TILT_TIME / v,
-        "lift_place": PLACE_TIME / v,
-    }[skill]
+    return skill_motion_time(skill, SkillStyle.sample(person_id).speed)
 
 
 def motion_window(skill: str, person_id: str, session_end: float) -> tuple[float, float]:

@@ -25,10 +25,10 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from ias_gym.errors import InputError
-from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, GloveReading
+from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, GloveReading, GloveWrapper
 from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS
 
 if TYPE_CHECKING:
@@ -73,7 +73,7 @@ class SessionFrame:
     pen_rpy: FloatArray
 
 
-class ReadingTap(GloveDevice):
+class ReadingTap(GloveWrapper):
     """A glove that passes everything to ``inner`` and keeps its last reading.
 
     Args:
@@ -81,8 +81,7 @@ class ReadingTap(GloveDevice):
     """
 
     def __init__(self, inner: GloveDevice) -> None:
-        self.inner = inner
-        self.glove_id = inner.glove_id
+        super().__init__(inner)
         #: The last reading of :meth:`read` (``None`` before the first).
         self.last_reading: GloveReading | None = None
 
@@ -90,28 +89,6 @@ class ReadingTap(GloveDevice):
         """Read ``inner`` and remember the reading."""
         self.last_reading = self.inner.read()
         return self.last_reading
-
-    def write_feedback(self, torques: ArrayLike) -> None:
-        """Pass the force display [N m] to ``inner``."""
-        self.inner.write_feedback(torques)
-
-    @property
-    def n_actuators(self) -> int:
-        """``inner``'s number of actuators."""
-        return self.inner.n_actuators
-
-    @property
-    def fault(self) -> str | None:
-        """``inner``'s fault."""
-        return self.inner.fault
-
-    def enable(self) -> None:
-        """Arm ``inner``."""
-        self.inner.enable()
-
-    def close(self) -> None:
-        """Close ``inner``."""
-        self.inner.close()
 
 
 def _glove_env(env: Any) -> GloveGraspEnv:

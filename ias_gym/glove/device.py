@@ -146,6 +146,45 @@ class Operator(Protocol):
     def __call__(self, t: float) -> NDArray[np.float64]: ...
 
 
+class GloveWrapper(GloveDevice):
+    """A glove that passes everything to ``inner``; subclasses change what they need
+    (e.g. :meth:`read`), as Gymnasium's wrappers do for envs.
+
+    Args:
+        inner: the glove to wrap.
+    """
+
+    def __init__(self, inner: GloveDevice) -> None:
+        self.inner = inner
+        self.glove_id = inner.glove_id
+
+    def read(self) -> GloveReading:
+        """``inner``'s reading."""
+        return self.inner.read()
+
+    def write_feedback(self, torques: ArrayLike) -> None:
+        """Pass the force display [N m] to ``inner``."""
+        self.inner.write_feedback(torques)
+
+    @property
+    def n_actuators(self) -> int:
+        """``inner``'s number of actuators."""
+        return self.inner.n_actuators
+
+    @property
+    def fault(self) -> str | None:
+        """``inner``'s fault."""
+        return self.inner.fault
+
+    def enable(self) -> None:
+        """Arm ``inner``."""
+        self.inner.enable()
+
+    def close(self) -> None:
+        """Close ``inner``."""
+        self.inner.close()
+
+
 class SimulatedGlove(GloveDevice):
     """The glove on a simulated person driven by a scripted operator.
 

@@ -229,15 +229,7 @@ class SkillOperator:
     @property
     def motion_time(self) -> float:
         """Length of the skill's own motion [s] at this person's speed."""
-        v = self.style.speed
-        return {
-            "lift_hold": 0.0,
-            "seesaw_slow": SEESAW_SLOW_PERIOD / v,
-            "seesaw_fast": SEESAW_FAST_PERIOD * SEESAW_FAST_CYCLES / v,
-            "tilt_left": TILT_TIME / v,
-            "tilt_right": TILT_TIME / v,
-            "lift_place": PLACE_TIME / v,
-        }[self.skill]
+        return skill_motion_time(self.skill, self.style.speed)
 
     def offsets(self, t: float) -> FloatArray:
         """The skill's joint offsets ``(10,)`` [rad] at script time ``t`` [s] (no tremor)."""
@@ -271,6 +263,24 @@ class SkillOperator:
     def __call__(self, t: float) -> FloatArray:
         """Intended joint angles Θ(t) ``(10,)`` [rad] at script time ``t`` [s]."""
         return self.base(t) + self.offsets(t) + self.tremor(t)
+
+
+def skill_motion_time(skill_name: str, speed: float) -> float:
+    """Length [s] of ``skill_name``'s own motion at speed factor ``speed``
+    (:attr:`SkillStyle.speed`); 0 for ``lift_hold``.
+
+    Raises:
+        InputError: unknown skill.
+    """
+    check_skill(skill_name)
+    return {
+        "lift_hold": 0.0,
+        "seesaw_slow": SEESAW_SLOW_PERIOD / speed,
+        "seesaw_fast": SEESAW_FAST_PERIOD * SEESAW_FAST_CYCLES / speed,
+        "tilt_left": TILT_TIME / speed,
+        "tilt_right": TILT_TIME / speed,
+        "lift_place": PLACE_TIME / speed,
+    }[skill_name]
 
 
 def skill_start_time(skill_name: str, person: PersonParams | str) -> float:
