@@ -38,7 +38,7 @@ import functools
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -284,6 +284,9 @@ def unknown_probability(score: float, loo_scores: Sequence[float]) -> float:
     return float(1.0 / (1.0 + math.exp(-min(max(z, -700.0), 700.0))))
 
 
+_R = TypeVar("_R", bound="LibraryRecogniser")
+
+
 class LibraryRecogniser:
     """A recogniser on a library of stored sessions (the base of both methods).
 
@@ -320,6 +323,11 @@ class LibraryRecogniser:
                 "needs at least one skill performed by two persons (or two sessions)"
             )
         self.reset()
+
+    @classmethod
+    def from_db(cls: type[_R], db: SkillDB, task: str = GLOVE_TASK) -> _R:
+        """The recogniser of the glove sessions in ``db`` (:func:`load_library`)."""
+        return cls(load_library(db, task))
 
     @staticmethod
     def _check_name(name: str) -> None:
@@ -511,11 +519,6 @@ class DTWRecogniser(LibraryRecogniser):
     """
 
     method = "dtw"
-
-    @classmethod
-    def from_db(cls, db: SkillDB, task: str = GLOVE_TASK) -> DTWRecogniser:
-        """The recogniser of the glove sessions in ``db`` (:func:`load_library`)."""
-        return cls(load_library(db, task))
 
     def _fit_class(self, name: str) -> None:
         if not hasattr(self, "_scales"):
@@ -715,11 +718,6 @@ class PhaseRecogniser(LibraryRecogniser):
     """
 
     method = "phase"
-
-    @classmethod
-    def from_db(cls, db: SkillDB, task: str = GLOVE_TASK) -> PhaseRecogniser:
-        """The recogniser of the glove sessions in ``db`` (:func:`load_library`)."""
-        return cls(load_library(db, task))
 
     def _fit_all(self) -> None:
         # The variance prior: the mean variance over the phase of the skills that several
