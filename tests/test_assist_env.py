@@ -26,7 +26,7 @@ from ias_gym.glove.hand import joint_index
 from ias_gym.glove.profile_cache import default_calibration
 from tests.closed_loop import perturbed_starts
 
-#: A development person (never one of the table's held-out persons p7-p9).
+#: A development person (never one of the tables' held-out persons).
 PERSON = "p3"
 
 

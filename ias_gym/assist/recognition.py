@@ -186,7 +186,7 @@ class Posterior(Mapping[str, float]):
 
 @runtime_checkable
 class Recogniser(Protocol):
-    """What an assistant needs of a recogniser (issue #14 contract)."""
+    """What an assistant needs of a recogniser."""
 
     @property
     def skills(self) -> tuple[str, ...]:
