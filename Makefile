@@ -29,6 +29,8 @@ demo: setup
 	$(BIN)/ias-gym evaluate --env IAS-PenSlide-v0 --policy random --episodes 10
 	$(BIN)/ias-gym evaluate --env IAS-GloveGrasp-v0 --policy teleop --episodes 3 --video $(OUT)/glove_grasp_teleop.mp4 --overwrite
 	$(BIN)/ias-gym glove-bench --interface virtual --rate 1000 --seconds 3
+	$(BIN)/ias-gym skills transfer --id 2 --hand all --method gt
+	$(BIN)/ias-gym assist demo --video $(OUT)/assist.mp4 --overwrite
 	@echo "make demo: figures, videos and the expert's scores are in $(OUT)/"
 
 lint: setup
