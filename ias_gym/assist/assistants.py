@@ -17,7 +17,8 @@ for the posterior over the library's skills and returns joint-target offsets, th
      (:func:`~ias_gym.assist.impairments.pinch_direction`: index MCP, PIP/2, thumb
      flexion) beyond :data:`OPENING_DEADBAND` is added from then on. A weak grip and a
      biased calibration both open the pinch along that direction;
-   - *reactive closing* until the end of the lift (:data:`LIFT_END`): an integrator on the
+   - *reactive closing* until the end of the lift (:data:`LIFT_END`), and after it only
+     where the hold found the pinch opened (an unimpaired grip is left alone): an integrator on the
      larger of the live grasp margin's relative error against the library's (the soft
      fingers' cones, :func:`~ias_gym.grasp.grasp_margin.grasp_margin`, mu = 0.25 and the
      pads' torsional friction, as :func:`~ias_gym.skills.transfer.demonstrated_margin`
@@ -117,8 +118,9 @@ MAX_SQUEEZE = 0.15
 #: phase of the skills' pinch-lift lasts SKILL_TIMINGS.close - .reach = 0.7 s).
 SQUEEZE_FROM = SKILL_TIMINGS.close - SKILL_TIMINGS.reach
 #: Episode time at which the lift ends and the skill's own motion may begin [s]; from here
-#: on the squeeze only closes a pinch with a pad off the pen (unimpaired grips slip briefly
-#: in every fast skill: reacting to it pushed their sessions out of tolerance, measured).
+#: on the squeeze reacts only where the hold found the pinch opened (``opening > 0``), and
+#: closes a pinch with a pad off the pen: unimpaired grips slip briefly in every fast
+#: skill, and reacting to that pushed their sessions out of tolerance (measured).
 LIFT_END = SKILL_TIMINGS.lift - SKILL_TIMINGS.reach
 #: Gain of the height integrator on the wrist's flexion [rad/s per m of height error].
 HEIGHT_GAIN = 40.0
@@ -448,7 +450,7 @@ class AnalyticAssistant:
         m = live_margin(env)
         if math.isnan(m):  # a pad off the pen
             self.g += CLOSE_RATE * self._dt
-        elif t <= LIFT_END:
+        elif t <= LIFT_END or self.opening > 0.0:
             margins = [k.margin for k in self.templates.values()]
             forces = [k.force for k in self.templates.values()]
             target = sum(
