@@ -59,7 +59,7 @@ from numpy.typing import NDArray
 from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from ias_gym.assist.impairments import TREMOR_BAND, TREMOR_JOINTS, pinch_direction
-from ias_gym.assist.stream import SessionFrame, frames_from_env
+from ias_gym.assist.stream import frames_from_env
 from ias_gym.errors import InputError
 from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS, joint_index
 from ias_gym.glove.skills import SKILL_TIMINGS, SKILLS, skill_start_time
@@ -268,10 +268,6 @@ class OracleRecogniser:
         """Know ``name`` from now on (the oracle needs no sessions)."""
         if name not in self._skills:
             self._skills = (*self._skills, name)
-
-
-def _session_frame(env: Any) -> SessionFrame:
-    return frames_from_env(env)
 
 
 def live_margin(env: Any) -> float:
@@ -495,7 +491,7 @@ class AnalyticAssistant:
         """The offsets ``(10,)`` (in action units, clipped to [-1, 1]) for the next step."""
         t = (env._steps + 1) * self._dt  # time of the reading the hand gets next
         theta = self._operator_theta(env)
-        post = self.recogniser.update(_session_frame(env))
+        post = self.recogniser.update(frames_from_env(env))
         self._post = dict(post)
         offset = np.zeros(N_JOINTS)
         if self.tremor_filter:
