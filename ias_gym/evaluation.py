@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -55,6 +55,33 @@ METRIC_UNITS: Mapping[str, tuple[str, str, float]] = {
 
 class UnknownEnvError(InputError, LookupError):
     """An env id that gymnasium does not know (the message lists the ``IAS-*`` ids)."""
+
+
+#: Size of the perturbation of each qpos entry of a nearby start [m or rad]: another
+#: machine's last bits (:func:`perturbed_starts`).
+PERTURBATION = 1e-9
+#: How many perturbed starts follow the nominal one.
+N_PERTURBED = 5
+
+
+def perturbed_starts(
+    env: gym.Env[Any, Any], seed: int, n: int = N_PERTURBED, scale: float = PERTURBATION
+) -> Iterator[dict[str, Any] | None]:
+    """Reset options for ``env.reset(seed=seed, options=...)``: ``None`` (the seed's own
+    start), then ``n`` starts whose ``qpos`` differ from it by Gaussian noise of ``scale``.
+
+    A closed-loop rollout is chaotic: another CPU or BLAS changes the last bits of a step and
+    the trajectories part. A result that holds from the nominal start only may sit on a
+    knife edge another machine falls off; the same result from these starts does not. The
+    env must accept ``options={"qpos": ..., "qvel": ...}`` (every IAS pen and glove task).
+    """
+    env.reset(seed=seed)
+    data = env.unwrapped.data  # type: ignore[attr-defined]
+    qpos, qvel = data.qpos.copy(), data.qvel.copy()
+    rng = np.random.default_rng(seed)
+    yield None
+    for _ in range(n):
+        yield {"qpos": qpos + rng.normal(0.0, scale, qpos.shape), "qvel": qvel.copy()}
 
 
 def make_env(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
