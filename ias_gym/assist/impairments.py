@@ -132,8 +132,18 @@ def _rng(tag: str, person_id: str, seed: int) -> np.random.Generator:
     return np.random.default_rng([int.from_bytes(digest[:8], "little"), seed])
 
 
+#: The tremor sets in over this time from the episode's start [s] (one period at 10 Hz; a
+#: minimum-jerk envelope). The episode starts with the hand at the operator's first pose
+#: next to the pen; a tremor at full amplitude from there put the thumb into the pen at the
+#: reset (p6, lift_hold, seed 0: the pen pushed 1.2 mm in the first 10 ms step, and off its
+#: support by 0.1 s), which is the reset's overlap, not the tremor.
+TREMOR_ONSET = 0.1
+
+
 class TremorOperator:
-    """A script with a tremor: ``Θ(t) + A sin(2 pi f t + phi_j)`` on :data:`TREMOR_JOINTS`.
+    """A script with a tremor: ``Θ(t) + e(t) A sin(2 pi f t + phi_j)`` on
+    :data:`TREMOR_JOINTS`, ``e`` rising from 0 to 1 over :data:`TREMOR_ONSET` from the
+    episode's start (script time ``timings.reach``).
 
     Args:
         operator: the script Θ(t) [rad], t [s].
@@ -161,7 +171,8 @@ class TremorOperator:
     def __call__(self, t: float) -> FloatArray:
         """Θ(t) [rad] with the tremor."""
         out = np.array(self.operator(t), dtype=np.float64)
-        out[self._idx] += self.amplitude * np.sin(2.0 * math.pi * self.hz * t + self._phase)
+        onset = _min_jerk((t - self.timings.reach) / TREMOR_ONSET)
+        out[self._idx] += onset * self.amplitude * np.sin(2.0 * math.pi * self.hz * t + self._phase)
         return out
 
 
