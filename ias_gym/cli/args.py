@@ -114,16 +114,27 @@ def policy_arguments(
         help="load a model file with SB3's own load, which unpickles it and so runs code "
         "stored in it: only for files you trust",
     )
+    episode_arguments(
+        parser,
+        episodes,
+        episodes_help,
+        seed_help="seed of the first episode (episode i has seed S + i, whichever worker runs it)",
+    )
+
+
+def episode_arguments(
+    parser: argparse.ArgumentParser,
+    episodes: int,
+    episodes_help: str,
+    seed: int = 0,
+    seed_help: str = "reset seed of the first session",
+) -> None:
+    """Add ``--episodes N`` (>= 1, default ``episodes``) and ``--seed S`` (>= 0, default
+    ``seed``): how many episodes or sessions a command runs, and the first one's seed."""
     parser.add_argument(
         "--episodes", type=positive_int, default=episodes, metavar="N", help=episodes_help
     )
-    parser.add_argument(
-        "--seed",
-        type=non_negative_int,
-        default=0,
-        metavar="S",
-        help="seed of the first episode (episode i has seed S + i, whichever worker runs it)",
-    )
+    parser.add_argument("--seed", type=non_negative_int, default=seed, metavar="S", help=seed_help)
 
 
 class _WorkersAction(argparse.Action):

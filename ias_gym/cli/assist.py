@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ias_gym.cli.args import HelpFormatter, non_negative_int, positive_int
+from ias_gym.cli.args import HelpFormatter, episode_arguments, non_negative_int
 from ias_gym.errors import InputError
 
 #: The recognition keys of ``assist recognise --json`` (per method).
@@ -307,10 +307,7 @@ def add_assist_evaluate(commands: argparse._SubParsersAction[Any]) -> argparse.A
         metavar="NAME|none|all",
         help="impairment(s), comma-separated",
     )
-    p.add_argument(
-        "--episodes", type=positive_int, default=6, metavar="N", help="sessions per person"
-    )
-    p.add_argument("--seed", type=non_negative_int, default=0, metavar="S", help="first seed")
+    episode_arguments(p, 6, "sessions per person", seed_help="first seed")
     p.add_argument(
         "--recogniser",
         default=ASSIST_METHOD,
@@ -388,20 +385,7 @@ def add_assist_commands(subparsers: argparse._SubParsersAction[Any]) -> None:
     recognise.add_argument(
         "--method", default="all", metavar="dtw|phase|all", help="the recogniser(s)"
     )
-    recognise.add_argument(
-        "--episodes",
-        type=positive_int,
-        default=2,
-        metavar="N",
-        help="sessions per person and skill",
-    )
-    recognise.add_argument(
-        "--seed",
-        type=non_negative_int,
-        default=1000,
-        metavar="S",
-        help="reset seed of the first session",
-    )
+    episode_arguments(recognise, 2, "sessions per person and skill", seed=1000)
     recognise.add_argument("--json", action="store_true", help="print one JSON object")
     recognise.set_defaults(run=_recognise)
     library = commands.add_parser(
@@ -421,15 +405,8 @@ def add_assist_commands(subparsers: argparse._SubParsersAction[Any]) -> None:
     library.add_argument(
         "--skills", default="all", metavar="NAME,...|all", help="the skills to record"
     )
-    library.add_argument(
-        "--episodes",
-        type=positive_int,
-        default=2,
-        metavar="N",
-        help="sessions per person and skill",
-    )
-    library.add_argument(
-        "--seed", type=non_negative_int, default=0, metavar="S", help="reset seed of the first"
+    episode_arguments(
+        library, 2, "sessions per person and skill", seed_help="reset seed of the first"
     )
     library.set_defaults(run=_library)
     add_assist_evaluate(commands)
