@@ -450,9 +450,9 @@ class AnalyticAssistant:
         y, self._stop_z = sosfilt(self._stop, x, axis=0, zi=self._stop_z)
         band, self._band_z = sosfilt(self._band, x, axis=0, zi=self._band_z)
         self._band_power.append(float(np.mean(band * band)))
-        if not self.tremor_detected and len(self._band_power) == self._band_power.maxlen:
-            self.tremor_detected = math.sqrt(float(np.mean(self._band_power))) > TREMOR_DETECT
         full = len(self._band_power) == self._band_power.maxlen
+        if full and not self.tremor_detected:
+            self.tremor_detected = math.sqrt(float(np.mean(self._band_power))) > TREMOR_DETECT
         if self.tremor_detected or not full:
             self._tremor_weight = 1.0
         else:
