@@ -7,10 +7,8 @@ for the posterior over the library's skills and returns joint-target offsets, th
 
 1. **tremor removal**: a causal band-stop (Butterworth of order :data:`TREMOR_ORDER`,
    :data:`TREMOR_STOP` Hz, scipy) on the wrist and pinching joints; offset = filtered Θ - Θ.
-   It acts while a band-pass detector's first window (:data:`TREMOR_WINDOW`) fills and
-   once the detector has seen a tremor (:data:`TREMOR_DETECT`); without one it fades out
-   (:data:`TREMOR_FADE`) before the pads touch the pen, so an operator without a tremor is
-   left alone;
+   It acts only once a band-pass detector has seen a tremor (:data:`TREMOR_DETECT`, within
+   :data:`TREMOR_WINDOW`), so an operator without one is left alone;
 2. **the squeeze**, three parts, none of which ever opens the operator's grip:
 
    - *the opening*: in the hold before the lift (:data:`OPENING_WINDOW`) the operator's
@@ -92,14 +90,8 @@ TREMOR_ORDER = 4
 #: (p1, p3, p5, p6, p8, six skills) after the env's low-pass: unimpaired <= 0.0017, a
 #: 0.06 rad tremor >= 0.0091.
 TREMOR_DETECT = 0.004
-#: Window of the tremor detector [s]. Until it is full the filter acts on every operator:
-#: the episode starts with the pinch closing next to the pen, and a tremor knocked the pen
-#: off its support in the first 0.1-0.4 s in 3 of 5 tremor sessions lost on development
-#: persons, before the detector could have fired.
+#: Window of the tremor detector [s].
 TREMOR_WINDOW = 0.15
-#: Without a tremor in the full window the filter's correction fades out over this [s]
-#: (linearly: no step in the hand's targets), before the pads touch the pen (0.5 s).
-TREMOR_FADE = 0.1
 #: The pinch's opening against the library's joint template is estimated over this window
 #: of episode time [s]: the hold before the lift, where the pinch is closed and every
 #: skill's template is the same pinch-lift ...
@@ -418,7 +410,6 @@ class AnalyticAssistant:
         self._band_z = sosfilt_zi(self._band)[:, :, None] * theta
         self._band_power: deque[float] = deque(maxlen=round(TREMOR_WINDOW / self._dt))
         self.tremor_detected = False
-        self._tremor_weight = 1.0
         self.g = 0.0
         self.h = 0.0
         self.opening = 0.0
@@ -444,21 +435,16 @@ class AnalyticAssistant:
         return t - self._person_start + template.start
 
     def _tremor_offset(self, theta: FloatArray) -> FloatArray:
-        """Term 1: the band-stop's correction while the detector's window fills, and from
-        when it has seen a tremor on; faded out over :data:`TREMOR_FADE` if it has not."""
+        """Term 1: the band-stop's correction, once the detector has seen a tremor."""
         x = theta[self._tremor_idx][None, :]
         y, self._stop_z = sosfilt(self._stop, x, axis=0, zi=self._stop_z)
         band, self._band_z = sosfilt(self._band, x, axis=0, zi=self._band_z)
         self._band_power.append(float(np.mean(band * band)))
-        full = len(self._band_power) == self._band_power.maxlen
-        if full and not self.tremor_detected:
+        if not self.tremor_detected and len(self._band_power) == self._band_power.maxlen:
             self.tremor_detected = math.sqrt(float(np.mean(self._band_power))) > TREMOR_DETECT
-        if self.tremor_detected or not full:
-            self._tremor_weight = 1.0
-        else:
-            self._tremor_weight = max(self._tremor_weight - self._dt / TREMOR_FADE, 0.0)
         out = np.zeros(N_JOINTS)
-        out[self._tremor_idx] = self._tremor_weight * (y[0] - x[0])
+        if self.tremor_detected:
+            out[self._tremor_idx] = y[0] - x[0]
         return out
 
     def _squeeze_offset(self, env: Any, t: float, theta: FloatArray, post: Any) -> FloatArray:
