@@ -39,8 +39,11 @@ lint: setup
 	$(BIN)/mypy
 	$(BIN)/lint-imports  # the layers and contracts of [tool.importlinter] in pyproject.toml
 
+# Every core for the tests that only compute (a file's tests stay on one worker, so its
+# fixtures are built once), then the real-time CAN-bus tests alone (pyproject's markers).
 test: lint
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto --dist loadfile -m "not realtime"
+	$(BIN)/python -m pytest -q -m realtime
 
 bench: setup
 	$(BIN)/python bench/run_all.py

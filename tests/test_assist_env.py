@@ -299,6 +299,7 @@ def test_cli_evaluate_json_keys(capsys, monkeypatch) -> None:
     assert main([*argv, "--impairment", "palsy", "--episodes", "1"]) == 2
 
 
+@pytest.mark.realtime
 @pytest.mark.usefixtures("no_python_can_warnings", "no_gc_pauses")
 def test_the_assistant_runs_on_the_can_glove(channel: str, templates) -> None:
     from ias_gym.hardware import GloveEmulator, GloveHardwareEnv

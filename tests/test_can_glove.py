@@ -34,6 +34,7 @@ from ias_gym.hardware.protocol import (
 )
 
 pytestmark = [
+    pytest.mark.realtime,
     pytest.mark.filterwarnings("error"),
     pytest.mark.usefixtures("no_python_can_warnings", "no_gc_pauses"),
 ]

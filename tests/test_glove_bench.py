@@ -14,7 +14,11 @@ from ias_gym.errors import IasGymError, InputError
 from ias_gym.hardware.bench import run_glove_bench
 from ias_gym.hardware.loop import realtime_priority
 
-pytestmark = [pytest.mark.filterwarnings("error"), pytest.mark.usefixtures("no_gc_pauses")]
+pytestmark = [
+    pytest.mark.realtime,
+    pytest.mark.filterwarnings("error"),
+    pytest.mark.usefixtures("no_gc_pauses"),
+]
 
 
 def run_command(argv: list[str]) -> int:

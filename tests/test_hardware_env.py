@@ -25,6 +25,7 @@ from ias_gym.hardware import (
 )
 
 pytestmark = [
+    pytest.mark.realtime,
     pytest.mark.filterwarnings("error"),
     pytest.mark.usefixtures("no_python_can_warnings", "no_gc_pauses"),
 ]

@@ -20,6 +20,7 @@ from ias_gym.hardware.protocol import encode_sensors, encode_torque
 SLACK = 0.2
 
 pytestmark = [
+    pytest.mark.realtime,
     pytest.mark.filterwarnings("error"),
     pytest.mark.usefixtures("no_python_can_warnings", "no_gc_pauses"),
 ]

@@ -380,6 +380,7 @@ def test_sb3_batched_vec_env_starts_with_forkserver_too() -> None:
 # ---------------------------------------------------------------------- the glove hardware
 
 
+@pytest.mark.realtime
 def test_the_hardware_env_vectorises_from_a_recorded_session(channel: str, tmp_path: Any) -> None:
     """IAS-GloveHardware-v0 needs a device; a recorded session (replay=, no bus) is one that
     every worker can open: sync, async and batched give each sub-env the single replay."""
