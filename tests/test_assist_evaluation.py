@@ -12,6 +12,7 @@ from ias_gym.assist.evaluation import (
     POSITION_TOLERANCE,
     SessionResult,
     pose_errors,
+    session_record,
     session_success,
 )
 
@@ -63,6 +64,28 @@ def test_a_wrong_height_or_a_dropped_pen_fails() -> None:
     short = seesaw()
     short.times, short.pen_position = T[:300], short.pen_position[:300]
     assert pose_errors(short, seesaw()) == (math.inf, math.inf)
+
+
+def test_a_session_record_says_what_went_wrong() -> None:
+    """The table's per-session record: errors in mm and deg, and when the pen was lost."""
+    high = session_record(seesaw(offset=2 * POSITION_TOLERANCE, tilt=0.0), seesaw(tilt=0.0))
+    assert not high["success"] and high["env_success"] and high["held_at_end"]
+    assert high["pad_off_from_s"] is None and high["axis_error_deg"] < 1e-6
+    # the offset ramps over the skill's first second, then stays: RMS of 2 tolerances x ramp
+    assert 3.0 < high["position_error_mm"] < 6.0
+    dropped = seesaw()
+    dropped.pinched[T >= 3.2 - 1e-9] = False
+    dropped.held = False
+    lost = session_record(dropped, seesaw())
+    assert not lost["success"] and lost["pad_off_from_s"] == pytest.approx(3.2)
+    assert session_record(seesaw(), seesaw())["success"]
+    short = seesaw()
+    short.times, short.pen_position, short.pinched = (
+        T[:300],
+        short.pen_position[:300],
+        short.pinched[:300],
+    )
+    assert session_record(short, seesaw())["position_error_mm"] is None
 
 
 def smooth_walk(rng: np.random.Generator, scale: float, cols: int) -> np.ndarray:

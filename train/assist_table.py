@@ -5,8 +5,9 @@ For every impairment (``IAS-GloveAssist-v0``) and held-out person, each glove sk
 ``--residual`` names a trained model (``train/assist_residual.py``), with the learned
 residual on top of it; every session judged against the unimpaired session of the same
 person, skill and seed (``ias_gym.assist.evaluation``). Then the intent-switch latency:
-the unimpaired operator switches skills at ``--switch-time``. Writes a markdown table and
-the JSON of the numbers.
+the unimpaired operator switches skills at ``--switch-time``. Writes a markdown table, the
+JSON of the numbers and, per session, what it did (``OUT.sessions.json``: success, the pose
+errors, whether and when the pen was lost; ``ias_gym.assist.evaluation.session_record``).
 
     ias-gym assist library --db out/library.db      # p1-p5, every skill twice
     PYTHONPATH=$PWD python train/assist_table.py --db out/library.db --recogniser phase \
@@ -59,11 +60,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--recogniser", default="oracle", help="oracle, dtw or phase")
     parser.add_argument("--strength", type=float, default=None, help="override (one impairment)")
     parser.add_argument("--switch-time", type=float, default=2.2, help="episode time [s]")
-    parser.add_argument("--out", default="out/assist_table", help="writes OUT.md and OUT.json")
+    parser.add_argument(
+        "--out", default="out/assist_table", help="writes OUT.md, OUT.json, OUT.sessions.json"
+    )
     parser.add_argument("--overwrite", action="store_true")
     args = parser.parse_args(argv)
     out = Path(args.out)
-    for suffix in (".md", ".json"):
+    for suffix in (".md", ".json", ".sessions.json"):
         if out.with_suffix(suffix).exists() and not args.overwrite:
             print(f"{out.with_suffix(suffix)} exists (--overwrite)", file=sys.stderr)
             return 2
@@ -89,6 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     wanted = args.assistants.split(",")
     assistants = {k: v for k, v in assistants.items() if k.split("+")[0] in wanted}
     results: dict[str, Any] = {"persons": persons, "skills": list(SKILLS), "seed": args.seed}
+    sessions: dict[str, Any] = {}
     total = len(assistants) * len(imps) * len(persons) * len(SKILLS)
     with tqdm(total=total, desc="session pairs") as bar:
         for name, make in assistants.items():
@@ -102,6 +106,7 @@ def main(argv: list[str] | None = None) -> int:
                 env_kwargs=None if args.strength is None else {"strength": args.strength},
             )
             results[name] = {k: v.to_json() for k, v in scores.items()}
+            sessions[name] = {k: v.records for k, v in scores.items()}
     latency: dict[str, Any] = {}
     for name, make in assistants.items():
         values = switch_latency(make, persons, SWITCH_PAIRS, args.switch_time, args.seed)
@@ -145,6 +150,7 @@ def main(argv: list[str] | None = None) -> int:
     text = "\n".join(lines) + "\n"
     out.with_suffix(".md").write_text(text)
     out.with_suffix(".json").write_text(json.dumps(results, indent=1))
+    out.with_suffix(".sessions.json").write_text(json.dumps(sessions, indent=1))
     print(text)
     return 0
 

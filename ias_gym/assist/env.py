@@ -32,7 +32,7 @@ from ias_gym.assist.impairments import (
     TremorOperator,
     WeakGripOperator,
     biased_calibration,
-    small_hand_person,
+    resized_person,
     stock_person,
 )
 from ias_gym.envs.glove_grasp import GloveGraspEnv
@@ -87,7 +87,7 @@ class GloveAssistEnv(GloveGraspEnv):
     ## Description
     ``IAS-GloveGrasp-v0`` performing ``skill`` (default ``lift_hold``), its operator impaired
     by ``impairment`` (:mod:`ias_gym.assist.impairments`: ``none``, ``tremor``,
-    ``weak_grip``, ``lag``, ``biased_calibration``, ``small_hand``) of ``strength``
+    ``weak_grip``, ``lag``, ``biased_calibration``, ``hand_size``) of ``strength``
     (default :data:`~ias_gym.assist.impairments.DEFAULT_STRENGTHS`). With zero action the
     session is the impaired operator alone.
 
@@ -111,15 +111,19 @@ class GloveAssistEnv(GloveGraspEnv):
     ## Arguments
     ``render_mode``; ``impairment`` [``"none"``]; ``strength`` [the impairment's default];
     ``switch_to`` [None]: a skill the operator switches to at ``switch_time`` [s, episode
-    time]; and the fields of :class:`~ias_gym.envs.glove_grasp.GloveGraspConfig`
+    time]; ``hand_scale`` [None]: the person with their hand resized to this scale
+    (:func:`~ias_gym.assist.impairments.resized_person`), the operator planning for that
+    hand (``hand_size`` with the same scale runs the stock plan on it instead); and the
+    fields of :class:`~ias_gym.envs.glove_grasp.GloveGraspConfig`
     (``person_id``, ``skill``, ``control_dt``, ``duration``, ``action_scale``, ...).
 
     ## Version History
-    - v0: first version.
+    - v0: first version (the impairment ``hand_size`` replaced ``small_hand``, a hand of
+      scale 0.8 judged against the person's own hand, before any release).
 
     Attributes:
         impairment: the :class:`~ias_gym.assist.impairments.Impairment`.
-        operator_person: whose hand the operator's script plans for (``small_hand``: the
+        operator_person: whose hand the operator's script plans for (``hand_size``: the
             stock hand; else the hand's owner).
     """
 
@@ -131,6 +135,7 @@ class GloveAssistEnv(GloveGraspEnv):
         strength: float | None = None,
         switch_to: str | None = None,
         switch_time: float | None = None,
+        hand_scale: float | None = None,
         **config: Any,
     ) -> None:
         """Build the env.
@@ -141,11 +146,14 @@ class GloveAssistEnv(GloveGraspEnv):
             strength: its strength (unit per impairment; default its tuned default).
             switch_to: a skill the operator switches to (None: no switch).
             switch_time: episode time of the switch [s] (needed with ``switch_to``).
+            hand_scale: resize the person's hand to this scale [-], the operator's plan
+                made for it (None: the person's own hand).
             **config: fields of :class:`~ias_gym.envs.glove_grasp.GloveGraspConfig`.
 
         Raises:
-            InputError: an unknown impairment or skill, a strength out of range, or
-                ``switch_to`` without a non-negative ``switch_time``.
+            InputError: an unknown impairment or skill, a strength out of range,
+                ``switch_to`` without a non-negative ``switch_time``, or ``hand_scale`` out
+                of (0, 2] or given with ``hand_size``.
         """
         self.impairment = Impairment.make(impairment, strength)
         config.setdefault("skill", "lift_hold")
@@ -157,8 +165,17 @@ class GloveAssistEnv(GloveGraspEnv):
         self.switch_time = None if switch_to is None else float(switch_time)  # type: ignore[arg-type]
         owner = PersonParams.sample(str(config.get("person_id", "p1")))
         imp = self.impairment
-        hand = small_hand_person(owner, imp.strength) if imp.name == "small_hand" else owner
-        self.operator_person = stock_person(owner) if imp.name == "small_hand" else owner
+        if hand_scale is not None:
+            if not 0.0 < hand_scale <= 2.0:
+                raise InputError(f"hand_scale must be a hand scale in (0, 2], got {hand_scale}")
+            if imp.name == "hand_size":
+                raise InputError(
+                    "hand_scale is a hand whose operator plans for it; hand_size's strength "
+                    "is the scale of a hand running the stock plan: give one of the two"
+                )
+            owner = resized_person(owner, float(hand_scale))
+        hand = resized_person(owner, imp.strength) if imp.name == "hand_size" else owner
+        self.operator_person = stock_person(owner) if imp.name == "hand_size" else owner
         calibration = default_calibration(hand)
         if imp.name == "biased_calibration":
             calibration = biased_calibration(calibration, imp.strength)

@@ -11,7 +11,9 @@ A session **succeeds** (:func:`session_success`) when
   :data:`ROTATION_TOLERANCE` (RMS of the axis' change error: the skills tilt and turn the
   pen's axis; its roll about the axis, which the pads set at random, is no part of a skill)
   of the **unimpaired person's**
-  session: the same person, skill and seed with ``impairment="none"`` and no assistant.
+  session: the same person, skill and seed with ``impairment="none"`` and no assistant
+  (for ``hand_size``, with the same resized hand:
+  :func:`~ias_gym.assist.impairments.reference_kwargs`).
 
 The tolerances are a few times the spread of unimpaired sessions over seeds (the glove's
 noise): measured in docs/assistance.md.
@@ -36,6 +38,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym.assist.impairments import Impairment, reference_kwargs
 from ias_gym.glove.skills import SKILL_TIMINGS, skill_start_time
 
 FloatArray = NDArray[np.float64]
@@ -262,6 +265,8 @@ class ImpairmentScore:
         excluded: sessions left out for want of a reference (:func:`reference_session`): the
             unimpaired person's own session failed, lost a pad on the way, or did either
             from a start 1e-9 away.
+        records: one :func:`session_record` per session, excluded ones included (not part
+            of :meth:`to_json`: a table's per-session file).
     """
 
     success_unassisted: float
@@ -269,6 +274,7 @@ class ImpairmentScore:
     intervention: float
     sessions: int
     excluded: int = 0
+    records: list[dict[str, Any]] = field(default_factory=list)
 
     def to_json(self) -> dict[str, float | None]:
         """The three shares as a JSON object (``sessions`` and ``excluded`` as well; null
@@ -286,9 +292,30 @@ class ImpairmentScore:
         }
 
 
-def reference_session(person: str, skill: str, seed: int) -> SessionResult | None:
+def session_record(result: SessionResult, reference: SessionResult) -> dict[str, Any]:
+    """What a table keeps of one judged session: success, the env's success, whether the pen
+    is held at the end, the first step from the lift on with a pad off it, and the pose errors
+    against ``reference`` (None where infinite: the session ended early)."""
+    dp, da = pose_errors(result, reference)
+    pinched = np.asarray(result.pinched, dtype=bool)
+    off = np.flatnonzero(~pinched & (result.times >= HELD_FROM - 1e-9))
+    return {
+        "success": session_success(result, reference),
+        "env_success": result.env_success,
+        "held_at_end": result.held,
+        "pad_off_from_s": float(result.times[off[0]]) if off.size else None,
+        "position_error_mm": 1e3 * dp if math.isfinite(dp) else None,
+        "axis_error_deg": math.degrees(da) if math.isfinite(da) else None,
+        "intervention": result.intervention,
+    }
+
+
+def reference_session(
+    person: str, skill: str, seed: int, **env_kwargs: Any
+) -> SessionResult | None:
     """The unimpaired, unassisted session of ``person`` performing ``skill`` from reset
     ``seed``: what an assisted session is judged against; None if it is no reference.
+    ``env_kwargs`` go to the env (e.g. ``hand_scale``: the same person with another hand).
 
     It is none if it fails itself (:meth:`SessionResult.held_throughout`: the env's success
     at the end, and both pads on the pen at every step from the lift on; a re-grasp makes
@@ -300,7 +327,7 @@ def reference_session(person: str, skill: str, seed: int) -> SessionResult | Non
     """
     from ias_gym.evaluation import perturbed_starts
 
-    env = gym.make("IAS-GloveAssist-v0", person_id=person, skill=skill)
+    env = gym.make("IAS-GloveAssist-v0", person_id=person, skill=skill, **env_kwargs)
     try:
         starts = list(perturbed_starts(env, seed, REFERENCE_STARTS))
         ref = run_session(env, None, seed)
@@ -351,20 +378,24 @@ def evaluate_assistance(
 
     skills = skills or SKILLS
     extra = dict(env_kwargs or {})
-    references: dict[tuple[str, str, int], SessionResult | None] = {}
+    references: dict[tuple[str, str, int, str], SessionResult | None] = {}
     out = {}
     for imp in impairments:
+        same = reference_kwargs(Impairment.make(imp, extra.get("strength")))
         ok_u, ok_a, interv = [], [], []
+        records: list[dict[str, Any]] = []
         excluded = 0
         for person in persons:
             for i in range(episodes):
                 skill, s = skills[i % len(skills)], seed + i
-                key = (person, skill, s)
+                key = (person, skill, s, repr(same))
                 if key not in references:
-                    references[key] = reference_session(person, skill, s)
+                    references[key] = reference_session(person, skill, s, **same)
                 ref = references[key]
+                record: dict[str, Any] = {"person": person, "skill": skill, "seed": s}
                 if ref is None:
                     excluded += 1
+                    records.append({**record, "excluded": True})
                     if progress is not None:
                         progress()
                     continue
@@ -374,8 +405,11 @@ def evaluate_assistance(
                 unassisted = run_session(env, None, s)
                 assisted = run_session(env, make_assistant(), s)
                 env.close()
-                ok_u.append(session_success(unassisted, ref))
-                ok_a.append(session_success(assisted, ref))
+                record["unassisted"] = session_record(unassisted, ref)
+                record["assisted"] = session_record(assisted, ref)
+                records.append({**record, "excluded": False})
+                ok_u.append(unassisted.success)
+                ok_a.append(assisted.success)
                 interv.append(assisted.intervention)
                 if progress is not None:
                     progress()
@@ -386,6 +420,7 @@ def evaluate_assistance(
             float(np.mean(interv)) if interv else nan,
             len(ok_u),
             excluded,
+            records,
         )
     return out
 

@@ -15,8 +15,10 @@ name                     what                                                   
 ``lag``                  the glove's readings arrive late (:class:`LaggedGlove`)      [s]
 ``biased_calibration``   the calibration ANN's output is offset on the pinching       [rad]
                          joints, opening the pinch (:func:`biased_calibration`)
-``small_hand``           the operator runs the stock pinch (planned for a nominal     scale [-]
-                         hand) with a hand of this scale (:func:`small_hand_person`)
+``hand_size``            the operator runs the stock pinch (planned for a nominal     scale [-]
+                         hand) with a hand of this scale (:func:`resized_person`),
+                         judged against the same hand's own plan
+                         (:func:`reference_kwargs`)
 =======================  ===========================================================  ========
 
 Pure numpy on the glove layer's types (no MuJoCo): the env (:mod:`ias_gym.assist.env`) puts
@@ -30,6 +32,7 @@ import hashlib
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -56,7 +59,7 @@ IMPAIRMENTS: tuple[str, ...] = (
     "weak_grip",
     "lag",
     "biased_calibration",
-    "small_hand",
+    "hand_size",
 )
 #: Default strength of each impairment (units in the module docstring; tuned: docs/assistance.md).
 DEFAULT_STRENGTHS: dict[str, float] = {
@@ -65,7 +68,7 @@ DEFAULT_STRENGTHS: dict[str, float] = {
     "weak_grip": 0.08,
     "lag": 0.1,
     "biased_calibration": 0.10,
-    "small_hand": 0.8,
+    "hand_size": 1.2,
 }
 #: Joints that tremor: the wrist and the pinching fingers (as the persons' own physiological
 #: tremor of :mod:`ias_gym.glove.skills`, but tens of times stronger).
@@ -119,11 +122,24 @@ class Impairment:
         value = DEFAULT_STRENGTHS[name] if strength is None else float(strength)
         if not math.isfinite(value):
             raise InputError(f"impairment strength must be finite, got {value}")
-        if name == "small_hand" and not 0.0 < value <= 2.0:
-            raise InputError(f"small_hand's strength is a hand scale in (0, 2], got {value}")
-        if name != "small_hand" and value < 0:
+        if name == "hand_size" and not 0.0 < value <= 2.0:
+            raise InputError(f"hand_size's strength is a hand scale in (0, 2], got {value}")
+        if name != "hand_size" and value < 0:
             raise InputError(f"{name}'s strength must be >= 0, got {value}")
         return cls(name, value)
+
+
+def reference_kwargs(impairment: Impairment) -> dict[str, Any]:
+    """Env kwargs of the unimpaired session an impaired one is judged against: the same
+    person without the impairment. For ``hand_size`` that is the same resized hand with an
+    operator planning for it (``hand_scale``), so that the plan is the only difference: a
+    hand of another size also moves the pen on another lever (the wrist's rotation is the
+    same, the pen's centre moves with its distance from the wrist), which no offset of the
+    joint targets undoes (measured: docs/assistance.md).
+    """
+    if impairment.name == "hand_size":
+        return {"hand_scale": impairment.strength}
+    return {}
 
 
 def _rng(tag: str, person_id: str, seed: int) -> np.random.Generator:
@@ -310,10 +326,10 @@ def stock_person(person: PersonParams) -> PersonParams:
 
 #: Added to a resized person's seed, so its calibration is cached apart from the original's
 #: (the cache names profiles by id and seed).
-SMALL_HAND_SEED_OFFSET = 7919
+RESIZED_SEED_OFFSET = 7919
 
 
-def small_hand_person(person: PersonParams, scale: float) -> PersonParams:
+def resized_person(person: PersonParams, scale: float) -> PersonParams:
     """``person`` with a hand of overall scale ``scale``: segment lengths, thumb base,
     finger thickness and pad size of the nominal hand times ``scale`` (the person's own
     proportions, glove fit and style kept), and another seed (its own calibration).
@@ -325,7 +341,7 @@ def small_hand_person(person: PersonParams, scale: float) -> PersonParams:
     k = scale / person.hand_scale
     return dataclasses.replace(
         person,
-        seed=person.seed + SMALL_HAND_SEED_OFFSET,
+        seed=person.seed + RESIZED_SEED_OFFSET,
         hand_scale=float(scale),
         index_lengths=tuple(float(v * k) for v in person.index_lengths),  # type: ignore[arg-type]
         thumb_lengths=tuple(float(v * k) for v in person.thumb_lengths),  # type: ignore[arg-type]

@@ -36,6 +36,7 @@ from ias_gym.assist.evaluation import (
     pen_axis,
     run_session,
 )
+from ias_gym.assist.impairments import Impairment, reference_kwargs
 from ias_gym.glove.hand import N_JOINTS
 from ias_gym.glove.skills import SKILLS
 
@@ -93,14 +94,14 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         if self.env is not None:
             self.env.close()
         person, skill = str(rng.choice(self.persons)), str(rng.choice(list(self.skills)))
+        impairment = Impairment.make(str(rng.choice(self.impairments)))
         self.env = gym.make(
-            "IAS-GloveAssist-v0",
-            person_id=person,
-            skill=skill,
-            impairment=str(rng.choice(self.impairments)),
+            "IAS-GloveAssist-v0", person_id=person, skill=skill, impairment=impairment.name
         )
         seed = int(rng.integers(2**31))
-        reference = gym.make("IAS-GloveAssist-v0", person_id=person, skill=skill)
+        reference = gym.make(
+            "IAS-GloveAssist-v0", person_id=person, skill=skill, **reference_kwargs(impairment)
+        )
         ref = run_session(reference, None, seed)
         reference.close()
         self._ref_pos, self._ref_axis = ref.pen_position, pen_axis(ref.pen_quat)
