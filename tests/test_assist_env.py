@@ -13,13 +13,15 @@ import numpy as np
 import pytest
 
 import ias_gym  # noqa: F401  (registers the ids)
-from ias_gym.assist.assistants import AnalyticAssistant, load_templates
+from ias_gym.assist.assistants import COORDINATE_UNTIL, AnalyticAssistant, load_templates
 from ias_gym.assist.evaluation import pose_errors, reference_session, run_session, session_success
 from ias_gym.assist.impairments import (
     DEFAULT_STRENGTHS,
     TREMOR_BAND,
+    Impairment,
     calibration_bias,
     pinch_direction,
+    reference_kwargs,
 )
 from ias_gym.errors import InputError
 from ias_gym.glove.hand import joint_index
@@ -122,11 +124,20 @@ def test_weak_grip_opens_the_pinch_after_the_close() -> None:
     assert np.abs(diff[0]).max() < 0.01  # the pre-shape is the person's own
 
 
-def test_small_hand_is_a_smaller_hand_running_the_stock_pinch() -> None:
-    env = make(impairment="small_hand").unwrapped
-    assert env.person.hand_scale == pytest.approx(DEFAULT_STRENGTHS["small_hand"])
+def test_hand_size_is_another_hand_running_the_stock_pinch() -> None:
+    env = make(impairment="hand_size").unwrapped
+    assert env.person.hand_scale == pytest.approx(DEFAULT_STRENGTHS["hand_size"])
     assert env.operator_person.hand_scale == 1.0
     assert env.person.person_id == PERSON
+    # its reference: the same hand, with an operator planning for it (the plan the only change)
+    same = make(**reference_kwargs(env.impairment)).unwrapped
+    assert same.person == env.person and same.operator_person == env.person
+    np.testing.assert_array_equal(same.model.body_pos, env.model.body_pos)
+    assert not np.allclose(same.script(1.0), env.script(1.0))
+    assert reference_kwargs(Impairment.make("weak_grip")) == {}
+    for bad in ({"hand_scale": 0.0}, {"hand_scale": 1.2, "impairment": "hand_size"}):
+        with pytest.raises(InputError, match="hand_scale"):
+            make(**bad)
 
 
 def test_assistant_turns_a_weak_grip_into_a_success(templates) -> None:
@@ -148,9 +159,30 @@ def test_no_loss_for_the_unimpaired_operator(templates) -> None:
         assistant = AnalyticAssistant(templates)
         assisted = run_session(env, assistant, 0, options)
         assert session_success(assisted, reference), options is None
-        # no tremor, no opened pinch: those terms stay off
+        # no tremor, no opened pinch, no pad pushing the pen alone: those terms stay off
         assert not assistant.tremor_detected and assistant.opening == 0.0
+        assert assistant.coordinated_at is None
         assert assisted.intervention < 0.05
+
+
+def test_a_pad_pushing_the_pen_alone_waits_for_the_other(templates) -> None:
+    """A hand 1.2 times the size the operator plans for (p3, a development person) brings the
+    index to the pen before the thumb, and the index drags it 33 mm, off its support, before
+    the pinch closes (measured). Held back to its first touch while the thumb reaches for it,
+    the index pinches the pen as the same hand's own plan does."""
+    kw = {"skill": "lift_hold", "duration": 2.5}
+    reference = run_session(make(hand_scale=1.2, **kw), None, 0)
+    assert reference.held_throughout()
+    env = make(impairment="hand_size", **kw)
+    assert not session_success(run_session(env, None, 0), reference)
+    without = run_session(env, AnalyticAssistant(templates, coordinate=False), 0)
+    assert not session_success(without, reference)  # the other terms do not save it
+    for options in perturbed_starts(env, 0, n=2):
+        assistant = AnalyticAssistant(templates)
+        assisted = run_session(env, assistant, 0, options)
+        assert session_success(assisted, reference), options is None
+        assert assistant.coordinated_at is not None
+        assert assistant.coordinated_at <= COORDINATE_UNTIL
 
 
 def test_a_lagged_operator_is_left_alone(templates) -> None:

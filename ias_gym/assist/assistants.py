@@ -27,6 +27,17 @@ for the posterior over the library's skills and returns joint-target offsets, th
      boundary), neither for a pinch already pressing :data:`FIRM_FORCE` times the
      library's force; it closes along the line between the pads (:func:`closing_direction`);
    - after the close phase, a pinch with a pad off the pen closes at :data:`CLOSE_RATE`;
+   - *a pad pushing the pen alone waits for the other*
+     (:meth:`AnalyticAssistant._coordinate_offset`): until the close's end
+     (:data:`COORDINATE_UNTIL`), once the pad that reached the resting pen first has
+     pushed it :data:`PUSH_DISTANCE` before the other ever touched it (and no tremor is
+     detected), that finger is held
+     back to the pose at which it first touched alone (never closer, from then on; let go
+     over :data:`HOLD_RELEASE` where the hold found the pinch opened), and the other
+     reaches toward it along its part of the pads' line (:data:`REACH_RATE`, up to
+     :data:`MAX_REACH`) while it is off the pen. A hand larger
+     than the one the operator plans for (``hand_size``) brings the index to the pen first
+     and drags it off its support before the thumb arrives;
 3. **the object's height toward the template**: from the middle of the lift, an integrator
    on the wrist's flexion drives the pen's height above its start into the template's band
    (``sum_k p_k z_k(tau)`` for ``tau`` within :data:`HEIGHT_TIME_TOLERANCE` of now: the
@@ -130,6 +141,22 @@ SQUEEZE_FROM = SKILL_TIMINGS.close - SKILL_TIMINGS.reach
 #: closes a pinch with a pad off the pen: unimpaired grips slip briefly in every fast
 #: skill, and reacting to that pushed their sessions out of tolerance (measured).
 LIFT_END = SKILL_TIMINGS.lift - SKILL_TIMINGS.reach
+#: Until this episode time [s] (the end of the close) the pad that reached the pen first
+#: and pushes it alone is held back ...
+COORDINATE_UNTIL = SKILL_TIMINGS.close - SKILL_TIMINGS.reach
+#: ... once it has pushed the pen this far from its start [m] (a
+#: ``hand_size`` index drags it 2 mm in 20-40 ms and off its support within 0.1 s;
+#: measured on development persons: docs/assistance.md) ...
+PUSH_DISTANCE = 0.002
+#: ... and the other finger reaches toward it at this rate along its part of
+#: :func:`closing_direction` [1/s] ...
+REACH_RATE = 1.0
+#: ... up to this offset [rad, 1-norm] ...
+MAX_REACH = 0.4
+#: ... until this episode time [s] (the lift's first half second).
+REACH_UNTIL = SKILL_TIMINGS.hold - SKILL_TIMINGS.reach + 0.5
+#: A held finger of a pinch found opened (term 2's opening) is let go over this time [s].
+HOLD_RELEASE = 0.3
 #: Gain of the height integrator on the wrist's flexion [rad/s per m of height error].
 HEIGHT_GAIN = 40.0
 #: Height errors up to this are the person's own way of lifting (or a late one), not
@@ -362,6 +389,7 @@ class AnalyticAssistant:
         recogniser: gives the posterior (the recogniser protocol); None: an
             :class:`OracleRecogniser` on the env's intent, made at every :meth:`reset`.
         tremor_filter, squeeze, height: switch the three terms (ablations).
+        coordinate: switch the lone pad's wait and the other pad's reach (part of term 2).
     """
 
     def __init__(
@@ -372,6 +400,7 @@ class AnalyticAssistant:
         tremor_filter: bool = True,
         squeeze: bool = True,
         height: bool = True,
+        coordinate: bool = True,
     ) -> None:
         self.templates = templates
         self.recogniser = recogniser
@@ -379,6 +408,11 @@ class AnalyticAssistant:
         self.tremor_filter = tremor_filter
         self.squeeze = squeeze
         self.height = height
+        self.coordinate = coordinate
+        self._finger_idx = {
+            site: np.array([joint_index(j) for j in joints])
+            for site, joints in CLOSING_JOINTS.items()
+        }
         self._tremor_idx = np.array([joint_index(j) for j in TREMOR_JOINTS])
         self._wf = JOINT_NAMES.index("wrist_flexion")
         self._pinch = pinch_direction()
@@ -391,6 +425,9 @@ class AnalyticAssistant:
         self.opening = 0.0
         #: Whether the tremor detector has fired in this session.
         self.tremor_detected = False
+        #: Episode time [s] at which a pad pushing the pen alone was first held back (None:
+        #: never in this session).
+        self.coordinated_at: float | None = None
 
     def reset(self, env: Any) -> None:
         """Start a session on ``env`` (unwrapped, just reset)."""
@@ -414,6 +451,13 @@ class AnalyticAssistant:
         self.h = 0.0
         self.opening = 0.0
         self._openings: list[float] = []
+        self.coordinated_at = None
+        self._alone_from: dict[str, FloatArray] = {}  # finger -> its joints at first lone touch
+        self._held: dict[str, FloatArray] = {}  # finger -> the pose it is held back to
+        self._reach = np.zeros(N_JOINTS)
+        self._release_at: float | None = None  # when a held finger began to be let go
+        self._first_touch: str | None = None  # the pad that touched the pen first, or "both"
+        self._both_touched = False
         self._person_start = skill_start_time(
             str(cfg.skill) if cfg.skill else SKILLS[0], env.person.person_id
         )
@@ -484,6 +528,45 @@ class AnalyticAssistant:
         out: FloatArray = self.opening * self._pinch + self.g * closing_direction(env)
         return out
 
+    def _coordinate_offset(self, env: Any, t: float, theta: FloatArray) -> FloatArray:
+        """Term 2, the close: a pad pushing the pen alone waits, the other reaches for it."""
+        fingers = tuple(CLOSING_JOINTS)  # index, thumb: the order of env._touch
+        touch = tuple(bool(v) for v in env._touch)
+        alone = fingers[touch.index(True)] if touch[0] != touch[1] else None
+        if any(touch) and self._first_touch is None:  # the first contact with the pen
+            self._first_touch = alone if alone is not None else "both"
+        self._both_touched = self._both_touched or all(touch)
+        # only the pad that reached the resting pen first, before the other ever touched it
+        if alone is not None and alone == self._first_touch and not self._both_touched:
+            first = self._alone_from.setdefault(alone, theta[self._finger_idx[alone]].copy())
+            moved = float(np.linalg.norm(env.data.xpos[env._pen_body] - env._pen_start))
+            # a tremor shakes a lone pad against the pen: that is no push (the filter's task)
+            pushing = moved > PUSH_DISTANCE and not self.tremor_detected
+            if alone not in self._held and pushing and t <= COORDINATE_UNTIL:
+                self._held[alone] = first
+                if self.coordinated_at is None:
+                    self.coordinated_at = t
+        if self._held and alone is not None and t <= REACH_UNTIL:
+            other = self._finger_idx[fingers[1 - fingers.index(alone)]]
+            step = np.zeros(N_JOINTS)
+            step[other] = closing_direction(env)[other]
+            self._reach += REACH_RATE * self._dt * step
+            size = float(np.abs(self._reach).sum())
+            if size > MAX_REACH:
+                self._reach *= MAX_REACH / size
+        # a pinch the hold found opened against the template (a weak grip, a biased
+        # calibration) is short of closing, not over it: the held finger is let go
+        if self._held and self.opening > 0.0 and t > OPENING_WINDOW[1] and self._release_at is None:
+            self._release_at = t
+        weight = 1.0
+        if self._release_at is not None:
+            weight = max(0.0, 1.0 - (t - self._release_at) / HOLD_RELEASE)
+        out = self._reach.copy()
+        for finger, pose in self._held.items():
+            idx = self._finger_idx[finger]
+            out[idx] += weight * np.minimum(pose - theta[idx], 0.0)  # never closer than that
+        return out
+
     def _height_offset(self, env: Any, t: float, post: Any) -> FloatArray:
         """Term 3: the wrist's flexion drives the pen's height toward the template's band:
         the heights the template passes within :data:`HEIGHT_TIME_TOLERANCE` of now."""
@@ -517,6 +600,8 @@ class AnalyticAssistant:
             offset += self._tremor_offset(theta)
         if self.squeeze:
             offset += self._squeeze_offset(env, t, theta, post)
+        if self.coordinate:
+            offset += self._coordinate_offset(env, t, theta)
         if self.height:
             offset += self._height_offset(env, t, post)
         out: FloatArray = np.clip(offset / self._scale, -1.0, 1.0)
