@@ -185,6 +185,20 @@ def test_a_pad_pushing_the_pen_alone_waits_for_the_other(templates) -> None:
         assert assistant.coordinated_at <= COORDINATE_UNTIL
 
 
+def test_the_pad_the_pen_rests_on_is_not_held_back(templates) -> None:
+    """The pen lies on the thumb pad from the start; p6's unimpaired close (a development
+    person, seed 1) slides it 2.3 mm on the thumb before the index arrives. That is the
+    person's own close: holding the thumb back there (a rule for any first lone pad) left
+    the pinch too weak and dropped the pen at 3.0 s (measured)."""
+    reference = reference_session("p6", "seesaw_slow", 1)
+    assert reference is not None
+    env = gym.make("IAS-GloveAssist-v0", person_id="p6", skill="seesaw_slow")
+    for options in perturbed_starts(env, 1, n=2):
+        assistant = AnalyticAssistant(templates)
+        assert session_success(run_session(env, assistant, 1, options), reference)
+        assert assistant.coordinated_at is None, options is None
+
+
 def test_a_lagged_operator_is_left_alone(templates) -> None:
     """A 100 ms lag delays an open-loop operator's session: the skill done 0.1 s late. The
     assistant must not pull the late place toward the template's clock: p7 (a development

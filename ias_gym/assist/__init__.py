@@ -4,7 +4,7 @@ acquisition, and completing the recognised skill from the skill library.
 - :mod:`~ias_gym.assist.stream`, :mod:`~ias_gym.assist.recognition`,
   :mod:`~ias_gym.assist.metrics`: what the recogniser sees, the recognisers, their metrics.
 - :mod:`~ias_gym.assist.impairments`: impaired operators (tremor, weak grip, lag, biased
-  calibration, small hand).
+  calibration, another hand size).
 - :mod:`~ias_gym.assist.env`: ``IAS-GloveAssist-v0``, the glove world with an impaired
   operator.
 - :mod:`~ias_gym.assist.assistants`: the analytic assistant (template + grasp margin).

@@ -29,9 +29,9 @@ for the posterior over the library's skills and returns joint-target offsets, th
    - after the close phase, a pinch with a pad off the pen closes at :data:`CLOSE_RATE`;
    - *a pad pushing the pen alone waits for the other*
      (:meth:`AnalyticAssistant._coordinate_offset`): until the close's end
-     (:data:`COORDINATE_UNTIL`), once the pad that reached the resting pen first has
-     pushed it :data:`PUSH_DISTANCE` before the other ever touched it (and no tremor is
-     detected), that finger is held
+     (:data:`COORDINATE_UNTIL`), once the pad that came to the pen first (not one it
+     rests on from the start) has pushed it :data:`PUSH_DISTANCE` before the other ever
+     touched it (and no tremor is detected), that finger is held
      back to the pose at which it first touched alone (never closer, from then on; let go
      over :data:`HOLD_RELEASE` where the hold found the pinch opened), and the other
      reaches toward it along its part of the pads' line (:data:`REACH_RATE`, up to
@@ -456,7 +456,7 @@ class AnalyticAssistant:
         self._held: dict[str, FloatArray] = {}  # finger -> the pose it is held back to
         self._reach = np.zeros(N_JOINTS)
         self._release_at: float | None = None  # when a held finger began to be let go
-        self._first_touch: str | None = None  # the pad that touched the pen first, or "both"
+        self._first_touch: str | None = None  # the pad that came to the pen first (or "both")
         self._both_touched = False
         self._person_start = skill_start_time(
             str(cfg.skill) if cfg.skill else SKILLS[0], env.person.person_id
@@ -534,7 +534,10 @@ class AnalyticAssistant:
         touch = tuple(bool(v) for v in env._touch)
         alone = fingers[touch.index(True)] if touch[0] != touch[1] else None
         if any(touch) and self._first_touch is None:  # the first contact with the pen
-            self._first_touch = alone if alone is not None else "both"
+            # a pad on the pen from the start is the one it rests on (the scene lays the pen
+            # on the thumb pad), not one that came to it: it carries the pen in the close
+            resting = t <= self._dt * 1.5
+            self._first_touch = "resting" if resting else (alone if alone else "both")
         self._both_touched = self._both_touched or all(touch)
         # only the pad that reached the resting pen first, before the other ever touched it
         if alone is not None and alone == self._first_touch and not self._both_touched:
