@@ -44,9 +44,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument(
         "--persons",
-        default="hc-631e84,hc-d7d59f,hc-d8d328,hc-6c0251,hc-b3d0f7,hc-7088f4",
+        default="hd-9a2a07,hd-96186f,hd-2e7dcb,hd-75a29d,hd-f20ed4,hd-ff15a4",
         help="held-out person ids (generated once with secrets.token_hex, never tuned on; "
-        "the earlier set ha-eb45ce,ha-e1d072,ha-c34747 was used for development since)",
+        "the earlier sets ha-* (session 5) and hc-* (session 6) were diagnosed on since)",
     )
     parser.add_argument("--impairments", default="all", help="names or all")
     parser.add_argument("--seed", type=int, default=0)

@@ -9,7 +9,7 @@ for the posterior over the library's skills and returns joint-target offsets, th
    :data:`TREMOR_STOP` Hz, scipy) on the wrist and pinching joints; offset = filtered Θ - Θ.
    It acts only once a band-pass detector has seen a tremor (:data:`TREMOR_DETECT`, within
    :data:`TREMOR_WINDOW`), so an operator without one is left alone;
-2. **the squeeze**, three parts, none of which ever opens the operator's grip:
+2. **the squeeze**, four parts; only the last ever opens the operator's grip:
 
    - *the opening*: in the hold before the lift (:data:`OPENING_WINDOW`) the operator's
      pinch joints are compared with the library's joint template (every skill starts with
@@ -27,17 +27,16 @@ for the posterior over the library's skills and returns joint-target offsets, th
      boundary), neither for a pinch already pressing :data:`FIRM_FORCE` times the
      library's force; it closes along the line between the pads (:func:`closing_direction`);
    - after the close phase, a pinch with a pad off the pen closes at :data:`CLOSE_RATE`;
-   - *a pad pushing the pen alone waits for the other*
+   - *the pad that comes to the pen first waits for the other*
      (:meth:`AnalyticAssistant._coordinate_offset`): until the close's end
-     (:data:`COORDINATE_UNTIL`), once the pad that came to the pen first (not one it
-     rests on from the start) has pushed it :data:`PUSH_DISTANCE` before the other ever
-     touched it (and no tremor is detected), that finger is held
-     back to the pose at which it first touched alone (never closer, from then on; let go
-     over :data:`HOLD_RELEASE` where the hold found the pinch opened), and the other
-     reaches toward it along its part of the pads' line (:data:`REACH_RATE`, up to
-     :data:`MAX_REACH`) while it is off the pen. A hand larger
-     than the one the operator plans for (``hand_size``) brings the index to the pen first
-     and drags it off its support before the thumb arrives;
+     (:data:`COORDINATE_UNTIL`), once that pad (not one the pen rests on from the start)
+     has pushed the pen :data:`PUSH_DISTANCE` before the other ever touched it, and no
+     tremor is detected, its finger is held back to the pose at which it first touched
+     (never closer, from then on; let go over :data:`HOLD_RELEASE` where the hold found the
+     pinch opened), and the other finger reaches toward it along its part of the pads'
+     line (:data:`REACH_RATE`, up to :data:`MAX_REACH`) while it is off the pen. A hand
+     larger than the one the operator plans for (``hand_size``) brings the index to the
+     pen first, and the index drags it off its support before the thumb arrives;
 3. **the object's height toward the template**: from the middle of the lift, an integrator
    on the wrist's flexion drives the pen's height above its start into the template's band
    (``sum_k p_k z_k(tau)`` for ``tau`` within :data:`HEIGHT_TIME_TOLERANCE` of now: the
