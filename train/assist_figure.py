@@ -63,12 +63,15 @@ def main(argv: list[str] | None = None) -> int:
         ax.bar(xs, [100 * (v or 0.0) for v in values], width, label=name)
     ax.axhline(95, color="grey", linestyle=":", linewidth=1)
     ax.axhline(50, color="grey", linestyle=":", linewidth=1)
-    ax.set_xticks(range(len(impairments)), [i.replace("_", " ") for i in impairments])
+    # sessions without a reference are left out, so each impairment has its own count
+    ax.set_xticks(
+        range(len(impairments)),
+        [f"{i.replace('_', ' ')}\n({first[i]['sessions']} sessions)" for i in impairments],
+    )
     ax.set_ylabel("success [%]")
     ax.set_ylim(0, 105)
-    n = first[impairments[0]]["sessions"]
-    ax.set_title(f"held-out persons {', '.join(persons)}: {n} sessions per bar")
-    ax.legend(fontsize=8, ncol=len(series), loc="upper center", bbox_to_anchor=(0.5, -0.12))
+    ax.set_title(f"held-out persons {', '.join(persons)}")
+    ax.legend(fontsize=8, ncol=len(series), loc="upper center", bbox_to_anchor=(0.5, -0.2))
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)

@@ -39,6 +39,11 @@ SWITCH_PAIRS = [
 ]
 
 
+def _seconds(value: float | None) -> str:
+    """A latency for the Markdown table: two decimals, or "-" when no switch was followed."""
+    return "-" if value is None else f"{value:.2f} s"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the measurement (arguments: ``--help``)."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -143,7 +148,8 @@ def main(argv: list[str] | None = None) -> int:
         "Intent-switch latency (unimpaired operator, switch at "
         f"{args.switch_time} s): "
         + "; ".join(
-            f"{n}: median {v['median_s']} s, max {v['max_s']} s, never {v['never']} of {v['n']}"
+            f"{n}: median {_seconds(v['median_s'])}, max {_seconds(v['max_s'])}, "
+            f"never {v['never']} of {v['n']}"
             for n, v in latency.items()
         ),
     ]
