@@ -6,6 +6,7 @@ glove's env."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import gymnasium as gym
@@ -256,6 +257,27 @@ def test_the_opening_of_a_biased_calibration_is_estimated(templates) -> None:
     run_session(env, assistant, 0)
     bias = DEFAULT_STRENGTHS["biased_calibration"]
     assert 0.3 * bias < assistant.opening < bias
+
+
+def test_a_weak_grip_hidden_by_a_closer_pinch_is_seen_in_its_closing(
+    templates, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """p4's own pinch is closer than the library's, so its weak grip's hold pose lies within
+    the deadband (0.01 rad past it), and the pen slips out of the tilt; its closing from rest
+    falls 0.034 rad short of the library's. Closing that (less the deadband) holds the tilt
+    from nearby starts; without it (the hold's pose alone) the tilt is lost."""
+    import ias_gym.assist.assistants as assistants
+
+    kw = {"person_id": "p4", "skill": "tilt_left"}
+    reference = run_session(gym.make("IAS-GloveAssist-v0", **kw), None, 3)
+    env = gym.make("IAS-GloveAssist-v0", impairment="weak_grip", **kw)
+    for options in perturbed_starts(env, 3, n=2):
+        assistant = AnalyticAssistant(templates)
+        assisted = run_session(env, assistant, 3, options)
+        assert session_success(assisted, reference), options is None
+        assert assistant.opening > 0.015
+    monkeypatch.setattr(assistants, "CLOSING_DEADBAND", math.inf)
+    assert not session_success(run_session(env, AnalyticAssistant(templates), 3), reference)
 
 
 def test_with_the_phase_recogniser_the_assistant_follows_an_intent_switch(templates) -> None:

@@ -15,8 +15,11 @@ for the posterior over the library's skills and returns joint-target offsets, th
      pinch joints are compared with the library's joint template (every skill starts with
      the same pinch-lift); what the pinch lacks along its closing direction
      (:func:`~ias_gym.assist.impairments.pinch_direction`: index MCP, PIP/2, thumb
-     flexion) beyond :data:`OPENING_DEADBAND` is added from then on. A weak grip and a
-     biased calibration both open the pinch along that direction;
+     flexion) beyond :data:`OPENING_DEADBAND`, or what its closing from rest
+     (:data:`REST_WINDOW`) lacks beyond :data:`CLOSING_DEADBAND`, whichever is more, is
+     added from then on. A weak grip and a biased calibration both open the pinch along
+     that direction; a person whose own pinch is closer than the library's hides a weak
+     grip from the first estimate, not from the second;
    - *reactive closing* until the end of the lift (:data:`LIFT_END`), and after it only
      where the hold found the pinch opened (an unimpaired grip is left alone): an integrator on the
      larger of the live grasp margin's relative error against the library's (the soft
@@ -112,6 +115,14 @@ OPENING_WINDOW = (
 #: ... and the part of it up to this is a person's own pinch, not closed by the assistant
 #: [rad] (unimpaired persons p1-p8 lie within -0.037..+0.029 rad of the template).
 OPENING_DEADBAND = 0.03
+#: The same comparison at rest, before the close [s] ...
+REST_WINDOW = (0.0, 0.1)
+#: ... for the pinch's closing from rest to the hold against the template's: what it lacks
+#: beyond this is an opening too [rad]. It leaves out where a person's own pinch differs
+#: from the library's as much as their rest does (17 development persons, 3 skills:
+#: unimpaired, lagged and tremoring <= -0.002; a weak grip -0.018..+0.087, against
+#: -0.023..+0.085 for the hold's pose alone).
+CLOSING_DEADBAND = 0.01
 #: Share of the library's pinch force below which the squeeze is raised [-] (a person's own
 #: squeeze differs from the library's by tens of percent).
 FORCE_SHARE = 0.75
@@ -450,6 +461,7 @@ class AnalyticAssistant:
         self.h = 0.0
         self.opening = 0.0
         self._openings: list[float] = []
+        self._rest: list[float] = []
         self.coordinated_at = None
         self._alone_from: dict[str, FloatArray] = {}  # finger -> its joints at first lone touch
         self._held: dict[str, FloatArray] = {}  # finger -> the pose it is held back to
@@ -492,11 +504,18 @@ class AnalyticAssistant:
 
     def _squeeze_offset(self, env: Any, t: float, theta: FloatArray, post: Any) -> FloatArray:
         """Term 2: close a pinch opened against the template, and a slipping or lost one."""
+        template = next(iter(self.templates.values()))  # the shared pinch-lift
+        d = self._pinch
+        if REST_WINDOW[0] <= t <= REST_WINDOW[1]:
+            self._rest.append(float(d @ (template.at(t) - theta) / (d @ d)))
         if OPENING_WINDOW[0] <= t <= OPENING_WINDOW[1]:
-            template = next(iter(self.templates.values()))  # the shared pinch-lift
-            d = self._pinch
             self._openings.append(float(d @ (template.at(t) - theta) / (d @ d)))
-            self.opening = max(float(np.mean(self._openings)) - OPENING_DEADBAND, 0.0)
+            hold = float(np.mean(self._openings))
+            closing = hold - float(np.mean(self._rest)) if self._rest else -math.inf
+            # the hold's pose and the closing from rest each see an opening the other may
+            # not: a person whose own pinch is closer than the library's hides a weak grip
+            # from the first
+            self.opening = max(hold - OPENING_DEADBAND, closing - CLOSING_DEADBAND, 0.0)
         if t < SQUEEZE_FROM:
             return np.zeros(N_JOINTS)
         m = live_margin(env)
