@@ -49,9 +49,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument(
         "--persons",
-        default="hd-9a2a07,hd-96186f,hd-2e7dcb,hd-75a29d,hd-f20ed4,hd-ff15a4",
+        default="hf-5d714f,hf-0c5718,hf-bd08e4,hf-11112d,hf-5a3f22,hf-c80fa6",
         help="held-out person ids (generated once with secrets.token_hex, never tuned on; "
-        "the earlier sets ha-* (session 5) and hc-* (session 6) were diagnosed on since)",
+        "the earlier sets ha-* (session 5), hc-* (6) and hd-* (7) were diagnosed on since)",
     )
     parser.add_argument("--impairments", default="all", help="names or all")
     parser.add_argument("--seed", type=int, default=0)

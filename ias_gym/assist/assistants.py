@@ -11,17 +11,19 @@ for the posterior over the library's skills and returns joint-target offsets, th
    :data:`TREMOR_WINDOW`), so an operator without one is left alone;
 2. **the squeeze**, four parts; only the last ever opens the operator's grip:
 
-   - *the opening*: in the hold before the lift (:data:`OPENING_WINDOW`) the operator's
-     pinch joints are compared with the library's joint template (every skill starts with
-     the same pinch-lift); what the pinch lacks along its closing direction
-     (:func:`~ias_gym.assist.impairments.pinch_direction`: index MCP, PIP/2, thumb
-     flexion) beyond :data:`OPENING_DEADBAND`, or what its closing from rest
-     (:data:`REST_WINDOW`) lacks beyond :data:`CLOSING_DEADBAND`, whichever is more, is
-     added from then on. A weak grip and a biased calibration both open the pinch along
-     that direction; a person whose own pinch is closer than the library's hides a weak
-     grip from the first estimate, not from the second;
+   - *the opening*: the operator's pinch joints are compared with the library's joint
+     template (every skill starts with the same pinch-lift) along the pinch's closing
+     direction (:func:`~ias_gym.assist.impairments.pinch_direction`: index MCP, PIP/2,
+     thumb flexion), twice. At rest (:data:`REST_WINDOW`), an opening beyond
+     :data:`BIAS_THRESHOLD` is a biased calibration, in every reading: it is added in full
+     from then on, the close included. In the hold before the lift
+     (:data:`OPENING_WINDOW`), what the pinch lacks beyond :data:`OPENING_DEADBAND`, or
+     what its closing from rest lacks beyond :data:`CLOSING_DEADBAND`, is added as well
+     (a weak grip; a person whose own pinch is closer than the library's hides it from
+     the first estimate, not from the second);
    - *reactive closing* until the end of the lift (:data:`LIFT_END`), and after it only
-     where the hold found the pinch opened (an unimpaired grip is left alone): an integrator on the
+     where the hold found the pinch opened beyond a bias (an unimpaired grip, and a biased
+     one undone from rest, is left alone): an integrator on the
      larger of the live grasp margin's relative error against the library's (the soft
      fingers' cones, :func:`~ias_gym.grasp.grasp_margin.grasp_margin`, mu = 0.25 and the
      pads' torsional friction, as :func:`~ias_gym.skills.transfer.demonstrated_margin`
@@ -32,7 +34,7 @@ for the posterior over the library's skills and returns joint-target offsets, th
    - after the close phase, a pinch with a pad off the pen closes at :data:`CLOSE_RATE`;
    - *the pad that comes to the pen first waits for the other*
      (:meth:`AnalyticAssistant._coordinate_offset`): until the close's end
-     (:data:`COORDINATE_UNTIL`), once that pad (not one the pen rests on from the start)
+     (:data:`COORDINATE_UNTIL`), once that pad (not one the pen rests on before the close)
      has pushed the pen :data:`PUSH_DISTANCE` before the other ever touched it, and no
      tremor is detected, its finger is held back to the pose at which it first touched
      (never closer, from then on; let go over :data:`HOLD_RELEASE` where the hold found the
@@ -115,13 +117,20 @@ OPENING_WINDOW = (
 #: ... and the part of it up to this is a person's own pinch, not closed by the assistant
 #: [rad] (unimpaired persons p1-p8 lie within -0.037..+0.029 rad of the template).
 OPENING_DEADBAND = 0.03
-#: The same comparison at rest, before the close [s] ...
+#: The same comparison at rest, before the close, finger by finger: a biased calibration
+#: shifts every reading, the rest pose's too, and opens both fingers along the pinch's
+#: direction, where a person's own rest pose differs from the library's in the index
+#: (-0.09..+0.04 rad) but hardly in the thumb (+-0.005 rad) ...
 REST_WINDOW = (0.0, 0.1)
-#: ... for the pinch's closing from rest to the hold against the template's: what it lacks
-#: beyond this is an opening too [rad]. It leaves out where a person's own pinch differs
-#: from the library's as much as their rest does (17 development persons, 3 skills:
-#: unimpaired, lagged and tremoring <= -0.002; a weak grip -0.018..+0.087, against
-#: -0.023..+0.085 for the hold's pose alone).
+#: ... so a rest pose whose less opened finger is opened by more than this is a bias, closed
+#: by that finger's opening from then on [rad] (18 development persons, 3 seeds: unimpaired,
+#: lagged, tremoring, weak and a larger hand (``hand_size``: the index alone) <= +0.020;
+#: biased by 0.10 rad >= +0.063, the index of a person whose own rest is more closed).
+BIAS_THRESHOLD = 0.04
+#: The pinch's closing from rest to the hold against the template's, beyond this, is an
+#: opening too [rad]: it leaves out where a person's pinch pose differs from the library's
+#: and their rest pose by as much (the same persons: unimpaired <= 0.000; weak grip
+#: -0.018..+0.087, against -0.023..+0.085 for the hold's pose alone).
 CLOSING_DEADBAND = 0.01
 #: Share of the library's pinch force below which the squeeze is raised [-] (a person's own
 #: squeeze differs from the library's by tens of percent).
@@ -426,6 +435,11 @@ class AnalyticAssistant:
         self._tremor_idx = np.array([joint_index(j) for j in TREMOR_JOINTS])
         self._wf = JOINT_NAMES.index("wrist_flexion")
         self._pinch = pinch_direction()
+        self._pinch_fingers = []  # each finger's part of the pinch's direction
+        for idx in self._finger_idx.values():
+            part = np.zeros(N_JOINTS)
+            part[idx] = self._pinch[idx]
+            self._pinch_fingers.append(part)
         self._post: dict[str, float] = {}
         #: The height correction on the wrist's flexion [rad].
         self.h = 0.0
@@ -433,6 +447,8 @@ class AnalyticAssistant:
         self.g = 0.0
         #: The pinch's estimated opening, closed along the pinch's joints [rad].
         self.opening = 0.0
+        #: The part of it seen at rest: a biased calibration [rad] (0: none seen).
+        self.bias = 0.0
         #: Whether the tremor detector has fired in this session.
         self.tremor_detected = False
         #: Episode time [s] at which a pad pushing the pen alone was first held back (None:
@@ -460,8 +476,10 @@ class AnalyticAssistant:
         self.g = 0.0
         self.h = 0.0
         self.opening = 0.0
+        self.bias = 0.0
         self._openings: list[float] = []
-        self._rest: list[float] = []
+        self._rest: list[float] = []  # the opening at rest along d ...
+        self._rest_fingers: list[list[float]] = []  # ... and along each finger's part of d
         self.coordinated_at = None
         self._alone_from: dict[str, FloatArray] = {}  # finger -> its joints at first lone touch
         self._held: dict[str, FloatArray] = {}  # finger -> the pose it is held back to
@@ -507,21 +525,31 @@ class AnalyticAssistant:
         template = next(iter(self.templates.values()))  # the shared pinch-lift
         d = self._pinch
         if REST_WINDOW[0] <= t <= REST_WINDOW[1]:
-            self._rest.append(float(d @ (template.at(t) - theta) / (d @ d)))
+            gap = template.at(t) - theta
+            self._rest.append(float(d @ gap / (d @ d)))
+            self._rest_fingers.append([float(f @ gap / (f @ f)) for f in self._pinch_fingers])
+            both = float(np.min(np.mean(self._rest_fingers, axis=0)))
+            # a bias is in every reading: it is undone from here on, the close included
+            self.opening = self.bias = both if both > BIAS_THRESHOLD else 0.0
         if OPENING_WINDOW[0] <= t <= OPENING_WINDOW[1]:
             self._openings.append(float(d @ (template.at(t) - theta) / (d @ d)))
             hold = float(np.mean(self._openings))
             closing = hold - float(np.mean(self._rest)) if self._rest else -math.inf
             # the hold's pose and the closing from rest each see an opening the other may
-            # not: a person whose own pinch is closer than the library's hides a weak grip
-            # from the first
-            self.opening = max(hold - OPENING_DEADBAND, closing - CLOSING_DEADBAND, 0.0)
+            # not (a person whose own pinch is closer than the library's hides a weak grip
+            # in the first). Past a bias, only the closing: the hold's pose holds the bias,
+            # estimated apart, and the person's own pinch
+            beyond = closing - CLOSING_DEADBAND
+            if not self.bias:
+                beyond = max(beyond, hold - OPENING_DEADBAND)
+            self.opening = self.bias + max(beyond, 0.0)
         if t < SQUEEZE_FROM:
-            return np.zeros(N_JOINTS)
+            before: FloatArray = self.opening * d
+            return before
         m = live_margin(env)
         if math.isnan(m):  # a pad off the pen
             self.g += CLOSE_RATE * self._dt
-        elif t <= LIFT_END or self.opening > 0.0:
+        elif t <= LIFT_END or self._opened_in_hold():
             margins = [k.margin for k in self.templates.values()]
             forces = [k.force for k in self.templates.values()]
             target = sum(
@@ -546,15 +574,25 @@ class AnalyticAssistant:
         out: FloatArray = self.opening * self._pinch + self.g * closing_direction(env)
         return out
 
+    def _opened_in_hold(self) -> bool:
+        """The hold found the pinch opened beyond a bias seen at rest. A bias undone from the
+        start leaves the person's own pinch, which the reactive closing after the lift leaves
+        alone as it does an unimpaired one (d2: its margin on the cones' boundary raised the
+        squeeze to its cap and dropped the pen, measured)."""
+        return self.opening > self.bias
+
     def _coordinate_offset(self, env: Any, t: float, theta: FloatArray) -> FloatArray:
         """Term 2, the close: a pad pushing the pen alone waits, the other reaches for it."""
         fingers = tuple(CLOSING_JOINTS)  # index, thumb: the order of env._touch
         touch = tuple(bool(v) for v in env._touch)
         alone = fingers[touch.index(True)] if touch[0] != touch[1] else None
         if any(touch) and self._first_touch is None:  # the first contact with the pen
-            # a pad on the pen from the start is the one it rests on (the scene lays the pen
-            # on the thumb pad), not one that came to it: it carries the pen in the close
-            resting = t <= self._dt * 1.5
+            # a pad on the pen before the close begins is the one it rests on (the scene
+            # lays the pen on the thumb pad), not one that came to it: it carries the pen in
+            # the close. Not only at the first step: a bias undone from rest brings a thumb
+            # the biased reading held off the pen onto it within 0.1 s, and taking it for a
+            # pad that came first held it back 0.2 rad (ha-e1d072, measured)
+            resting = t <= REST_WINDOW[1]
             self._first_touch = "resting" if resting else (alone if alone else "both")
         self._both_touched = self._both_touched or all(touch)
         # only the pad that reached the resting pen first, before the other ever touched it
@@ -575,9 +613,10 @@ class AnalyticAssistant:
             size = float(np.abs(self._reach).sum())
             if size > MAX_REACH:
                 self._reach *= MAX_REACH / size
-        # a pinch the hold found opened against the template (a weak grip, a biased
-        # calibration) is short of closing, not over it: the held finger is let go
-        if self._held and self.opening > 0.0 and t > OPENING_WINDOW[1] and self._release_at is None:
+        # a pinch the hold found opened against the template (a weak grip) is short of
+        # closing, not over it: the held finger is let go
+        opened = self._opened_in_hold() and t > OPENING_WINDOW[1]
+        if self._held and opened and self._release_at is None:
             self._release_at = t
         weight = 1.0
         if self._release_at is not None:
