@@ -14,13 +14,14 @@ for the posterior over the library's skills and returns joint-target offsets, th
    - *the opening*: the operator's pinch joints are compared with the library's joint
      template (every skill starts with the same pinch-lift) along the pinch's closing
      direction (:func:`~ias_gym.assist.impairments.pinch_direction`: index MCP, PIP/2,
-     thumb flexion), twice. At rest (:data:`REST_WINDOW`), an opening beyond
-     :data:`BIAS_THRESHOLD` is a biased calibration, in every reading: it is added in full
-     from then on, the close included. In the hold before the lift
-     (:data:`OPENING_WINDOW`), what the pinch lacks beyond :data:`OPENING_DEADBAND`, or
-     what its closing from rest lacks beyond :data:`CLOSING_DEADBAND`, is added as well
-     (a weak grip; a person whose own pinch is closer than the library's hides it from
-     the first estimate, not from the second);
+     thumb flexion), twice. At rest (:data:`REST_WINDOW`), finger by finger: both fingers
+     opened beyond :data:`BIAS_THRESHOLD` is a biased calibration, in every reading, and
+     the less opened finger's opening is added from then on, the close included. In the
+     hold before the lift (:data:`OPENING_WINDOW`), what the pinch lacks beyond
+     :data:`OPENING_DEADBAND` (without a bias), or what its closing from rest lacks
+     beyond :data:`CLOSING_DEADBAND`, is added as well (a weak grip; a person whose own
+     pinch is closer than the library's hides it from the first estimate, not from the
+     second);
    - *reactive closing* until the end of the lift (:data:`LIFT_END`), and after it only
      where the hold found the pinch opened beyond a bias (an unimpaired grip, and a biased
      one undone from rest, is left alone): an integrator on the
