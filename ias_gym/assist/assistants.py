@@ -121,7 +121,7 @@ OPENING_DEADBAND = 0.03
 #: The same comparison at rest, before the close, finger by finger: a biased calibration
 #: shifts every reading, the rest pose's too, and opens both fingers along the pinch's
 #: direction, where a person's own rest pose differs from the library's in the index
-#: (-0.09..+0.04 rad) but hardly in the thumb (+-0.005 rad) ...
+#: (-0.05..+0.07 rad) but hardly in the thumb (+-0.011 rad) ...
 REST_WINDOW = (0.0, 0.1)
 #: ... so a rest pose whose less opened finger is opened by more than this is a bias, closed
 #: by that finger's opening from then on [rad] (18 development persons, 3 seeds: unimpaired,
