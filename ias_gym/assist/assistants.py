@@ -401,6 +401,11 @@ def closing_direction(env: Any) -> FloatArray:
     return out * (float(np.abs(pinch_direction()).sum()) / norm) if norm > 0 else pinch_direction()
 
 
+def _along(v: FloatArray, u: FloatArray) -> float:
+    """The component of ``v`` along ``u``, in units of ``u``."""
+    return float(u @ v / (u @ u))
+
+
 class AnalyticAssistant:
     """Complete the recognised skill from its stored model (module docstring).
 
@@ -478,9 +483,8 @@ class AnalyticAssistant:
         self.h = 0.0
         self.opening = 0.0
         self.bias = 0.0
-        self._openings: list[float] = []
-        self._rest: list[float] = []  # the opening at rest along d ...
-        self._rest_fingers: list[list[float]] = []  # ... and along each finger's part of d
+        self._openings: list[float] = []  # the hold's template - theta along d
+        self._rest: list[FloatArray] = []  # template - theta at rest
         self.coordinated_at = None
         self._alone_from: dict[str, FloatArray] = {}  # finger -> its joints at first lone touch
         self._held: dict[str, FloatArray] = {}  # finger -> the pose it is held back to
@@ -526,16 +530,15 @@ class AnalyticAssistant:
         template = next(iter(self.templates.values()))  # the shared pinch-lift
         d = self._pinch
         if REST_WINDOW[0] <= t <= REST_WINDOW[1]:
-            gap = template.at(t) - theta
-            self._rest.append(float(d @ gap / (d @ d)))
-            self._rest_fingers.append([float(f @ gap / (f @ f)) for f in self._pinch_fingers])
-            both = float(np.min(np.mean(self._rest_fingers, axis=0)))
+            self._rest.append(template.at(t) - theta)
+            rest = np.mean(self._rest, axis=0)
+            both = min(_along(rest, f) for f in self._pinch_fingers)
             # a bias is in every reading: it is undone from here on, the close included
             self.opening = self.bias = both if both > BIAS_THRESHOLD else 0.0
         if OPENING_WINDOW[0] <= t <= OPENING_WINDOW[1]:
-            self._openings.append(float(d @ (template.at(t) - theta) / (d @ d)))
+            self._openings.append(_along(template.at(t) - theta, d))
             hold = float(np.mean(self._openings))
-            closing = hold - float(np.mean(self._rest)) if self._rest else -math.inf
+            closing = hold - _along(np.mean(self._rest, axis=0), d) if self._rest else -math.inf
             # the hold's pose and the closing from rest each see an opening the other may
             # not (a person whose own pinch is closer than the library's hides a weak grip
             # in the first). Past a bias, only the closing: the hold's pose holds the bias,
