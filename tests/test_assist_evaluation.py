@@ -86,6 +86,20 @@ def test_a_session_record_says_what_went_wrong() -> None:
         short.pinched[:300],
     )
     assert session_record(short, seesaw())["position_error_mm"] is None
+    # a pen held 5 mm lower in the hand: lifted 5 mm less, the motion from the skill's start
+    # the same
+    low = seesaw()
+    low.pen_position = low.pen_position - np.array([0.0, 0.0, 0.005])
+    sunk = session_record(low, seesaw())
+    assert sunk["lift_height_error_mm"] == pytest.approx(-5.0)
+    assert sunk["position_error_mm"] < 1e-6
+    early = seesaw()
+    early.times, early.pen_position, early.pinched = (
+        T[:100],
+        early.pen_position[:100],
+        early.pinched[:100],
+    )  # ended at 1.0 s
+    assert session_record(early, seesaw())["lift_height_error_mm"] is None
 
 
 def smooth_walk(rng: np.random.Generator, scale: float, cols: int) -> np.ndarray:

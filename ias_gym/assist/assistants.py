@@ -76,7 +76,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import butter, sosfilt, sosfilt_zi
 
-from ias_gym.assist.evaluation import MAX_TIME_SHIFT
+from ias_gym.assist.evaluation import LIFT_END, MAX_TIME_SHIFT
 from ias_gym.assist.impairments import TREMOR_BAND, TREMOR_JOINTS, pinch_direction
 from ias_gym.assist.stream import frames_from_env
 from ias_gym.errors import InputError
@@ -156,11 +156,6 @@ MAX_SQUEEZE = 0.15
 #: Episode time after which the pinch is closed and the squeeze is regulated [s] (the close
 #: phase of the skills' pinch-lift lasts SKILL_TIMINGS.close - .reach = 0.7 s).
 SQUEEZE_FROM = SKILL_TIMINGS.close - SKILL_TIMINGS.reach
-#: Episode time at which the lift ends and the skill's own motion may begin [s]; from here
-#: on the squeeze reacts only where the hold found the pinch opened (``opening > 0``), and
-#: closes a pinch with a pad off the pen: unimpaired grips slip briefly in every fast
-#: skill, and reacting to that pushed their sessions out of tolerance (measured).
-LIFT_END = SKILL_TIMINGS.lift - SKILL_TIMINGS.reach
 #: Until this episode time [s] (the end of the close) the pad that reached the pen first
 #: and pushes it alone is held back ...
 COORDINATE_UNTIL = SKILL_TIMINGS.close - SKILL_TIMINGS.reach
@@ -553,6 +548,9 @@ class AnalyticAssistant:
         m = live_margin(env)
         if math.isnan(m):  # a pad off the pen
             self.g += CLOSE_RATE * self._dt
+        # after the lift, only where the hold found the pinch opened: unimpaired grips slip
+        # briefly in every fast skill, and reacting to that pushed their sessions out of
+        # tolerance (measured)
         elif t <= LIFT_END or self._opened_in_hold():
             margins = [k.margin for k in self.templates.values()]
             forces = [k.force for k in self.templates.values()]

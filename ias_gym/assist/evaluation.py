@@ -56,6 +56,8 @@ MAX_TIME_SHIFT = 0.15
 #: Episode time from which a reference session must pinch the pen without a break [s]: the
 #: start of the skills' lift.
 HELD_FROM = SKILL_TIMINGS.hold - SKILL_TIMINGS.reach
+#: Episode time at which the lift ends and the skill's own motion may begin [s].
+LIFT_END = SKILL_TIMINGS.lift - SKILL_TIMINGS.reach
 
 #: A reference counts only if the unimpaired session from this many nearby starts
 #: (:func:`ias_gym.evaluation.perturbed_starts`: ``qpos`` 1e-9 away, another machine's last
@@ -294,11 +296,20 @@ class ImpairmentScore:
 
 def session_record(result: SessionResult, reference: SessionResult) -> dict[str, Any]:
     """What a table keeps of one judged session: success, the env's success, whether the pen
-    is held at the end, the first step from the lift on with a pad off it, and the pose errors
-    against ``reference`` (None where infinite: the session ended early)."""
+    is held at the end, the first step from the lift on with a pad off it, the pose errors
+    against ``reference`` (None where infinite: the session ended early), and the pen's height
+    at the lift's end (:data:`LIFT_END`) less the reference's [mm] (None if either ended
+    before it): a pinch that holds the pen lower in the hand lifts it less, which the pose
+    errors, counted from the skill's start, do not see."""
     dp, da = pose_errors(result, reference)
     pinched = np.asarray(result.pinched, dtype=bool)
     off = np.flatnonzero(~pinched & (result.times >= HELD_FROM - 1e-9))
+
+    def lift_height(session: SessionResult) -> float | None:
+        at = np.flatnonzero(session.times >= LIFT_END - 1e-9)
+        return float(session.pen_position[at[0], 2]) if at.size else None
+
+    z, z_ref = lift_height(result), lift_height(reference)
     return {
         "success": session_success(result, reference),
         "env_success": result.env_success,
@@ -307,6 +318,7 @@ def session_record(result: SessionResult, reference: SessionResult) -> dict[str,
         "position_error_mm": 1e3 * dp if math.isfinite(dp) else None,
         "axis_error_deg": math.degrees(da) if math.isfinite(da) else None,
         "intervention": result.intervention,
+        "lift_height_error_mm": None if z is None or z_ref is None else 1e3 * (z - z_ref),
     }
 
 
