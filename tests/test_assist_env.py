@@ -57,6 +57,8 @@ def test_spaces_and_the_upcoming_targets_are_the_next_steps() -> None:
         make(impairment="palsy")
     with pytest.raises(InputError, match="switch_time"):
         make(switch_to="tilt_right")
+    with pytest.raises(InputError, match="hand_size's strength must be a hand scale"):
+        make(impairment="hand_size", strength=3.0)
 
 
 def test_same_seed_same_session() -> None:

@@ -32,6 +32,7 @@ from ias_gym.assist.impairments import (
     TremorOperator,
     WeakGripOperator,
     biased_calibration,
+    check_hand_scale,
     resized_person,
     stock_person,
 )
@@ -166,8 +167,7 @@ class GloveAssistEnv(GloveGraspEnv):
         owner = PersonParams.sample(str(config.get("person_id", "p1")))
         imp = self.impairment
         if hand_scale is not None:
-            if not 0.0 < hand_scale <= 2.0:
-                raise InputError(f"hand_scale must be a hand scale in (0, 2], got {hand_scale}")
+            check_hand_scale(hand_scale, "hand_scale")
             if imp.name == "hand_size":
                 raise InputError(
                     "hand_scale is a hand whose operator plans for it; hand_size's strength "

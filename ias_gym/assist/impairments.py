@@ -122,11 +122,19 @@ class Impairment:
         value = DEFAULT_STRENGTHS[name] if strength is None else float(strength)
         if not math.isfinite(value):
             raise InputError(f"impairment strength must be finite, got {value}")
-        if name == "hand_size" and not 0.0 < value <= 2.0:
-            raise InputError(f"hand_size's strength is a hand scale in (0, 2], got {value}")
-        if name != "hand_size" and value < 0:
+        if name == "hand_size":
+            check_hand_scale(value, "hand_size's strength")
+        elif value < 0:
             raise InputError(f"{name}'s strength must be >= 0, got {value}")
         return cls(name, value)
+
+
+def check_hand_scale(value: float, what: str) -> float:
+    """``value`` if it is a hand scale in (0, 2] [-], else an :class:`InputError` naming
+    ``what``."""
+    if not 0.0 < value <= 2.0:
+        raise InputError(f"{what} must be a hand scale in (0, 2], got {value}")
+    return value
 
 
 def reference_kwargs(impairment: Impairment) -> dict[str, Any]:
