@@ -16,3 +16,8 @@ class IasGymError(Exception):
 
 class InputError(IasGymError, ValueError):
     """An argument, a file or a setting given by the user cannot be used (the message names it)."""
+
+
+class PersonCannotError(InputError):
+    """A simulated person physically cannot do what was asked (e.g. no pen pinch is within
+    their hand's reach and range of motion); the message says which person and why."""

@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ias_gym.cli.args import HelpFormatter, overwrite_argument
 from ias_gym.errors import IasGymError, InputError
 from ias_gym.glove.calibration import DEFAULT_MAX_ITER, DEFAULT_READINGS
 from ias_gym.glove.hand import JOINT_NAMES, PersonParams, hand_points
@@ -261,14 +262,59 @@ def _calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _population(args: argparse.Namespace) -> int:
+    from ias_gym.figures.population import person_rows, population_figure
+    from ias_gym.glove.population import check_population
+    from ias_gym.outputs import check_output_file
+
+    n, seed = check_population(args.population, args.population_seed)
+    if args.plot is not None:  # checked before any work
+        check_output_file(args.plot, overwrite=args.overwrite, suffixes=(".png",))
+    rows = person_rows(n, seed)
+    if args.json:
+        for row in rows:
+            print(json.dumps(row))
+    else:
+        keys = ("hand_scale", "range_of_motion", "speed", "amplitude", "visual_delay")
+        print(f"{'person':<20} " + " ".join(f"{k:>15}" for k in keys))
+        for row in rows:
+            print(f"{row['person_id']:<20} " + " ".join(f"{row[k]:>15.3f}" for k in keys))
+    if args.plot is not None:
+        population_figure(n, seed, Path(args.plot), overwrite=args.overwrite)
+        print(f"wrote {args.plot}", file=sys.stderr)
+    return 0
+
+
 def add_glove_commands(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """Add ``calibrate`` to the ``ias-gym`` sub-commands (``parser.add_subparsers()``).
+    """Add ``calibrate`` and ``population`` to the ``ias-gym`` sub-commands
+    (``parser.add_subparsers()``).
 
     Args:
         subparsers: the object ``parser.add_subparsers(...)`` returned; the parser sets
             ``run`` (``args -> exit code``, raising :class:`~ias_gym.errors.IasGymError` on
             an error) as its default.
     """
+    population = subparsers.add_parser(
+        "population",
+        help="list (and plot) simulated persons drawn from the population",
+        description="Draw N simulated persons with a population seed (the ids any --person "
+        "takes; the same seed gives the same persons on every machine) and print their "
+        "parameters: hand scale and range of motion [-], movement speed and amplitude "
+        "factors [-], visual delay [s]; --json prints every parameter, one JSON object per "
+        "person. The distributions and their sources: docs/population.md.",
+        formatter_class=HelpFormatter,
+    )
+    population.add_argument(
+        "--population", type=int, default=30, metavar="N", help="persons to draw (>= 1)"
+    )
+    population.add_argument(
+        "--population-seed", type=int, default=0, metavar="S", help="seed of the draw (>= 0)"
+    )
+    population.add_argument("--json", action="store_true", help="one JSON object per person")
+    population.add_argument("--plot", metavar="PNG", help="also write histograms to this file")
+    overwrite_argument(population)
+    population.set_defaults(run=_population)
+
     calibrate = subparsers.add_parser(
         "calibrate",
         help="calibrate the sensor glove for a (simulated) person: profile + Fig. 7",

@@ -27,14 +27,16 @@ flexion θ_tf is shared by its MCP and IP joints (:data:`THUMB_FLEXION_SHARES`).
 
 from __future__ import annotations
 
-import hashlib
+import math
 from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ias_gym.errors import InputError
 from ias_gym.glove.ids import check_id
+from ias_gym.glove.population import PersonStream, draw_hand_scale
 
 #: The joint angles Θ of the hand model, in this order (paper 2.3) [rad].
 JOINT_NAMES: tuple[str, ...] = (
@@ -100,6 +102,12 @@ NOMINAL_INDEX_LENGTHS = (0.045, 0.026, 0.019)
 NOMINAL_THUMB_LENGTHS = (0.046, 0.032, 0.026)
 #: Thumb CMC joint relative to the index MCP [m] (proximal, palmar).
 NOMINAL_THUMB_BASE = (-0.052, 0.030)
+#: Pivot of the glove's index linkage relative to the MCP on the nominal hand [m].
+NOMINAL_LINKAGE_BASE = (-0.018, -0.024)
+#: Dorsal height of the glove's rings above the bone line, scale 1 [m].
+NOMINAL_FINGER_THICKNESS = 0.009
+#: Fingertip distance below which the pads touch, scale 1 [m].
+NOMINAL_PAD_CONTACT = 0.006
 
 
 def joint_index(name: str) -> int:
@@ -126,48 +134,47 @@ def sensor_index(name: str) -> int:
         raise KeyError(f"unknown sensor {name!r}; sensors: {list(SENSOR_NAMES)}") from None
 
 
-def _person_rng(person_id: str, seed: int) -> np.random.Generator:
-    # sha256, not hash(): Python salts str hashes per process.
-    digest = int.from_bytes(hashlib.sha256(person_id.encode()).digest()[:8], "little")
-    return np.random.default_rng([digest, seed])
-
-
 @dataclass(frozen=True)
 class PersonParams:
     """The person-dependent part of the sensor model Ψ = g_person(Θ) (eq. (1) inverted).
 
     Sample one with :meth:`sample`; :meth:`nominal` is the average person with a perfectly
-    mounted glove. Lengths in [m], angles in [rad], forces in [N].
+    mounted glove. Lengths in [m], angles in [rad], forces in [N]. The distributions named
+    below (``hand_length_men`` ...) are :data:`ias_gym.glove.population.PARAMETERS`.
 
     Attributes:
         person_id: who this is.
         seed: the seed the parameters were sampled with (with ``person_id``).
-        hand_scale: overall hand size (1 = nominal adult), ~U(0.85, 1.15).
+        hand_scale: hand length over the nominal adult's (-): ``hand_length_men`` or
+            ``hand_length_women``.
         index_lengths: index proximal, middle, distal phalanx [m] = nominal x scale x a
-            per-segment ratio ~U(0.93, 1.07).
+            per-segment ``segment_ratio``.
         thumb_lengths: thumb metacarpal, proximal, distal phalanx [m], likewise.
-        thumb_base: thumb CMC joint (x, y) relative to the index MCP [m], scaled, +-2 mm.
-        dip_coupling: κ of the natural DIP-PIP coupling θ3 ≈ κ θ2, ~U(0.6, 0.75).
+        thumb_base: thumb CMC joint (x, y) relative to the index MCP [m], scaled, plus
+            ``thumb_base_offset``.
+        dip_coupling: κ of the natural DIP-PIP coupling θ3 ≈ κ θ2 (``dip_coupling``).
         linkage_base: the pivot of the glove's index linkage (ψ1's potentiometer) relative to
             the person's MCP [m]: fixed on the glove at (-18, -24) mm (behind the MCP, on the
-            back of the hand), so it sits differently on every hand (+-3 mm).
+            back of the hand), so it sits differently on every hand (``linkage_offset``).
         linkage_attach: where the linkage's ring and thimble sit: fraction along the
-            proximal phalanx, fraction along the distal phalanx (-).
+            proximal phalanx, fraction along the distal phalanx (-) (``ring_*``).
         finger_thickness: dorsal height of the rings above the bone line [m], scaled.
-        gains: per-sensor gain (-), ~U(0.95, 1.05).
-        offsets: per-sensor zero offset [rad], ~N(0, 0.05).
+        gains: per-sensor gain (-) (``sensor_gain``).
+        offsets: per-sensor zero offset [rad] (``sensor_offset``).
         wrist_mount: rotation of the wrist gimbal's flexion/deviation axes relative to the
-            anatomical axes [rad], ~N(0, 0.06).
-        thumb_crosstalk: thumb_cmc seen by the thumb flexion bend sensor (-), ~U(0.05, 0.15).
-        fingers_crosstalk: the fingers' MCP seen by their PIP bend sensor (-), ~U(0.05, 0.15).
+            anatomical axes [rad] (``wrist_mount``).
+        thumb_crosstalk: thumb_cmc seen by the thumb flexion bend sensor (-) (``crosstalk``).
+        fingers_crosstalk: the fingers' MCP seen by their PIP bend sensor (-), likewise.
         pad_contact: fingertip distance [m] below which thumb and index pads touch,
             6 mm x scale.
-        pad_stiffness: pinch force per metre of pad compression [N/m], ~U(800, 1200).
+        pad_stiffness: pinch force per metre of pad compression [N/m] (``pad_stiffness``).
         push_linkage: contact force turning the index's thimble, added to ψ2 [rad/N],
-            ~U(0.025, 0.04).
-        push_web: contact force opening the thumb-index web sensor [rad/N], ~U(0.03, 0.05).
+            (``push_linkage``).
+        push_web: contact force opening the thumb-index web sensor [rad/N] (``push_web``).
         push_thumb: contact force extending the thumb's bend sensor [rad/N] (enters
-            negatively), ~U(0.01, 0.02).
+            negatively) (``push_thumb``).
+        range_of_motion: factor on the active ranges of the wrist, index and thumb joints (-)
+            (``range_of_motion``): :attr:`joint_limits`.
     """
 
     person_id: str
@@ -190,6 +197,7 @@ class PersonParams:
     push_linkage: float
     push_web: float
     push_thumb: float
+    range_of_motion: float = 1.0
 
     def __post_init__(self) -> None:
         # The id names this person's profile files: one rule for every id (glove.ids).
@@ -198,8 +206,13 @@ class PersonParams:
             value = getattr(self, name)
             if len(value) != N_SENSORS:
                 raise ValueError(f"{name} must have {N_SENSORS} entries, got {len(value)}")
-        if min(self.index_lengths + self.thumb_lengths) <= 0 or self.hand_scale <= 0:
-            raise ValueError("lengths and hand_scale must be positive")
+        numbers = (self.hand_scale, self.range_of_motion, *self.index_lengths, *self.thumb_lengths)
+        if not all(math.isfinite(v) and v > 0 for v in numbers):
+            raise InputError(
+                f"{self.person_id}: hand_scale, range_of_motion and segment lengths must be "
+                f"positive and finite, got hand_scale={self.hand_scale}, range_of_motion="
+                f"{self.range_of_motion}, index={self.index_lengths}, thumb={self.thumb_lengths}"
+            )
 
     @classmethod
     def nominal(cls, person_id: str = "nominal") -> PersonParams:
@@ -212,15 +225,15 @@ class PersonParams:
             thumb_lengths=NOMINAL_THUMB_LENGTHS,
             thumb_base=NOMINAL_THUMB_BASE,
             dip_coupling=2.0 / 3.0,
-            linkage_base=(-0.018, -0.024),
+            linkage_base=NOMINAL_LINKAGE_BASE,
             linkage_attach=(0.6, 0.5),
-            finger_thickness=0.009,
+            finger_thickness=NOMINAL_FINGER_THICKNESS,
             gains=(1.0,) * N_SENSORS,
             offsets=(0.0,) * N_SENSORS,
             wrist_mount=0.0,
             thumb_crosstalk=0.1,
             fingers_crosstalk=0.1,
-            pad_contact=0.006,
+            pad_contact=NOMINAL_PAD_CONTACT,
             pad_stiffness=1000.0,
             push_linkage=0.03,
             push_web=0.04,
@@ -229,26 +242,25 @@ class PersonParams:
 
     @classmethod
     def sample(cls, person_id: str, seed: int = 0) -> PersonParams:
-        """Sample a person's parameters, reproducibly from ``(person_id, seed)``.
+        """Draw a person's hand from the population, reproducibly from ``(person_id, seed)``.
+
+        Every number comes from its documented distribution
+        (:data:`ias_gym.glove.population.PARAMETERS`, ``docs/population.md``).
 
         Raises:
             InputError: ``person_id`` is not a valid id (:func:`~ias_gym.glove.ids.check_id`).
         """
-        rng = _person_rng(check_id(person_id, "person_id"), seed)
-        s = float(rng.uniform(0.85, 1.15))
+        stream = PersonStream(person_id, "hand", seed)
+        s = draw_hand_scale(stream)
 
         def lengths(nominal: tuple[float, float, float]) -> tuple[float, float, float]:
-            r = rng.uniform(0.93, 1.07, size=3)
-            return (
-                float(nominal[0] * s * r[0]),
-                float(nominal[1] * s * r[1]),
-                float(nominal[2] * s * r[2]),
-            )
+            r = stream.draws("segment_ratio", 3)
+            return (nominal[0] * s * r[0], nominal[1] * s * r[1], nominal[2] * s * r[2])
 
         index_lengths = lengths(NOMINAL_INDEX_LENGTHS)
         thumb_lengths = lengths(NOMINAL_THUMB_LENGTHS)
-        base = np.array(NOMINAL_THUMB_BASE) * s + rng.uniform(-0.002, 0.002, size=2)
-        linkage = np.array([-0.018, -0.024]) + rng.uniform(-0.003, 0.003, size=2)
+        base = np.array(NOMINAL_THUMB_BASE) * s + stream.draws("thumb_base_offset", 2)
+        linkage = np.array(NOMINAL_LINKAGE_BASE) + stream.draws("linkage_offset", 2)
         return cls(
             person_id=person_id,
             seed=seed,
@@ -256,21 +268,31 @@ class PersonParams:
             index_lengths=index_lengths,
             thumb_lengths=thumb_lengths,
             thumb_base=(float(base[0]), float(base[1])),
-            dip_coupling=float(rng.uniform(0.6, 0.75)),
+            dip_coupling=stream.draw("dip_coupling"),
             linkage_base=(float(linkage[0]), float(linkage[1])),
-            linkage_attach=(float(rng.uniform(0.5, 0.7)), float(rng.uniform(0.4, 0.6))),
-            finger_thickness=float(0.009 * s),
-            gains=tuple(float(g) for g in rng.uniform(0.95, 1.05, size=N_SENSORS)),
-            offsets=tuple(float(o) for o in rng.normal(0.0, 0.05, size=N_SENSORS)),
-            wrist_mount=float(rng.normal(0.0, 0.06)),
-            thumb_crosstalk=float(rng.uniform(0.05, 0.15)),
-            fingers_crosstalk=float(rng.uniform(0.05, 0.15)),
-            pad_contact=float(0.006 * s),
-            pad_stiffness=float(rng.uniform(800.0, 1200.0)),
-            push_linkage=float(rng.uniform(0.025, 0.04)),
-            push_web=float(rng.uniform(0.03, 0.05)),
-            push_thumb=float(rng.uniform(0.01, 0.02)),
+            linkage_attach=(stream.draw("ring_proximal"), stream.draw("ring_distal")),
+            finger_thickness=NOMINAL_FINGER_THICKNESS * s,
+            gains=stream.draws("sensor_gain", N_SENSORS),
+            offsets=stream.draws("sensor_offset", N_SENSORS),
+            wrist_mount=stream.draw("wrist_mount"),
+            thumb_crosstalk=stream.draw("crosstalk"),
+            fingers_crosstalk=stream.draw("crosstalk"),
+            pad_contact=NOMINAL_PAD_CONTACT * s,
+            pad_stiffness=stream.draw("pad_stiffness"),
+            push_linkage=stream.draw("push_linkage"),
+            push_web=stream.draw("push_web"),
+            push_thumb=stream.draw("push_thumb"),
+            range_of_motion=stream.draw("range_of_motion"),
         )
+
+    @property
+    def joint_limits(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(low, high)`` ``(10,)`` this person's active joint ranges [rad]: the population's
+        (:data:`JOINT_RANGES`) times :attr:`range_of_motion` for the wrist, index and thumb;
+        the other fingers (curled out of the way in every task) keep the population's."""
+        scale = np.ones(N_JOINTS)
+        scale[list(WRIST_JOINTS + INDEX_JOINTS + THUMB_JOINTS)] = self.range_of_motion
+        return JOINT_LOW * scale, JOINT_HIGH * scale
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-able dict (tuples as lists)."""

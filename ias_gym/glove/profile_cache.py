@@ -7,6 +7,8 @@ writes, checked loads: :mod:`ias_gym.glove.profile`) in the user's cache directo
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -32,11 +34,19 @@ def cache_dir() -> Path:
     return path
 
 
+def _fingerprint(person: PersonParams) -> str:
+    """A short hash of every parameter of ``person``: a profile trained for other parameters
+    of the same id (a changed population, a resized hand) is never taken for theirs."""
+    text = json.dumps(person.to_dict(), sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:10]
+
+
 def default_calibration(person: PersonParams, *, progress: bool = True) -> Calibration:
     """The ANN calibration of a simulated ``person``, trained once and cached as a profile.
 
-    The profile lives in :func:`cache_dir` as ``<person_id>-seed<seed>.json``; a stale or
-    damaged one is trained again. Training (the first time for a person id, any valid id:
+    The profile lives in :func:`cache_dir` as ``<person_id>-seed<seed>-<hash>.json`` (the hash
+    of the person's parameters); a damaged one is trained again. Training (the first time for
+    a person id, any valid id:
     :meth:`~ias_gym.glove.hand.PersonParams.sample`) needs torch (the ``[glove]`` extra) and
     takes seconds; the cached profile then loads in milliseconds.
 
@@ -48,7 +58,8 @@ def default_calibration(person: PersonParams, *, progress: bool = True) -> Calib
         InputError: the person's id is not a valid id (it names the cache file; see
             :func:`~ias_gym.glove.ids.check_id`), checked before any file is touched.
     """
-    name = f"{check_id(person.person_id, 'person_id')}-seed{int(person.seed)}.json"
+    person_id = check_id(person.person_id, "person_id")
+    name = f"{person_id}-seed{int(person.seed)}-{_fingerprint(person)}.json"
     path = cache_dir() / name
     if path.exists():
         try:
