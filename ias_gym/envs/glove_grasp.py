@@ -27,13 +27,14 @@ from numpy.typing import NDArray
 
 from ias_gym.errors import InputError
 from ias_gym.glove.calibration import Calibration
-from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, SimulatedGlove
+from ias_gym.glove.closed_loop import ClosedLoopOperator, pen_tilt
+from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, SimulatedGlove, WorldView
 from ias_gym.glove.hand import JOINT_HIGH, JOINT_LOW, JOINT_NAMES, PersonParams
 from ias_gym.glove.ids import check_id
 from ias_gym.glove.operator import FromPreShape, skill_operator
 from ias_gym.glove.operator import pen_operator as _pen_operator
 from ias_gym.glove.profile_cache import default_calibration
-from ias_gym.glove.skills import check_skill, skill_start_time
+from ias_gym.glove.skills import SkillStyle, check_skill, skill_object_target, skill_start_time
 from ias_gym.sim.glove_contacts import GlovePenPhysics, PenContactPass
 from ias_gym.sim.glove_scene import (
     FINGER_ABOVE,
@@ -65,12 +66,18 @@ __all__ = [
 ]
 
 
+#: The simulated persons: in the loop (:class:`~ias_gym.glove.closed_loop.ClosedLoopOperator`)
+#: or the open-loop script of the plan alone.
+OPERATORS: tuple[str, ...] = ("closed_loop", "script")
+
+
 @dataclasses.dataclass(frozen=True)
 class GloveGraspConfig:
     """Settings of :class:`GloveGraspEnv` (units in the comments)."""
 
     person_id: str = "p1"  # simulated person wearing the glove (PersonParams.sample)
     skill: str | None = None  # object skill after the pinch-lift (glove.skills.SKILLS)
+    operator: str = "closed_loop"  # the simulated person: "closed_loop" or the open "script"
     control_dt: float = 0.01  # one env step = one glove read [s]; a multiple of 1 ms
     duration: float = 4.0  # episode length [s] (registered max_episode_steps = 400)
     action_scale: float = 0.2  # joint offset of a full action [rad]
@@ -79,6 +86,7 @@ class GloveGraspConfig:
     drop_height: float = 0.05  # terminated: pen centre this far below its start [m]
     max_distance: float = 0.15  # terminated: pen centre this far from its start [m]
     lift_weight: float = 1.0  # weight of the lift term [-]
+    track_weight: float = 1.0  # weight of the skill's tilt-tracking term [-] (with a skill)
     contact_weight: float = 0.5  # weight of the pinch-contact term [-]
     effort_weight: float = 0.1  # weight of the action-effort penalty [-]
 
@@ -87,6 +95,10 @@ class GloveGraspConfig:
         check_id(self.person_id, "person_id")
         if self.skill is not None:
             check_skill(self.skill, "skill")
+        if self.operator not in OPERATORS:
+            raise InputError(
+                f"operator {self.operator!r} is not known; choose one of {', '.join(OPERATORS)}"
+            )
         if self.control_dt <= 0 or self.duration <= 0:
             raise ValueError("control_dt and duration must be positive [s]")
 
@@ -100,7 +112,18 @@ NONFINITE_THETA_FAULT = "calibration gave non-finite joint angles (check the glo
 PLACE_TOLERANCE = 0.005
 
 #: Reward term names (info keys ``reward_<name>``).
-REWARD_TERMS = ("lift", "pinch", "effort")
+REWARD_TERMS = ("lift", "track", "pinch", "effort")
+#: Widths of the skill reward's kernels: the pen's height [m] and tilt [rad] at which a term
+#: falls to half its weight (a person's own repeatability: lifts end within about +-5 mm,
+#: tilts within about +-3 deg of each other).
+HEIGHT_TOLERANCE = 0.005
+TILT_TOLERANCE = 0.05
+
+
+def _tolerance(error: float, width: float) -> float:
+    """1 at no error, 1/2 at ``width``, towards 0 beyond (a bounded Cauchy kernel, as
+    dm_control's ``rewards.tolerance`` with a Lorentzian sigmoid)."""
+    return 1.0 / (1.0 + (error / width) ** 2)
 
 
 class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
@@ -139,9 +162,19 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     :data:`~ias_gym.glove.device.ACTUATED_JOINTS` (5) [N m], episode time (1) [s].
 
     ## Rewards
-    The sum of ``lift = lift_weight * clip(dz / lift_height, 0, 1)`` (dz: pen height gain
-    [m]), ``pinch = contact_weight`` while both index and thumb touch the pen (else 0), and
-    ``effort = -effort_weight * mean(action^2)``; each is in ``info["reward_<name>"]``.
+    The sum of four terms, each in ``info["reward_<name>"]``: ``pinch = contact_weight``
+    while both index and thumb touch the pen (else 0), ``effort = -effort_weight *
+    mean(action^2)``, and two that follow the task. Without a skill, ``lift = lift_weight *
+    clip(dz / lift_height, 0, 1)`` (dz: pen height gain [m]) and ``track = 0``. With a
+    skill, both follow its intended object motion
+    (:func:`~ias_gym.glove.skills.skill_object_target` with the person's style: the pen's
+    height and tilt their plan means at this time):
+    ``lift = lift_weight * k(dz - height, HEIGHT_TOLERANCE)`` and
+    ``track = track_weight * k(tilt - tilt_0 - target tilt, TILT_TOLERANCE)`` with
+    ``k(e, w) = 1 / (1 + (e / w)^2)`` and tilt_0 the pen's tilt at reset: holding the pen
+    still earns less in a tilt, a slow see-saw or a place than doing it. (The glove chain,
+    its low-pass and the hand's servos, lags a fast see-saw so much that the person alone
+    earns no more there than holding still: an agent acting on the hand can lead it.)
 
     ## Starting State
     Every reset opens the glove anew (``glove_factory`` with a seed drawn from the env's
@@ -162,6 +195,8 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     ``lift_height`` above its start and touching neither the support nor the floor; for
     the skill ``lift_place``: lifted so before, and now back within
     :data:`PLACE_TOLERANCE` of its start with both fingers holding it.
+    ``info["operator_failure"]`` says why the simulated person failed on their side (``""``:
+    they did not; e.g. ``"dropped the pen"``: they saw it fall and gave up).
 
     ## Arguments
     ``render_mode`` (``None`` or ``"rgb_array"``), ``person``, ``calibration`` and
@@ -169,16 +204,22 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     (defaults in brackets): ``person_id`` [``"p1"``]: the simulated person wearing the
     glove, any valid id (:func:`~ias_gym.glove.ids.check_id`; a new id's calibration is
     trained once, seconds, and cached); ``skill`` [None]: the skill performed after the
-    pinch-lift (None: the pinch-lift alone); ``control_dt`` [0.01 s]: one step = one glove
-    read, a multiple of 1 ms;
+    pinch-lift (None: the pinch-lift alone); ``operator`` [``"closed_loop"``]: the
+    simulated person acts on what they see and feel
+    (:class:`~ias_gym.glove.closed_loop.ClosedLoopOperator`), or ``"script"``: the open-loop
+    plan alone, as before; ``control_dt`` [0.01 s]: one step = one glove read, a multiple
+    of 1 ms;
     ``duration`` [4.0 s]; ``action_scale`` [0.2 rad]: joint offset of a full action;
     ``filter_tau`` [0.05 s, 0: off]: the low-pass on Θ; ``lift_height`` [0.03 m]: success;
     ``drop_height`` [0.05 m] and ``max_distance`` [0.15 m]: termination; ``lift_weight``
-    [1.0], ``contact_weight`` [0.5], ``effort_weight`` [0.1]: reward weights [-].
+    [1.0], ``track_weight`` [1.0], ``contact_weight`` [0.5], ``effort_weight`` [0.1]: reward
+    weights [-].
 
     ## Version History
     - v0: first version; the ``skill`` argument and soft-finger pads in the skill model
-      added later (the default episode is unchanged).
+      added later; then the closed-loop person (``operator``, the default; ``"script"``
+      keeps the open-loop plan), persons drawn from the documented population, a reward
+      that follows the skill, and ``info["operator_failure"]``.
 
     Attributes:
         model, data: the compiled scene of the person's hand and its state.
@@ -225,25 +266,17 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             )
         self.render_mode = render_mode
         self.person = person if person is not None else PersonParams.sample(self.config.person_id)
+        #: How the person moves (the skill reward follows their intended timing).
+        self.style = SkillStyle.sample(self.person.person_id)
         self.calibration = (
             calibration if calibration is not None else default_calibration(self.person)
         )
         m = self.model = load_glove_scene(self.person)
         self.data = mujoco.MjData(m)
+        #: The simulated person of the episode when the default glove is used (None else).
+        self.operator: ClosedLoopOperator | None = None
         if glove_factory is None:
-            person_ = self.person
-            # The operator pinches the scene's pen: its radius read from the compiled model.
-            radius = float(m.geom_size[m.geom("pen").id, 0])
-            skill = self.config.skill
-            operator = (
-                _pen_operator(person_, radius)
-                if skill is None
-                else skill_operator(person_, radius, skill)
-            )
-
-            def glove_factory(seed: int) -> GloveDevice:
-                return SimulatedGlove(person_, FromPreShape(operator), seed)
-
+            glove_factory = self._default_glove
         self.glove_factory = glove_factory
         self.glove: GloveDevice | None = None
         #: Episode time [s] where the skill's own motion begins (None: no skill).
@@ -280,6 +313,7 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self.physics = GlovePenPhysics(m, self.data, FINGER_GEOMS, FINGER_TIPS, FINGER_ABOVE)
         self.contact_pass: PenContactPass | None = None  # of the last reset or step
         self._pen_start = np.zeros(3)
+        self._tilt_start = 0.0  # the pen's tilt at reset [rad]
         self._warnings = self.data.warning.number  # a view: MuJoCo's warning counters
         self._unstable = False
         self._fault = ""  # latched for the episode: a broken calibration stays broken
@@ -303,6 +337,39 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         return float(self.model.opt.timestep * self.frame_skip)
 
     # ------------------------------------------------------------------ glove
+    def _default_glove(self, seed: int) -> GloveDevice:
+        """The simulated person of ``config.person_id`` doing the pen's pinch-lift (and the
+        skill) on a :class:`SimulatedGlove`: in the loop or by the open script."""
+        m, person = self.model, self.person
+        # The operator pinches the scene's pen: its radius read from the compiled model.
+        pen_geom = m.geom("pen").id
+        radius = float(m.geom_size[pen_geom, 0])
+        skill = self.config.skill
+        plan = (
+            _pen_operator(person, radius)
+            if skill is None
+            else skill_operator(person, radius, skill)
+        )
+        if self.config.operator == "script":
+            return SimulatedGlove(person, FromPreShape(plan), seed)
+        weight = float(m.body_subtreemass[self._pen_body] * -m.opt.gravity[2])
+        self.operator = ClosedLoopOperator(
+            plan, person, object_weight=weight, friction=float(m.geom_friction[pen_geom, 0])
+        )
+        return SimulatedGlove(person, self.operator, seed)
+
+    def _show(self) -> None:
+        """Show the glove's wearer the pen as it is now (the virtual world's display)."""
+        assert self.glove is not None
+        d = self.data
+        self.glove.show(
+            WorldView(
+                time=self._steps * self.config.control_dt,
+                pen_position=d.xpos[self._pen_body] - self._pen_start,
+                pen_quat=d.xquat[self._pen_body].copy(),
+            )
+        )
+
     def _open_glove(self, seed: int) -> GloveDevice:
         """The glove of a new episode: a fresh device from ``glove_factory`` (the previous
         one closed), armed with :meth:`~GloveDevice.enable`."""
@@ -404,13 +471,30 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             "pinch_force": self._pinch_force,
             "index_contact": self._touch[0],
             "thumb_contact": self._touch[1],
+            "operator_failure": self._operator_failure(),
         }
+
+    def _operator_failure(self) -> str:
+        """Why the simulated person could not do the skill (``""``: nothing on their side)."""
+        op = self.operator
+        if op is None:
+            return ""
+        return op.infeasible or op.failure
 
     def _rewards(self, action: FloatArray) -> dict[str, float]:
         cfg = self.config
         dz = float(self.data.xpos[self._pen_body][2] - self._pen_start[2])
+        if cfg.skill is None:  # the pinch-lift alone: up to lift_height
+            lift, track = min(max(dz / cfg.lift_height, 0.0), 1.0), 0.0
+        else:  # the skill's intended object motion, as this person means to do it
+            t = self._steps * cfg.control_dt
+            height, target = skill_object_target(cfg.skill, t, self.style)
+            lift = _tolerance(dz - height, HEIGHT_TOLERANCE)
+            tilt = pen_tilt(self.data.xquat[self._pen_body]) - self._tilt_start
+            track = _tolerance(tilt - target, TILT_TOLERANCE)
         return {
-            "lift": cfg.lift_weight * min(max(dz / cfg.lift_height, 0.0), 1.0),
+            "lift": cfg.lift_weight * lift,
+            "track": cfg.track_weight * track,
             "pinch": cfg.contact_weight * float(all(self._touch)),
             "effort": -cfg.effort_weight * float(np.mean(action * action)),
         }
@@ -436,6 +520,7 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             ValueError: ``options`` qpos/qvel of the wrong shape or not finite.
         """
         super().reset(seed=seed)
+        self.operator = None
         self.glove = self._open_glove(int(self.np_random.integers(2**31)))
         rest_pose = np.clip(np.zeros(len(JOINT_NAMES)), JOINT_LOW, JOINT_HIGH)
         theta, ok = self._read_theta(rest_pose)
@@ -447,9 +532,11 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             self._set_state(options)
         self._lifted = False
         self._pen_start = self.data.xpos[self._pen_body].copy()
+        self._tilt_start = pen_tilt(self.data.xquat[self._pen_body])
         self._steps = 0
         self._feedback, self._touch, self._pinch_force, rest = self._force_display()
         self.glove.write_feedback(self._feedback)  # the force display starts with the episode
+        self._show()
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
         return self._observation(), self._info(terms, rest, self._fault)
 
@@ -483,6 +570,7 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             self._place_hand(self._theta)
         self._feedback, self._touch, self._pinch_force, rest = self._force_display()
         self.glove.write_feedback(self._feedback)
+        self._show()
 
         terms = self._rewards(a)
         reward = float(sum(terms.values()))

@@ -16,7 +16,9 @@ thumb-index grasps.
 ``t -> Θ`` [s -> rad], :class:`Operator`) gives the intended joint angles, seen through the
 person's sensor model (:func:`~ias_gym.glove.sensor_model.sensor_readings`, with noise). Its
 clock is simulated: the k-th :meth:`~SimulatedGlove.read` (k = 0, 1, ...) is at
-``t = k / rate_hz``. It records the feedback it receives (:attr:`SimulatedGlove.feedback`).
+``t = k / rate_hz``. It records the feedback it receives (:attr:`SimulatedGlove.feedback`), and
+an operator who perceives (:class:`Perceiver`: a person in the loop) feels it and sees the
+virtual world (:meth:`GloveDevice.show`, a :class:`WorldView`).
 
 :class:`ReachPinchLift` is such an operator: reach with a pre-shaped hand, close thumb and
 index into a pinch (the pads press with :attr:`ReachPinchLift.pinch_force` [N]), hold, lift by
@@ -38,8 +40,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from ias_gym.glove.hand import (
     INDEX_JOINTS,
-    JOINT_HIGH,
-    JOINT_LOW,
     N_JOINTS,
     PersonParams,
     joint_index,
@@ -91,6 +91,33 @@ def check_feedback(torques: ArrayLike, n_actuators: int) -> NDArray[np.float64]:
     return np.clip(t, -MAX_FEEDBACK_TORQUE, MAX_FEEDBACK_TORQUE)
 
 
+@dataclass(frozen=True, eq=False)
+class WorldView:
+    """What the wearer sees of the virtual world at one instant (its display).
+
+    Attributes:
+        time: when [s] (the glove's clock).
+        pen_position: ``(3,)`` the pen's centre relative to its start [m], world frame (z up).
+        pen_quat: ``(4,)`` the pen's orientation quaternion (w, x, y, z), world frame; the
+            pen's axis is its body x.
+    """
+
+    time: float
+    pen_position: NDArray[np.float64]
+    pen_quat: NDArray[np.float64]
+
+
+class Perceiver(Protocol):
+    """An operator who acts on what they perceive (:class:`SimulatedGlove` forwards to it)."""
+
+    def see(self, view: WorldView) -> None:
+        """The virtual world as displayed now."""
+
+    def feel(self, time: float, torques: NDArray[np.float64]) -> None:
+        """The force display's torques [N m] on :data:`ACTUATED_JOINTS`, applied at ``time``
+        [s]."""
+
+
 class GloveDevice(abc.ABC):
     """A sensor glove with force feedback: read Ψ, write actuator torques, close."""
 
@@ -127,6 +154,11 @@ class GloveDevice(abc.ABC):
 
     def enable(self) -> None:  # noqa: B027 - a no-op unless the device has actuators to arm
         """Arm the actuators and clear a fault (the explicit re-enable after a trip)."""
+
+    def show(self, view: WorldView) -> None:  # noqa: B027 - a real wearer sees the screen
+        """Show the wearer the virtual world (``view``). A real glove's wearer looks at the
+        display, so nothing goes through the device; a simulated one forwards it to its
+        operator."""
 
     def __enter__(self) -> GloveDevice:
         return self
@@ -180,6 +212,10 @@ class GloveWrapper(GloveDevice):
         """Arm ``inner``."""
         self.inner.enable()
 
+    def show(self, view: WorldView) -> None:
+        """Show ``inner``'s wearer the virtual world."""
+        self.inner.show(view)
+
     def close(self) -> None:
         """Close ``inner``."""
         self.inner.close()
@@ -226,6 +262,10 @@ class SimulatedGlove(GloveDevice):
         self.feedback: list[tuple[float, NDArray[np.float64]]] = []
         #: Θ of the last read [rad] (the simulation's ground truth).
         self.last_theta: NDArray[np.float64] | None = None
+        see, feel = getattr(operator, "see", None), getattr(operator, "feel", None)
+        self._perceiver: Perceiver | None = (
+            operator if callable(see) and callable(feel) else None  # type: ignore[assignment]
+        )
 
     @property
     def n_actuators(self) -> int:
@@ -262,6 +302,13 @@ class SimulatedGlove(GloveDevice):
         self._check_open()
         applied = check_feedback(torques, self.n_actuators)
         self.feedback.append((self._last_read_time, applied))
+        if self._perceiver is not None:
+            self._perceiver.feel(self._last_read_time, applied)
+
+    def show(self, view: WorldView) -> None:
+        """Pass ``view`` to the operator if they perceive (:class:`Perceiver`)."""
+        if self._perceiver is not None:
+            self._perceiver.see(view)
 
     def close(self) -> None:
         self._closed = True
@@ -352,7 +399,8 @@ class ReachPinchLift:
             raise ValueError(f"no pinch pose for thumb {thumb} and DIP {dip} with this hand")
         pinch[[i1, i2]] = angles[0]
         pinch[[fm, fp]] = [1.2, 1.4]  # other fingers curled out of the way
-        if np.any(pinch < JOINT_LOW) or np.any(pinch > JOINT_HIGH):
+        low, high = self.person.joint_limits
+        if np.any(pinch < low) or np.any(pinch > high):
             raise ValueError(f"the pinch pose leaves the joint ranges: {pinch.round(3).tolist()}")
 
         pre = pinch.copy()

@@ -15,6 +15,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym.errors import PersonCannotError
 from ias_gym.glove.device import ReachPinchLift, ReachPinchLiftTimings
 from ias_gym.glove.hand import PersonParams
 from ias_gym.glove.skills import SKILL_PINCH_FORCE, SKILL_TIMINGS, SkillOperator
@@ -26,15 +27,17 @@ FloatArray = NDArray[np.float64]
 #: (+ ReachPinchLift's 2 mm) further in, so the position servos squeeze the pen with about
 #: 2 N (measured; the pen weighs 1 N, mu = 0.25).
 PEN_PAD_GAP = -0.004
-#: Pen pinches (thumb CMC, thumb flexion, index DIP) [rad], the first in reach is used:
-#: poses where the shipped ANN calibration is accurate (<= 2 deg on p1's and p3's index and
-#: thumb; the glove's calibration poses are bare-pad pinches and free poses).
+#: Pen pinches (thumb CMC, thumb flexion, index DIP) [rad], the first in reach (and in the
+#: person's range of motion) is used: poses inside the calibration sessions' pinch range. The
+#: last, less opposed one is the pinch of a thumb whose range of motion is a fifth below the
+#: population's (``range_of_motion`` < 0.84: 4 % of persons, whose thumb cannot reach 1.0).
 PEN_PINCH_POSES: tuple[tuple[float, float, float], ...] = (
     (1.1, 0.4, 0.4),
     (1.0, 0.4, 0.4),
     (1.0, 0.6, 0.6),
     (1.1, 0.4, 0.2),
     (1.0, 0.2, 0.4),
+    (0.9, 0.4, 0.4),
 )
 
 
@@ -70,8 +73,8 @@ def pen_operator(
             the pen; a skill's: :data:`~ias_gym.glove.skills.SKILL_PINCH_FORCE`).
 
     Raises:
-        ValueError: ``pen_radius`` is not positive, or no pen pinch of
-            :data:`PEN_PINCH_POSES` is in reach of this hand.
+        ValueError: ``pen_radius`` is not positive.
+        PersonCannotError: no pen pinch of :data:`PEN_PINCH_POSES` is in reach of this hand.
     """
     if not pen_radius > 0:
         raise ValueError(f"pen_radius must be positive [m], got {pen_radius}")
@@ -84,7 +87,10 @@ def pen_operator(
             )
         except ValueError:  # out of this hand's reach: the next pose
             continue
-    raise ValueError(f"no pen pinch of {PEN_PINCH_POSES} is in reach of {person.person_id}")
+    raise PersonCannotError(
+        f"person {person.person_id!r} cannot pinch the pen: no pinch of {PEN_PINCH_POSES} "
+        "(thumb CMC, thumb flexion, index DIP [rad]) is within their reach and range of motion"
+    )
 
 
 def skill_operator(person: PersonParams, pen_radius: float, skill: str) -> SkillOperator:

@@ -32,15 +32,15 @@ from the lifted pinch at :func:`skill_start_time`: ``lift_hold`` (hold still),
 ``tilt_right`` (tilt and hold; left: the operator's left end of the pen, paper -x, goes
 down, so yaw > 0), ``lift_place`` (lower the pen back to its start, still pinched).
 
-Each person performs them in their own way (:class:`SkillStyle`, deterministic in the person
-id: a sha256 of it, not Python's salted ``hash()``): amplitude and speed factors, a delay
-before the skill, and a physiological tremor (8-12 Hz, a few mrad) on the wrist and the
-pinching fingers. Pure numpy (the glove layer).
+Each person performs them in their own way (:class:`SkillStyle`, drawn from the population
+of :mod:`ias_gym.glove.population`, deterministic in the person id): amplitude and speed
+factors, a delay before the skill, a physiological tremor (8-12 Hz, a few mrad) on the
+wrist and the pinching fingers, the delays of their corrections and a grip margin.
+Pure numpy (the glove layer).
 """
 
 from __future__ import annotations
 
-import hashlib
 import math
 from dataclasses import dataclass
 
@@ -50,7 +50,7 @@ from numpy.typing import NDArray
 from ias_gym.errors import InputError
 from ias_gym.glove.device import ReachPinchLift, ReachPinchLiftTimings
 from ias_gym.glove.hand import N_JOINTS, PersonParams, joint_index
-from ias_gym.glove.ids import check_id
+from ias_gym.glove.population import PersonStream
 
 FloatArray = NDArray[np.float64]
 
@@ -97,6 +97,54 @@ PLACE_TIME = 1.0
 PLACE_SHARE = 1.1
 
 
+#: The height above its start a person lifts the pen to [m] (the glove world's success needs
+#: 3 cm): the object goal of every lift.
+LIFT_GOAL = 0.04
+#: The pinched pen's tilt per wrist pronation [-]: it turns with the hand, a little less
+#: (measured 0.83-1.0 on unimpaired persons; supination raises its +x end).
+TILT_PER_PRONATION = 0.85
+
+
+def skill_object_target(
+    skill: str | None, t: float, style: SkillStyle | None = None
+) -> tuple[float, float]:
+    """The intended object motion of ``skill`` at episode time ``t`` [s] as a person with
+    ``style`` means to do it (None: the nominal person, amplitude and speed 1, no delay): the
+    pen's height above its start [m] and its tilt (the paper's yaw; +x end up is positive)
+    [rad].
+
+    The pinch-lift before every skill raises the pen to :data:`LIFT_GOAL` (minimum jerk over
+    the lift of :data:`SKILL_TIMINGS`); the see-saws and tilts then tilt it by
+    :data:`TILT_PER_PRONATION` x their pronation; ``lift_place`` lowers it back to 0. With
+    ``skill=None`` only the pinch-lift.
+
+    Raises:
+        InputError: an unknown skill.
+    """
+    if skill is not None:
+        check_skill(skill)
+    timings = SKILL_TIMINGS
+    script_t = t + timings.reach  # the episodes start at the end of the reach
+    rise = LIFT_GOAL * _min_jerk((script_t - timings.hold) / (timings.lift - timings.hold))
+    a, v, delay = (1.0, 1.0, 0.0) if style is None else (style.amplitude, style.speed, style.delay)
+    u = script_t - timings.lift - delay  # the skill starts after the lift and the delay
+    if skill is None or u <= 0.0:
+        return rise, 0.0
+    tilt = 0.0
+    if skill == "seesaw_slow":
+        pron = a * SEESAW_SLOW_AMPLITUDE * _seesaw(u, SEESAW_SLOW_PERIOD / v, 1)
+        tilt = -TILT_PER_PRONATION * pron
+    elif skill == "seesaw_fast":
+        pron = a * SEESAW_FAST_AMPLITUDE * _seesaw(u, SEESAW_FAST_PERIOD / v, SEESAW_FAST_CYCLES)
+        tilt = -TILT_PER_PRONATION * pron
+    elif skill in ("tilt_left", "tilt_right"):
+        sign = 1.0 if skill == "tilt_left" else -1.0
+        tilt = sign * TILT_PER_PRONATION * a * TILT_AMPLITUDE * _min_jerk(u * v / TILT_TIME)
+    elif skill == "lift_place":
+        rise = LIFT_GOAL * (1.0 - _min_jerk(u * v / PLACE_TIME))
+    return rise, tilt
+
+
 def check_skill(name: object, what: str = "skill") -> str:
     """Return ``name`` if it is one of :data:`SKILLS`, else raise.
 
@@ -117,16 +165,24 @@ def check_skill(name: object, what: str = "skill") -> str:
 
 @dataclass(frozen=True)
 class SkillStyle:
-    """How one person performs the skills (sampled by :meth:`sample` from the person id).
+    """How one person moves (drawn by :meth:`sample` from the person id).
+
+    Every number comes from its distribution in
+    :data:`ias_gym.glove.population.PARAMETERS` (named in brackets; ``docs/population.md``
+    gives the distributions and their sources).
 
     Attributes:
         person_id: whose style.
-        amplitude: factor on the skills' amplitudes (-), ~U(0.85, 1.15).
-        speed: factor on the skills' speed (-), ~U(0.85, 1.15): periods and times / speed.
-        delay: pause between the lift and the skill's own motion [s], ~U(0, 0.15).
-        tremor: amplitude of the tremor on each tremoring joint [rad], ~U(0.001, 0.003).
-        tremor_hz: ``(2,)`` its two frequencies [Hz], ~U(8, 12).
+        amplitude: factor on the skills' amplitudes (-) (``amplitude``).
+        speed: factor on the skills' speed (-): periods and times / speed (``speed``).
+        delay: pause between the lift and the skill's own motion [s] (``start_delay``).
+        tremor: amplitude of the tremor on each tremoring joint [rad] (``tremor_amplitude``).
+        tremor_hz: ``(2,)`` its two frequencies [Hz] (``tremor_hz``).
         tremor_phase: ``(n_joints, 2)`` phases of both per joint [rad].
+        visual_delay: from seeing an error to correcting it [s] (``visual_delay``).
+        tactile_delay: from feeling a slip to gripping harder [s] (``tactile_delay``).
+        grip_margin: grip force above the least that holds the object, over that least
+            force (-) (``grip_margin``).
     """
 
     person_id: str
@@ -136,6 +192,9 @@ class SkillStyle:
     tremor: float
     tremor_hz: tuple[float, float]
     tremor_phase: tuple[tuple[float, float], ...]
+    visual_delay: float = 0.12
+    tactile_delay: float = 0.07
+    grip_margin: float = 0.25
 
     @classmethod
     def sample(cls, person_id: str) -> SkillStyle:
@@ -144,21 +203,21 @@ class SkillStyle:
         Raises:
             InputError: ``person_id`` is not a valid id (:func:`~ias_gym.glove.ids.check_id`).
         """
-        check_id(person_id, "person_id")
-        # sha256, not hash(): Python salts str hashes per process. "skill-style:" keeps this
-        # stream apart from the one of PersonParams.sample (same id, other numbers).
-        digest = hashlib.sha256(f"skill-style:{person_id}".encode()).digest()
-        rng = np.random.default_rng(int.from_bytes(digest[:8], "little"))
-        hz = rng.uniform(8.0, 12.0, size=2)
-        phase = rng.uniform(0.0, 2.0 * math.pi, size=(len(TREMOR_JOINTS), 2))
+        # "style" keeps this stream apart from the hand's (PersonParams.sample).
+        stream = PersonStream(person_id, "style")
+        phase = stream.rng.uniform(0.0, 2.0 * math.pi, size=(len(TREMOR_JOINTS), 2))
+        hz = stream.draws("tremor_hz", 2)
         return cls(
             person_id=person_id,
-            amplitude=float(rng.uniform(0.85, 1.15)),
-            speed=float(rng.uniform(0.85, 1.15)),
-            delay=float(rng.uniform(0.0, 0.15)),
-            tremor=float(rng.uniform(0.001, 0.003)),
-            tremor_hz=(float(hz[0]), float(hz[1])),
+            amplitude=stream.draw("amplitude"),
+            speed=stream.draw("speed"),
+            delay=stream.draw("start_delay"),
+            tremor=stream.draw("tremor_amplitude"),
+            tremor_hz=(hz[0], hz[1]),
             tremor_phase=tuple((float(a), float(b)) for a, b in phase),
+            visual_delay=stream.draw("visual_delay"),
+            tactile_delay=stream.draw("tactile_delay"),
+            grip_margin=stream.draw("grip_margin"),
         )
 
 
