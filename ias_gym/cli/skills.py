@@ -33,6 +33,7 @@ from ias_gym.cli.args import (
 )
 from ias_gym.cli.transfer import add_transfer_command
 from ias_gym.errors import IasGymError, InputError
+from ias_gym.glove.population import population_ids
 from ias_gym.glove.skills import SKILLS
 
 #: Exit code of ``skills check`` when a skill is corrupt.
@@ -61,21 +62,28 @@ def _record(args: argparse.Namespace) -> int:
     from ias_gym.skills.record import record_skills_spec
 
     backend = backend_from_args(args)  # a missing Ray extra fails before any work
+    persons: list[str | None] = [args.person]
+    if args.population is not None:
+        if args.person is not None:
+            raise InputError("--person and --population exclude each other: give one of them")
+        persons = list(population_ids(args.population, args.population_seed))
+    ids: list[int] = []
     with _as_package_errors():
         env_kwargs = parse_env_kwargs(args.env_kwargs)
-        ids = record_skills_spec(
-            args.env,
-            args.policy,
-            args.episodes,
-            Path(args.db),
-            seed=args.seed,
-            progress=not args.no_progress,
-            env_kwargs=env_kwargs,
-            person_id=args.person,
-            skill=args.skill,
-            trust_pickle=args.trust_pickle,
-            backend=backend,
-        )
+        for person in persons:
+            ids += record_skills_spec(
+                args.env,
+                args.policy,
+                args.episodes,
+                Path(args.db),
+                seed=args.seed,
+                progress=not args.no_progress,
+                env_kwargs=env_kwargs,
+                person_id=person,
+                skill=args.skill,
+                trust_pickle=args.trust_pickle,
+                backend=backend,
+            )
     print(f"stored {len(ids)} skills (ids {', '.join(map(str, ids))}) in {args.db}")
     return 0
 
@@ -271,6 +279,20 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
         help="person id stored with the skills: letters, digits, '.', '_', '-' (glove envs: "
         "the simulated person wearing the glove, any id) (default: none stored; on glove envs "
         "the env's person, p1)",
+    )
+    record.add_argument(
+        "--population",
+        type=int,
+        metavar="N",
+        help="glove envs: record --episodes sessions of each of N persons drawn from the "
+        "population (instead of --person; docs/population.md) (default: none)",
+    )
+    record.add_argument(
+        "--population-seed",
+        type=int,
+        default=0,
+        metavar="S",
+        help="seed of the --population draw: the same seed gives the same persons",
     )
     record.add_argument(
         "--skill",
