@@ -7,14 +7,12 @@ distribution's bounds (:data:`~ias_gym.glove.population.PARAMETERS`).
 
 from __future__ import annotations
 
-from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 from ias_gym.figures._io import save_png_atomic
-from ias_gym.glove.hand import PersonParams
 from ias_gym.glove.population import population_ids
-from ias_gym.glove.skills import SkillStyle
+from ias_gym.glove.skills import person_parameters
 
 #: (title, parameter of PersonParams or SkillStyle, unit) of each panel.
 PANELS: tuple[tuple[str, str, str], ...] = (
@@ -33,21 +31,12 @@ PANELS: tuple[tuple[str, str, str], ...] = (
 
 def person_rows(n: int, seed: int) -> list[dict[str, Any]]:
     """Every scalar parameter of the ``n`` persons drawn with ``seed``, one dict each (with
-    ``person_id``).
+    ``person_id``; :func:`~ias_gym.glove.skills.person_parameters`).
 
     Raises:
         InputError: ``n`` < 1 or a negative seed.
     """
-    rows = []
-    for pid in population_ids(n, seed):
-        row: dict[str, Any] = {"person_id": pid}
-        values = {**PersonParams.sample(pid).to_dict(), **asdict(SkillStyle.sample(pid))}
-        for key, value in values.items():
-            if isinstance(value, int | float) and not isinstance(value, bool) and key != "seed":
-                row[key] = float(value)
-        row["index_length"] = float(sum(values["index_lengths"]))
-        rows.append(row)
-    return rows
+    return [{"person_id": p, **person_parameters(p)} for p in population_ids(n, seed)]
 
 
 def population_figure(n: int, seed: int, path: Path, *, overwrite: bool = False) -> Path:

@@ -42,7 +42,7 @@ Pure numpy (the glove layer).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -219,6 +219,25 @@ class SkillStyle:
             tactile_delay=stream.draw("tactile_delay"),
             grip_margin=stream.draw("grip_margin"),
         )
+
+
+def person_parameters(person_id: str) -> dict[str, float]:
+    """Every scalar parameter of a person's hand (:class:`~ias_gym.glove.hand.PersonParams`)
+    and style (:class:`SkillStyle`), by name, plus ``index_length`` (the finger's three
+    phalanges) [m]: for tables and plots of a population.
+
+    Raises:
+        InputError: an invalid id.
+    """
+    hand = PersonParams.sample(person_id).to_dict()
+    values = {**hand, **asdict(SkillStyle.sample(person_id))}
+    out = {
+        key: float(value)
+        for key, value in values.items()
+        if isinstance(value, int | float) and not isinstance(value, bool) and key != "seed"
+    }
+    out["index_length"] = float(sum(hand["index_lengths"]))
+    return out
 
 
 #: Joints with tremor: the wrist and the pinching fingers (the others rest curled).

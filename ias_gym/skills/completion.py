@@ -11,7 +11,7 @@ person alone) and says how it ended (:class:`SessionOutcome`: success, and why n
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
@@ -20,7 +20,7 @@ import numpy as np
 from ias_gym.errors import PersonCannotError
 from ias_gym.glove.hand import PersonParams
 from ias_gym.glove.profile_cache import default_calibration
-from ias_gym.glove.skills import SKILLS, SkillStyle, check_skill
+from ias_gym.glove.skills import SKILLS, check_skill, person_parameters
 from ias_gym.parallel import SERIAL, Backend, run_jobs
 from ias_gym.rates import Rate
 from ias_gym.sim.glove_scene import load_glove_scene
@@ -54,17 +54,6 @@ class SessionOutcome:
     params: dict[str, float]
 
 
-def person_summary(person_id: str) -> dict[str, float]:
-    """The scalar parameters of a person's hand and style (for tables and plots)."""
-    hand = PersonParams.sample(person_id).to_dict()
-    style = asdict(SkillStyle.sample(person_id))
-    out: dict[str, float] = {}
-    for key, value in {**hand, **style}.items():
-        if isinstance(value, int | float) and not isinstance(value, bool) and key != "seed":
-            out[key] = float(value)
-    return out
-
-
 def glove_session(
     person_id: str, skill: str, operator: str = "closed_loop", seed: int = 0
 ) -> SessionOutcome:
@@ -77,7 +66,7 @@ def glove_session(
     try:
         env = gym.make("IAS-GloveGrasp-v0", person_id=person_id, skill=skill, operator=operator)
     except PersonCannotError as exc:
-        params = person_summary(person_id)
+        params = person_parameters(person_id)
         return SessionOutcome(person_id, skill, operator, False, "person", str(exc), 0.0, params)
     try:
         _, info = env.reset(seed=seed)
@@ -105,7 +94,7 @@ def glove_session(
         reason=reason,
         detail=detail,
         pen_height_m=float(info["pen_height"]),
-        params=person_summary(person_id),
+        params=person_parameters(person_id),
     )
 
 
