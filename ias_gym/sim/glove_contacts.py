@@ -259,7 +259,7 @@ class GlovePenPhysics(FreePenPhysics):
         pen = self.pen_geom_id
         contact = d.contact
         # One pass in Python over the few contacts (a handful per step): numpy's per-call
-        # overhead on arrays this small cost more than the MuJoCo calls themselves.
+        # overhead on arrays this small costs more than the MuJoCo calls themselves.
         finger_of, body_of = self._finger_of_list, self._body_of_list
         sel: list[int] = []
         finger: list[int] = []
@@ -268,8 +268,8 @@ class GlovePenPhysics(FreePenPhysics):
         others: set[int] = set()
         for j, (g1, g2) in enumerate(contact.geom.tolist()):
             if g1 == pen:
-                # The force of geom1 on geom2 (docs/DESIGN.md): the pen is geom1 here, it
-                # feels the opposite.
+                # The force of geom1 on geom2 (docs/DESIGN.md): the pen, geom1 here, feels
+                # the opposite.
                 other, side = g2, -1.0
             elif g2 == pen:
                 other, side = g1, 1.0
@@ -285,33 +285,47 @@ class GlovePenPhysics(FreePenPhysics):
             bodies.append(body_of[other])
         n = len(sel)
         force6 = np.empty((n, 6))
-        for r, j in enumerate(sel):
-            mujoco.mj_contactForce(m, d, j, force6[r])
-        rows = np.array(sel, dtype=np.intp)
-        frames = contact.frame.take(rows, axis=0).reshape(n, 3, 3)
-        pos = contact.pos.take(rows, axis=0)
-        sign = np.array(signs).reshape(n, 1)
-        # Each contact's force in the world: frame^T f, for all contacts in one matmul.
-        force = sign * np.matmul(force6[:, None, :3], frames)[:, 0]
+        frames = np.empty((n, 9))
+        pos = np.empty((n, 3))
+        friction = np.empty((n, 2))
+        force = np.empty((n, 3))
         qfrc = np.zeros(m.nv)
-        push = -force
-        for r in range(n):
-            # The pen pushes the finger with -force, at the contact point on the finger's
-            # body: qfrc += J^T (-force) (mj_applyFT, with no torque: MuJoCo's Jacobian).
-            mujoco.mj_applyFT(m, d, push[r], _NO_TORQUE, pos[r], bodies[r], qfrc)
+        push = np.empty(3)
         count = [0] * k
         normal = [0.0] * k
-        for r, i in enumerate(finger):
+        if n:
+            all_frames = contact.frame
+            all_pos = contact.pos
+            all_friction = contact.friction
+        for r, j in enumerate(sel):
+            mujoco.mj_contactForce(m, d, j, force6[r])
+            frames[r] = all_frames[j]
+            pos[r] = all_pos[j]
+            fr = all_friction[j]
+            friction[r, 0], friction[r, 1] = fr[0], fr[2]
+            # The force on the pen in the world: sign * frame^T (normal, t1, t2).
+            fn, f1, f2 = force6[r, :3].tolist()
+            e = frames[r].tolist()
+            side = signs[r]
+            fx = side * (fn * e[0] + f1 * e[3] + f2 * e[6])
+            fy = side * (fn * e[1] + f1 * e[4] + f2 * e[7])
+            fz = side * (fn * e[2] + f1 * e[5] + f2 * e[8])
+            force[r, 0], force[r, 1], force[r, 2] = fx, fy, fz
+            # The pen pushes the finger with -force, at the contact point on the finger's
+            # body: qfrc += J^T (-force) (mj_applyFT, no torque: MuJoCo's point Jacobian).
+            push[0], push[1], push[2] = -fx, -fy, -fz
+            mujoco.mj_applyFT(m, d, push, _NO_TORQUE, pos[r], bodies[r], qfrc)
+            i = finger[r]
             count[i] += 1
-            normal[i] += float(force6[r, 0])
+            normal[i] += fn
         b = self.pen_body_id
         return PenContactPass(
             finger=np.array(finger, dtype=np.int64),
             force6=force6,
-            frames=frames,
+            frames=frames.reshape(n, 3, 3),
             pos=pos,
-            friction=contact.friction.take(rows, axis=0)[:, 0:3:2],
-            sign=sign,
+            friction=friction,
+            sign=np.array(signs).reshape(n, 1),
             force=force,
             count=np.array(count, dtype=np.int64),
             normal_force=np.array(normal),
