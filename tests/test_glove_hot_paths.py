@@ -198,3 +198,15 @@ def test_step_values_are_the_old_formulas(env: GloveGraspEnv) -> None:
         np.testing.assert_allclose(obs, expected, rtol=0, atol=1e-12)
         if terminated:
             break
+
+
+def test_emulator_readings_are_the_batch_formula() -> None:
+    """The emulator evaluates one pose per sample: the readings (noise included) are those
+    of the sensor model on all the samples' poses at once, with the same noise stream."""
+    from ias_gym.hardware.emulator import GloveEmulator
+
+    emulator = GloveEmulator(channel="unused", rate_hz=1000.0, seed=4)  # not started: no bus
+    readings = np.array([emulator._next_readings() for _ in range(120)])
+    theta = np.array([emulator._operator(k / 1000.0) for k in range(120)])
+    batch = sensor_readings(theta, emulator.person, np.random.default_rng([4, 0]))
+    np.testing.assert_allclose(readings, batch, rtol=0, atol=1e-12)
