@@ -13,6 +13,7 @@ BENCHES = (
     "bench_controller.py",
     "bench_glove.py",
     "bench_glove_loop.py",
+    "bench_glove_speed.py",
 )
 
 if __name__ == "__main__":

@@ -393,7 +393,7 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         ok = bool(finite.all())
         if not ok:
             theta = np.where(finite, theta, fallback)
-        return np.clip(theta, JOINT_LOW, JOINT_HIGH), ok
+        return np.minimum(np.maximum(theta, JOINT_LOW), JOINT_HIGH), ok  # np.clip, cheaper
 
     def _place_hand(self, theta: FloatArray) -> None:
         """Reset MuJoCo's state: hand at ``theta`` [rad] and at rest, pen at its start."""
@@ -425,12 +425,12 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         pen touches the support or floor), from one pass over the contacts (kept in
         :attr:`contact_pass`)."""
         cp = self.contact_pass = self.physics.contact_pass()
-        tau = cp.qfrc[self._fb_dofs].copy()
+        tau = cp.qfrc[self._fb_dofs]  # a copy (fancy indexing)
         # thumb_flexion drives the coupled MCP-share and IP hinges: virtual work.
         tau[self._fb_flex] += float(self._coupling @ cp.qfrc[self._coupled_dofs])
         touch = (bool(cp.count[0]), bool(cp.count[1]))
         rest = not self._rest_geoms.isdisjoint(cp.other_geoms)
-        return tau, touch, float(cp.normal_force.sum()), rest
+        return tau, touch, float(np.add.reduce(cp.normal_force)), rest
 
     def _observation(self) -> FloatArray:
         d = self.data
@@ -496,7 +496,8 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             "lift": cfg.lift_weight * lift,
             "track": cfg.track_weight * track,
             "pinch": cfg.contact_weight * float(all(self._touch)),
-            "effort": -cfg.effort_weight * float(np.mean(action * action)),
+            # np.mean's own sum and division, without its Python-level wrapper (hot path).
+            "effort": -cfg.effort_weight * (float(np.add.reduce(action * action)) / action.size),
         }
 
     def episode_metrics(self, info: dict[str, Any]) -> dict[str, float]:
@@ -548,7 +549,7 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
         if not np.isfinite(a).all():
             raise ValueError(f"action contains NaN or inf: {a.tolist()}; actions must be finite")
-        a = np.clip(a, -1.0, 1.0)
+        a = np.minimum(np.maximum(a, -1.0), 1.0)  # np.clip of finite values, cheaper
         # Low-pass the calibrated angles: the sensor noise, amplified by the calibration,
         # would shake the fingers at the glove's rate and shake the pen loose.
         theta, ok = self._read_theta(self._theta)
@@ -558,14 +559,14 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         fault = self.glove.fault or self._fault
         target = self._theta + self.config.action_scale * a  # finite: theta and a are
         m, d = self.model, self.data
-        d.ctrl[self._act] = np.clip(target, self._ctrl_lo, self._ctrl_hi)
-        warnings_before = int(self._warnings.sum())
+        d.ctrl[self._act] = np.minimum(np.maximum(target, self._ctrl_lo), self._ctrl_hi)
+        warnings_before = sum(self._warnings.tolist())
         mujoco.mj_step(m, d, self.frame_skip)
         self._steps += 1
         # A diverging simulation makes MuJoCo warn (and reset its data), as in the pen
         # tasks (PenHandEnv.step); a state that is not finite is put back to the start.
         finite = bool(np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all())
-        self._unstable = int(self._warnings.sum()) > warnings_before or not finite
+        self._unstable = sum(self._warnings.tolist()) > warnings_before or not finite
         if not finite:
             self._place_hand(self._theta)
         self._feedback, self._touch, self._pinch_force, rest = self._force_display()
@@ -577,7 +578,8 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         offset = self.data.xpos[self._pen_body] - self._pen_start
         cfg = self.config
         terminated = not self._unstable and bool(
-            offset[2] < -cfg.drop_height or float(np.linalg.norm(offset)) > cfg.max_distance
+            # |offset| as np.linalg.norm takes it (sqrt of the dot product), without its wrapper.
+            offset[2] < -cfg.drop_height or math.sqrt(offset.dot(offset)) > cfg.max_distance
         )
         truncated = self._steps >= self.max_steps or bool(fault) or self._unstable
         return self._observation(), reward, terminated, truncated, self._info(terms, rest, fault)

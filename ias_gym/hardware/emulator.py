@@ -52,7 +52,6 @@ if TYPE_CHECKING:
     import can
 
 STATUS_PERIOD = 0.02  # GloveStatus cycle time [s] (the DBC's GenMsgCycleTime)
-READ_AHEAD = 50  # samples of the sensor model evaluated at once
 
 
 @dataclass(frozen=True)
@@ -199,23 +198,20 @@ class GloveEmulator:
         """The person starts the script afresh (at every Enable): clock 0, new noise."""
         self._noise = np.random.default_rng([self.seed, self._restarts])
         self._restarts += 1
-        self._theta_ahead = [self._operator(k / self.rate_hz) for k in range(READ_AHEAD)]
-        self._k_ahead = READ_AHEAD
-        self._psi_ahead: collections.deque[NDArray[np.float64]] = collections.deque()
+        self._k = 0  # samples since the restart
 
     def _next_readings(self) -> NDArray[np.float64]:
         """Ψ [rad] of the next sample: the simulated glove's sensor model (eq. (1) with the
-        person's parameters and noise), evaluated on READ_AHEAD samples at once (one call
-        per sample costs ~0.2 ms of this process's time, which the host loop shares: the
-        real glove computes its readings on its own processor) while the operator is
-        evaluated one sample a cycle, READ_AHEAD samples ahead."""
-        if not self._psi_ahead:
-            theta = np.array(self._theta_ahead)
-            self._theta_ahead = []
-            self._psi_ahead.extend(sensor_readings(theta, self.person, self._noise))
-        self._theta_ahead.append(self._operator(self._k_ahead / self.rate_hz))
-        self._k_ahead += 1
-        return self._psi_ahead.popleft()
+        person's parameters and noise) on the operator's pose at the sample's time.
+
+        One pose per cycle (~20 us, the sensor model's single-pose path): in-process the
+        emulator shares the GIL with the host loop under test, and a batch of samples
+        evaluated at once would hold it for one long burst every few tens of cycles (the
+        real glove computes its readings on its own processor).
+        """
+        theta = self._operator(self._k / self.rate_hz)
+        self._k += 1
+        return sensor_readings(theta, self.person, self._noise)
 
     # ------------------------------------------------------------------ state
     @property

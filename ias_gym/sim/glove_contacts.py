@@ -76,6 +76,8 @@ SOFT_COLUMNS = ContactModel.SOFT_FINGER.n_wrenches
 #: finger's [m] (:func:`soft_contact_points`): half the pads' 6-7 mm radius (measured
 #: moves: at most 1.3 mm over 2827 finger samples of four skill episodes).
 MAX_POINT_SHIFT = 0.003
+#: The zero torque of a contact's force applied at its point (``mj_applyFT``) [N m].
+_NO_TORQUE = np.zeros(3)
 
 
 @dataclass(frozen=True)
@@ -207,6 +209,9 @@ class GlovePenPhysics(FreePenPhysics):
                 if self._finger_of_geom[g] >= 0:
                     raise ValueError(f"geom {name!r} is listed for two fingers")
                 self._finger_of_geom[g] = i
+        # The same maps as lists, for the per-step loop over the contacts.
+        self._finger_of_list: list[int] = self._finger_of_geom.tolist()
+        self._body_of_list: list[int] = model.geom_bodyid.tolist()
         self.tip_site_ids = np.array([model.site(s).id for s in tips])
         # A finger not touching gets the friction of its highest-priority geom (the pad's,
         # which sets the friction of the pad's contacts): sliding [-], torsional [m].
@@ -219,8 +224,6 @@ class GlovePenPhysics(FreePenPhysics):
         # t2 = sign * (t1 x n). Fixed per finger, not from the normal's direction: a finger
         # pushing sideways would flip its frame with every wobble.
         self._t2_sign = np.where(above, -1.0, 1.0)
-        self._force6 = np.zeros(6)
-        self._jac = np.zeros((3, model.nv))
 
     @property
     def n_fingers(self) -> int:
@@ -254,42 +257,83 @@ class GlovePenPhysics(FreePenPhysics):
         """Read the pen's contacts once (:class:`PenContactPass`), from the last forward pass."""
         m, d, k = self.model, self.data, self.n_fingers
         pen = self.pen_geom_id
-        geom = d.contact.geom
-        pen_first = geom[:, 0] == pen
-        on_pen = pen_first | (geom[:, 1] == pen)
-        other = np.where(pen_first, geom[:, 1], geom[:, 0])
-        finger_of = self._finger_of_geom[other]
-        sel = np.flatnonzero(on_pen & (finger_of >= 0))
+        contact = d.contact
+        # One pass in Python over the few contacts (a handful per step): numpy's per-call
+        # overhead on arrays this small costs more than the MuJoCo calls themselves.
+        finger_of, body_of = self._finger_of_list, self._body_of_list
+        sel: list[int] = []
+        finger: list[int] = []
+        signs: list[float] = []
+        bodies: list[int] = []
+        others: set[int] = set()
+        for j, (g1, g2) in enumerate(contact.geom.tolist()):
+            if g1 == pen:
+                # The force of geom1 on geom2 (docs/DESIGN.md): the pen, geom1 here, feels
+                # the opposite.
+                other, side = g2, -1.0
+            elif g2 == pen:
+                other, side = g1, 1.0
+            else:
+                continue
+            i = finger_of[other]
+            if i < 0:
+                others.add(other)
+                continue
+            sel.append(j)
+            finger.append(i)
+            signs.append(side)
+            bodies.append(body_of[other])
         n = len(sel)
         force6 = np.empty((n, 6))
-        for r, j in enumerate(sel):
-            mujoco.mj_contactForce(m, d, int(j), force6[r])
-        frames = d.contact.frame[sel].reshape(n, 3, 3)
-        pos = d.contact.pos[sel]
-        # The force of geom1 on geom2 (docs/DESIGN.md); the pen feels it if the pen is geom2.
-        sign = np.where(pen_first[sel], -1.0, 1.0)[:, None]
-        force = sign * np.einsum("nji,nj->ni", frames, force6[:, :3])
+        frames = np.empty((n, 9))
+        pos = np.empty((n, 3))
+        friction = np.empty((n, 2))
+        force = np.empty((n, 3))
         qfrc = np.zeros(m.nv)
+        push = np.empty(3)
+        count = [0] * k
+        normal = [0.0] * k
+        if n:
+            all_frames = contact.frame
+            all_pos = contact.pos
+            all_friction = contact.friction
         for r, j in enumerate(sel):
-            # The pen pushes the finger with -force, at the contact point on the finger's body.
-            mujoco.mj_jac(m, d, self._jac, None, pos[r], int(m.geom_bodyid[other[j]]))
-            qfrc -= self._jac.T @ force[r]
-        finger = finger_of[sel]
+            mujoco.mj_contactForce(m, d, j, force6[r])
+            frames[r] = all_frames[j]
+            pos[r] = all_pos[j]
+            fr = all_friction[j]
+            friction[r, 0], friction[r, 1] = fr[0], fr[2]
+            # The force on the pen in the world: sign * frame^T (normal, t1, t2).
+            fn, f1, f2 = force6[r, :3].tolist()
+            e = frames[r].tolist()
+            side = signs[r]
+            fx = side * (fn * e[0] + f1 * e[3] + f2 * e[6])
+            fy = side * (fn * e[1] + f1 * e[4] + f2 * e[7])
+            fz = side * (fn * e[2] + f1 * e[5] + f2 * e[8])
+            force[r, 0], force[r, 1], force[r, 2] = fx, fy, fz
+            # The pen pushes the finger with -force, at the contact point on the finger's
+            # body: qfrc += J^T (-force) (mj_applyFT, no torque: MuJoCo's point Jacobian).
+            push[0], push[1], push[2] = -fx, -fy, -fz
+            mujoco.mj_applyFT(m, d, push, _NO_TORQUE, pos[r], bodies[r], qfrc)
+            i = finger[r]
+            count[i] += 1
+            normal[i] += fn
+        b = self.pen_body_id
         return PenContactPass(
-            finger=finger,
+            finger=np.array(finger, dtype=np.int64),
             force6=force6,
-            frames=frames,
+            frames=frames.reshape(n, 3, 3),
             pos=pos,
-            friction=d.contact.friction[sel][:, [0, 2]],
-            sign=sign,
+            friction=friction,
+            sign=np.array(signs).reshape(n, 1),
             force=force,
-            count=np.bincount(finger, minlength=k),
-            normal_force=np.bincount(finger, weights=force6[:, 0], minlength=k).astype(float),
+            count=np.array(count, dtype=np.int64),
+            normal_force=np.array(normal),
             qfrc=qfrc,
-            other_geoms=frozenset(other[on_pen & (finger_of < 0)].tolist()),
-            com=d.xipos[self.pen_body_id].copy(),
-            centre=d.xpos[self.pen_body_id].copy(),
-            axis=d.xmat[self.pen_body_id, [0, 3, 6]],
+            other_geoms=frozenset(others),
+            com=d.xipos[b].copy(),
+            centre=d.xpos[b].copy(),
+            axis=d.xmat[b, 0:9:3].copy(),
             tips=d.site_xpos[self.tip_site_ids],
         )
 
