@@ -136,6 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.NamedTemporaryFile("w", dir=args.out.parent, delete=False, suffix=".tmp") as f:
         json.dump(report, f, indent=1)
+    os.chmod(f.name, 0o644)  # a temporary file is private; the table is for everyone
     os.replace(f.name, outputs[0])
     _plot(outcomes, outputs[1])
     print(f"wrote {outputs[0]} and {outputs[1]}")
