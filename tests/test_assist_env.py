@@ -132,6 +132,7 @@ def test_biased_calibration_offsets_the_pinching_joints() -> None:
     assert bias[joint_index("index_mcp")] < 0 and bias[joint_index("wrist_flexion")] == 0
 
 
+@pytest.mark.closed_loop
 def test_weak_grip_opens_the_pinch_after_the_close() -> None:
     diff = _operator_thetas("weak_grip", 90) - _operator_thetas("none", 90)
     # after the close phase (0.7 s) the targets are opened along the pinch direction (seen
@@ -354,6 +355,7 @@ def test_the_tremor_filter_acts_only_on_a_tremor(templates, impairment: str) -> 
     assert (result.intervention > 0.0) == (impairment == "tremor")
 
 
+@pytest.mark.closed_loop
 def test_the_opening_of_a_biased_calibration_is_estimated(templates) -> None:
     """The bias opens both fingers by 0.10 rad along the pinch's direction, at rest too.
     d4's own pinch is 0.08 rad closer than the library's, which hides the bias from the
