@@ -12,7 +12,7 @@ import pytest
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.baselines.action_wrapper import GripTransformAction
 from ias_gym.errors import InputError
-from ias_gym.evaluation import PERTURB_SEED_VAR, perturb_seed
+from ias_gym.evaluation import PERTURB_MODE_NEARBY, PERTURB_SEED_VAR, perturb_seed
 from tests.closed_loop import N_PERTURBED, PERTURBATION, perturbed_starts
 
 
@@ -72,7 +72,8 @@ def test_the_perturbation_mode_moves_the_seeds_own_start_too(
 ) -> None:
     """With ``IAS_GYM_PERTURB_SEED`` set, every start is one this machine has not computed:
     the first too is moved by about ``PERTURBATION``, the same way for the same mode seed
-    (a failure can be rerun) and another way for another; the others are moved from it."""
+    (a failure can be rerun) and another way for another; the others, at most
+    ``PERTURB_MODE_NEARBY``, are moved from it."""
     env = gym.make("IAS-PenSlide-v0")
     seed = 4
     env.reset(seed=seed)
@@ -80,7 +81,8 @@ def test_the_perturbation_mode_moves_the_seeds_own_start_too(
     monkeypatch.setenv(PERTURB_SEED_VAR, "1234")
     assert perturb_seed() == 1234
     starts = _qpos(list(perturbed_starts(env, seed)))
-    assert len(starts) == 1 + N_PERTURBED
+    assert len(starts) == 1 + min(N_PERTURBED, PERTURB_MODE_NEARBY)
+    assert len(list(perturbed_starts(env, seed, n=1))) == 2
     for qpos in starts:
         assert PERTURBATION / 10 < np.abs(qpos - nominal).max() < 1e-7
     for qpos in starts[1:]:
