@@ -62,6 +62,32 @@ class UnknownEnvError(InputError, LookupError):
 PERTURBATION = 1e-9
 #: How many perturbed starts follow the nominal one.
 N_PERTURBED = 5
+#: Environment variable of the perturbation mode (:func:`perturb_seed`): when set to an
+#: integer, :func:`perturbed_starts` moves the seed's own start too, as another machine would.
+PERTURB_SEED_VAR = "IAS_GYM_PERTURB_SEED"
+#: Most nearby starts after the first in the perturbation mode: its run is one more sample of
+#: starts after the normal one (``make test-perturbed`` after ``make test``), not a second
+#: sweep of as many.
+PERTURB_MODE_NEARBY = 2
+
+
+def perturb_seed() -> int | None:
+    """The perturbation mode's seed: ``$IAS_GYM_PERTURB_SEED`` as an integer, None if unset
+    or empty (the normal mode).
+
+    Raises:
+        InputError: the variable is set but is not an integer >= 0 (a numpy seed).
+    """
+    value = os.environ.get(PERTURB_SEED_VAR, "").strip()
+    if not value:
+        return None
+    try:
+        seed = int(value)
+    except ValueError:
+        seed = -1
+    if seed < 0:
+        raise InputError(f"{PERTURB_SEED_VAR} must be an integer >= 0, not {value!r}")
+    return seed
 
 
 def perturbed_starts(
@@ -74,12 +100,25 @@ def perturbed_starts(
     the trajectories part. A result that holds from the nominal start only may sit on a
     knife edge another machine falls off; the same result from these starts does not. The
     env must accept ``options={"qpos": ..., "qvel": ...}`` (every IAS pen and glove task).
+
+    In the perturbation mode (``$IAS_GYM_PERTURB_SEED`` set: :func:`perturb_seed`) the first
+    start is not the seed's own either: its ``qpos`` is moved by the same noise, drawn from a
+    generator seeded by both seeds, so a result checked from these starts is checked from
+    starts this machine has never computed, what another machine's last bits do; at most
+    :data:`PERTURB_MODE_NEARBY` nearby starts follow it.
     """
     env.reset(seed=seed)
     data = env.unwrapped.data  # type: ignore[attr-defined]
     qpos, qvel = data.qpos.copy(), data.qvel.copy()
+    mode = perturb_seed()
+    if mode is None:
+        yield None
+    else:
+        base = np.random.default_rng([mode, seed])
+        qpos = qpos + base.normal(0.0, scale, qpos.shape)
+        yield {"qpos": qpos.copy(), "qvel": qvel.copy()}
+        n = min(n, PERTURB_MODE_NEARBY)
     rng = np.random.default_rng(seed)
-    yield None
     for _ in range(n):
         yield {"qpos": qpos + rng.normal(0.0, scale, qpos.shape), "qvel": qvel.copy()}
 

@@ -11,6 +11,8 @@ import pytest
 
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.baselines.action_wrapper import GripTransformAction
+from ias_gym.errors import InputError
+from ias_gym.evaluation import PERTURB_MODE_NEARBY, PERTURB_SEED_VAR, perturb_seed
 from tests.closed_loop import N_PERTURBED, PERTURBATION, perturbed_starts
 
 
@@ -24,11 +26,12 @@ from tests.closed_loop import N_PERTURBED, PERTURBATION, perturbed_starts
     ids=["slide", "rotate", "rotate-wrapped"],
 )
 def test_perturbed_starts_are_the_seeds_start_moved_by_a_nanometre(
-    make: Callable[[], gym.Env[Any, Any]],
+    make: Callable[[], gym.Env[Any, Any]], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The first start is the seed's own (``None``); the others differ from its qpos by
     less than 1e-7 (about ``PERTURBATION``) but do differ, from it and from one another,
     keep its qvel, and the env starts exactly from them."""
+    monkeypatch.delenv(PERTURB_SEED_VAR, raising=False)
     env = make()
     data = env.unwrapped.data
     seed = 4
@@ -57,3 +60,41 @@ def test_perturbed_starts_are_the_seeds_start_moved_by_a_nanometre(
     for a, b in zip(starts[1:], again[1:], strict=True):
         assert a is not None and b is not None
         np.testing.assert_array_equal(a["qpos"], b["qpos"])
+
+
+def _qpos(starts: list[dict[str, Any] | None]) -> list[np.ndarray]:
+    assert all(options is not None for options in starts)
+    return [options["qpos"] for options in starts if options is not None]
+
+
+def test_the_perturbation_mode_moves_the_seeds_own_start_too(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """With ``IAS_GYM_PERTURB_SEED`` set, every start is one this machine has not computed:
+    the first too is moved by about ``PERTURBATION``, the same way for the same mode seed
+    (a failure can be rerun) and another way for another; the others, at most
+    ``PERTURB_MODE_NEARBY``, are moved from it."""
+    env = gym.make("IAS-PenSlide-v0")
+    seed = 4
+    env.reset(seed=seed)
+    nominal = env.unwrapped.data.qpos.copy()
+    monkeypatch.setenv(PERTURB_SEED_VAR, "1234")
+    assert perturb_seed() == 1234
+    starts = _qpos(list(perturbed_starts(env, seed)))
+    assert len(starts) == 1 + min(N_PERTURBED, PERTURB_MODE_NEARBY)
+    assert len(list(perturbed_starts(env, seed, n=1))) == 2
+    for qpos in starts:
+        assert PERTURBATION / 10 < np.abs(qpos - nominal).max() < 1e-7
+    for qpos in starts[1:]:
+        assert PERTURBATION / 10 < np.abs(qpos - starts[0]).max() < 1e-7
+    np.testing.assert_array_equal(starts[0], _qpos(list(perturbed_starts(env, seed, n=0)))[0])
+    monkeypatch.setenv(PERTURB_SEED_VAR, "1235")
+    assert not np.array_equal(starts[0], _qpos(list(perturbed_starts(env, seed, n=0)))[0])
+    for unset in ("", " "):
+        monkeypatch.setenv(PERTURB_SEED_VAR, unset)
+        assert perturb_seed() is None
+        assert next(perturbed_starts(env, seed)) is None
+    for bad in ("x", "-1", "1.5"):
+        monkeypatch.setenv(PERTURB_SEED_VAR, bad)
+        with pytest.raises(InputError, match=PERTURB_SEED_VAR):
+            perturb_seed()

@@ -28,6 +28,7 @@ def test_zero_action_is_the_expert_bit_for_bit(env_id: str) -> None:
     np.testing.assert_array_equal(obs_a, obs_b)
 
 
+@pytest.mark.closed_loop
 def test_pose_error_decays_as_figure_9() -> None:
     """From a 0.1 rad tilt error, after 2 s the error is below 10 % of it (paper Fig. 9);
     from the seed's start and from nearby starts (tests/closed_loop.py)."""
@@ -41,6 +42,7 @@ def test_pose_error_decays_as_figure_9() -> None:
         assert pos_err.max() < 0.005
 
 
+@pytest.mark.closed_loop
 @pytest.mark.parametrize("delta", [25.0, 50.0, 75.0])
 def test_internal_force_error_decays_at_the_rate_delta(delta: float) -> None:
     """Eq. (44): after a step of the internal-force reference, e_f shrinks by (1 - delta dt).
@@ -97,6 +99,7 @@ def test_internal_force_error_decays_at_the_rate_delta(delta: float) -> None:
         assert np.median(ratios) == pytest.approx(expected, abs=0.1), ratios
 
 
+@pytest.mark.closed_loop
 def test_lost_contact_is_reported_and_the_law_carries_on() -> None:
     """Finger 1 pulled off the pen: info reports it, the expert carries on with three fingers
     and regains the fourth; from the seed's start and from nearby starts."""

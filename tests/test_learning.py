@@ -72,6 +72,7 @@ def _env() -> gym.Env:
     return gym.make(ENV_ID, **ENV_KWARGS)
 
 
+@pytest.mark.closed_loop
 @pytest.mark.parametrize(("seed", "noise"), [(0, 0.0), (1, 0.0), (10, 0.001), (11, 0.001)])
 def test_demonstrated_episodes_succeed_from_nearby_starts(seed: int, noise: float) -> None:
     """What ``demo_db`` records succeeds, also from starts 1e-9 away (tests/closed_loop.py).

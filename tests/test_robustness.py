@@ -48,6 +48,7 @@ def test_run_robustness_counts_episodes() -> None:
     assert rows[0].success_rate == 1.0
 
 
+@pytest.mark.closed_loop
 @pytest.mark.parametrize("name", list(DISTURBANCES))
 def test_expert_holds_the_pen_in_every_class(name: str) -> None:
     """From a seed and nearby starts (tests/closed_loop.py), 1.5 s of PenRotate in each class:

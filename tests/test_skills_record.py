@@ -229,6 +229,7 @@ class _StartFrom(gym.Wrapper):  # type: ignore[type-arg]
         return self.env.reset(seed=kwargs.get("seed"), options=self._options)
 
 
+@pytest.mark.closed_loop
 def test_recorded_expert_holds_the_pen_from_nearby_starts() -> None:
     """The recorded expert's skill model (success, four fingers touching, the fingers carrying
     the pen's weight, the pen within 5 mm) holds from seed 3 and starts 1e-9 from it."""

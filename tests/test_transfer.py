@@ -295,6 +295,7 @@ def reference_for_test() -> SkillReference:
     )
 
 
+@pytest.mark.closed_loop
 def test_the_expert_tracks_a_transferred_skill_from_perturbed_starts() -> None:
     ref = reference_for_test()
     env = PenSkillEnv(references=[ref], duration=2.0)

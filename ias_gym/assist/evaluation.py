@@ -342,7 +342,7 @@ def reference_session(
     env = gym.make("IAS-GloveAssist-v0", person_id=person, skill=skill, **env_kwargs)
     try:
         starts = list(perturbed_starts(env, seed, REFERENCE_STARTS))
-        ref = run_session(env, None, seed)
+        ref = run_session(env, None, seed, starts[0])  # the seed's own start (None)
         if not ref.held_throughout():
             return None
         for options in starts[1:]:

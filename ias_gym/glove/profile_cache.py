@@ -15,6 +15,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from ias_gym.errors import InputError
 from ias_gym.glove.calibration import ANN_GROUPS, Calibration
 from ias_gym.glove.hand import PersonParams
 from ias_gym.glove.ids import check_id
@@ -41,6 +42,34 @@ def _fingerprint(person: PersonParams) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:10]
 
 
+#: Environment variable that trains the cached calibrations under another seed
+#: (:func:`calibration_seed`).
+CALIBRATION_SEED_VAR = "IAS_GYM_CALIBRATION_SEED"
+
+
+def calibration_seed() -> int | None:
+    """The training seed of :func:`default_calibration`: ``$IAS_GYM_CALIBRATION_SEED`` as an
+    integer, None if unset or empty (the default, seed 0).
+
+    Another machine trains a person's calibration to other last bits; another seed trains it
+    to another calibration as good as the default one (the same procedure, its own readings
+    and initial weights), a check that nothing holds for one trained calibration only.
+
+    Raises:
+        InputError: the variable is set but is not an integer >= 0 (a numpy seed).
+    """
+    value = os.environ.get(CALIBRATION_SEED_VAR, "").strip()
+    if not value:
+        return None
+    try:
+        seed = int(value)
+    except ValueError:
+        seed = -1
+    if seed < 0:
+        raise InputError(f"{CALIBRATION_SEED_VAR} must be an integer >= 0, not {value!r}")
+    return seed
+
+
 def default_calibration(person: PersonParams, *, progress: bool = True) -> Calibration:
     """The ANN calibration of a simulated ``person``, trained once and cached as a profile.
 
@@ -49,6 +78,10 @@ def default_calibration(person: PersonParams, *, progress: bool = True) -> Calib
     a person id, any valid id:
     :meth:`~ias_gym.glove.hand.PersonParams.sample`) needs torch (the ``[glove]`` extra) and
     takes seconds; the cached profile then loads in milliseconds.
+
+    With ``$IAS_GYM_CALIBRATION_SEED`` set (:func:`calibration_seed`) the calibration is
+    trained under that seed instead of 0 and cached as
+    ``<person_id>-seed<seed>-<hash>-calibration<calibration seed>.json``, beside the default one.
 
     Args:
         person: the simulated person (its id and seed name the file).
@@ -59,7 +92,9 @@ def default_calibration(person: PersonParams, *, progress: bool = True) -> Calib
             :func:`~ias_gym.glove.ids.check_id`), checked before any file is touched.
     """
     person_id = check_id(person.person_id, "person_id")
-    name = f"{person_id}-seed{int(person.seed)}-{_fingerprint(person)}.json"
+    training_seed = calibration_seed()
+    suffix = "" if training_seed is None else f"-calibration{training_seed}"
+    name = f"{person_id}-seed{int(person.seed)}-{_fingerprint(person)}{suffix}.json"
     path = cache_dir() / name
     if path.exists():
         try:
@@ -77,6 +112,11 @@ def default_calibration(person: PersonParams, *, progress: bool = True) -> Calib
         unit="group",
         disable=not progress,
     ) as bar:
-        run = calibrate_person(person, baselines=False, on_group=lambda _name: bar.update())
+        run = calibrate_person(
+            person,
+            seed=training_seed or 0,
+            baselines=False,
+            on_group=lambda _name: bar.update(),
+        )
     save_profile(run.profile, path)
     return run.profile.calibration
