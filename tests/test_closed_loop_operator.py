@@ -93,6 +93,7 @@ def _heights(env: GloveGraspEnv, options: dict | None = None) -> tuple[np.ndarra
     return np.array(heights), infos
 
 
+@pytest.mark.closed_loop
 def test_the_person_holds_the_pen_at_their_goal_and_feels_its_pinch() -> None:
     """From nearby starts a typical person's lifted pen ends within 2 mm of the lift goal
     (the open-loop plan alone ends 3.4 mm off on average, development persons), and the
@@ -110,6 +111,7 @@ def test_the_person_holds_the_pen_at_their_goal_and_feels_its_pinch() -> None:
     env.close()
 
 
+@pytest.mark.closed_loop
 def test_a_glove_lag_the_person_does_not_know_of_makes_them_overshoot() -> None:
     """Their corrections are tuned to their own delay: 0.3 s more sets the lifted pen
     swinging (the open-loop plan alone does not notice a lag)."""
@@ -141,6 +143,7 @@ def test_a_skills_object_target_starts_at_rest_and_lifts_to_the_goal(skill: str)
         assert end_height == pytest.approx(LIFT_GOAL) and abs(end_tilt) < 1e-9
 
 
+@pytest.mark.closed_loop
 def test_skills_return_differently_and_doing_a_skill_earns_more_than_holding_still() -> None:
     """The reward follows the skill: a tilt and a place earn more done than with the pen held
     still (the open-loop plan, so that only the performed skill differs)."""
