@@ -210,13 +210,21 @@ def test_auroc_is_the_rank_statistic() -> None:
     assert auroc([2.0], [2.0]) == 0.5
 
 
-def test_motion_time_matches_the_operator() -> None:
+@pytest.mark.parametrize("operator", ["closed_loop", "script"])
+def test_motion_time_matches_the_operator(operator: str) -> None:
+    """The motion window the metrics count is the length of the plan the simulated person
+    runs, in the loop (ClosedLoopOperator's plan) or open (FromPreShape's script)."""
     import gymnasium as gym
 
-    env = gym.make("IAS-GloveGrasp-v0", person_id="p2", skill="seesaw_slow")
+    from ias_gym.glove.closed_loop import ClosedLoopOperator
+
+    env = gym.make("IAS-GloveGrasp-v0", person_id="p2", skill="seesaw_slow", operator=operator)
     try:
-        op = env.unwrapped.glove_factory(0).operator.operator  # SimulatedGlove(FromPreShape)
-        assert motion_time("seesaw_slow", "p2") == pytest.approx(op.motion_time)
+        op = env.unwrapped.glove_factory(0).operator
+        plan = op.plan if isinstance(op, ClosedLoopOperator) else op.operator
+        assert isinstance(op, ClosedLoopOperator) == (operator == "closed_loop")
+        assert plan.motion_time > 0
+        assert motion_time("seesaw_slow", "p2") == pytest.approx(plan.motion_time)
     finally:
         env.close()
 
