@@ -52,9 +52,9 @@ def typical_person(n: int = 20, seed: int = 0) -> str:
     The range of motion is the parameter an unimpaired pinch's difference from the
     library's follows: a person whose range is narrower closes the pinch less far (their
     plan is clipped to their range), and the weak grip's opening estimate takes that for
-    a weak grip (measured, lift_hold, seed 0, 29 persons of population seed 0: all five
-    with a range of motion below 0.92 were given an opening of 0.01-0.09 rad, none of the
-    23 with 0.93-1.24 but one, at 0.011 rad).
+    a weak grip (measured, lift_hold, seed 0, 40 persons of population seed 0: all 11
+    with a range of motion below 0.92 were given an opening, 0.004-0.095 rad; of the 29
+    with 0.93-1.24 one, 0.011 rad).
     """
     dist = PARAMETERS["range_of_motion"].distribution
     for person in population_ids(n, seed):
@@ -396,7 +396,7 @@ def test_a_weak_grip_hidden_by_a_closer_pinch_is_seen_in_its_closing(
 
 
 #: The person of population seed 0 whose unimpaired rest opens the index the most against
-#: the library's (+0.16 rad; 29 persons measured, lift_hold, seed 0).
+#: the library's (+0.16 rad; 40 persons measured, lift_hold, seed 0).
 OPEN_REST = "pop0-008-8c5466"
 
 
@@ -405,7 +405,7 @@ OPEN_REST = "pop0-008-8c5466"
     [("d4", "none"), (PERSON, "none"), (OPEN_REST, "none"), (PERSON, "hand_size")],
 )
 def test_an_unbiased_rest_pose_is_no_bias(templates, person: str, impairment: str) -> None:
-    """A person's own rest pose differs from the library's in the index (29 persons of
+    """A person's own rest pose differs from the library's in the index (40 persons of
     population seed 0: -0.015..+0.16 rad unimpaired, up to +0.11 rad with a hand 1.2 times
     the size the operator plans for) but not in the thumb (within 0.006 rad): the less
     opened finger stays far below the bias threshold, and no bias is seen."""

@@ -6,6 +6,7 @@ import dataclasses
 import json
 import sqlite3
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -264,13 +265,15 @@ def test_motion_time_matches_the_operator(operator: str) -> None:
     import gymnasium as gym
 
     from ias_gym.glove.closed_loop import ClosedLoopOperator
+    from ias_gym.glove.skills import SkillOperator
 
     env = gym.make("IAS-GloveGrasp-v0", person_id="p2", skill="seesaw_slow", operator=operator)
     try:
-        op = env.unwrapped.glove_factory(0).operator
+        u: Any = env.unwrapped
+        op = u.glove_factory(0).operator
         plan = op.plan if isinstance(op, ClosedLoopOperator) else op.operator
         assert isinstance(op, ClosedLoopOperator) == (operator == "closed_loop")
-        assert plan.motion_time > 0
+        assert isinstance(plan, SkillOperator) and plan.motion_time > 0
         assert motion_time("seesaw_slow", "p2") == pytest.approx(plan.motion_time)
     finally:
         env.close()
