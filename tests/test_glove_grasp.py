@@ -7,6 +7,7 @@ import subprocess
 import sys
 from typing import Any
 
+import gymnasium as gym
 import mujoco
 import numpy as np
 import pytest
@@ -327,3 +328,29 @@ def test_one_pass_over_the_contacts_feeds_force_display_and_skill_model(
     assert touched > 50
     fresh = env.physics.finger_contacts()
     np.testing.assert_array_equal(recorder.model().c[-1], env.physics.contact_intensities(fresh))
+
+
+def test_the_observation_layout_names_every_column() -> None:
+    """Consumers index the glove observation by name: the parts tile it, and each holds what
+    its name says (time, the pen's height, the force display; the assist env's upcoming
+    targets after the glove world's parts)."""
+    for env_id, extra in (
+        ("IAS-GloveGrasp-v0", {}),
+        ("IAS-GloveAssist-v0", {"skill": "lift_hold"}),
+    ):
+        env = gym.make(env_id, **extra)
+        unwrapped = env.unwrapped
+        layout = unwrapped.observation_layout
+        columns = sorted(i for s in layout.values() for i in range(s.start, s.stop))
+        assert columns == list(range(env.observation_space.shape[0]))
+        obs, info = env.reset(seed=0)
+        for step in range(1, 4):
+            obs, _, _, _, info = env.step(np.zeros(10, dtype=np.float32))
+            assert obs[layout["time"]][0] == pytest.approx(step * unwrapped.dt)
+            assert obs[layout["pen_position"]][2] == pytest.approx(info["pen_height"])
+            np.testing.assert_array_equal(obs[layout["feedback_torques"]], info["feedback_torques"])
+            if "upcoming_theta" in layout:
+                np.testing.assert_array_equal(
+                    obs[layout["upcoming_theta"]], unwrapped.upcoming_theta
+                )
+        env.close()

@@ -79,6 +79,7 @@ from scipy.signal import butter, sosfilt, sosfilt_zi
 from ias_gym.assist.evaluation import LIFT_END, MAX_TIME_SHIFT
 from ias_gym.assist.impairments import TREMOR_BAND, TREMOR_JOINTS, pinch_direction
 from ias_gym.assist.stream import frames_from_env
+from ias_gym.envs.glove_grasp import OBSERVATION
 from ias_gym.errors import InputError
 from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS, joint_index
 from ias_gym.glove.skills import SKILL_TIMINGS, SKILLS, skill_start_time
@@ -187,7 +188,7 @@ HEIGHT_FROM = 0.5 * (SKILL_TIMINGS.hold + SKILL_TIMINGS.lift) - SKILL_TIMINGS.re
 HEIGHT_TIME_TOLERANCE = MAX_TIME_SHIFT
 _HEIGHT_SHIFTS = np.linspace(-HEIGHT_TIME_TOLERANCE, HEIGHT_TIME_TOLERANCE, 7)
 #: Column of the glove observation with the pen's height above its start.
-_OBS_HEIGHT = 22
+_OBS_HEIGHT = OBSERVATION["pen_position"].start + 2
 
 
 @dataclass(frozen=True)

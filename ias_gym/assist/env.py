@@ -36,7 +36,8 @@ from ias_gym.assist.impairments import (
     resized_person,
     stock_person,
 )
-from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.envs.glove_grasp import OBSERVATION_PARTS as GLOVE_PARTS
+from ias_gym.envs.glove_grasp import GloveGraspEnv, observation_layout
 from ias_gym.errors import InputError
 from ias_gym.glove.device import GloveDevice, ReachPinchLiftTimings, SimulatedGlove
 from ias_gym.glove.hand import JOINT_HIGH, JOINT_LOW, N_JOINTS, PersonParams
@@ -48,8 +49,10 @@ FloatArray = NDArray[np.float64]
 
 #: Length of the blend from one skill's motion to the other's at an intent switch [s].
 SWITCH_BLEND = 0.2
-#: Size of the observation: IAS-GloveGrasp-v0's 39 and the upcoming joint targets (10).
-OBS_SIZE = 39 + N_JOINTS
+#: The observation: IAS-GloveGrasp-v0's parts and the upcoming joint targets [rad].
+OBSERVATION_PARTS = (*GLOVE_PARTS, ("upcoming_theta", N_JOINTS))
+#: Size of the observation.
+OBS_SIZE = sum(size for _, size in OBSERVATION_PARTS)
 
 
 def _min_jerk(s: float) -> float:
@@ -192,6 +195,7 @@ class GloveAssistEnv(GloveGraspEnv):
         self.script = script
         self.glove_factory = self._impaired_glove
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(OBS_SIZE,), dtype=np.float64)
+        self.observation_layout = observation_layout(OBSERVATION_PARTS)
         #: The joint targets [rad] the operator's next reading gives (IAS-GloveGrasp-v0's
         #: calibration, clipping and low-pass applied), before any action.
         self.upcoming_theta = np.zeros(N_JOINTS)

@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ias_gym.assist.impairments import Impairment, reference_kwargs
+from ias_gym.envs.glove_grasp import OBSERVATION
 from ias_gym.glove.skills import SKILL_TIMINGS, skill_start_time
 
 FloatArray = NDArray[np.float64]
@@ -65,9 +66,10 @@ LIFT_END = SKILL_TIMINGS.lift - SKILL_TIMINGS.reach
 #: (:func:`reference_session`).
 REFERENCE_STARTS = 2
 
-#: Columns of the glove observation: pen centre relative to its start, its quaternion.
-OBS_PEN = slice(20, 23)
-OBS_QUAT = slice(23, 27)
+#: The glove observation's pen centre relative to its start and its quaternion.
+OBS_PEN = OBSERVATION["pen_position"]
+OBS_QUAT = OBSERVATION["pen_quat"]
+_OBS_TIME = OBSERVATION["time"].start
 
 
 class Assistant(Protocol):
@@ -172,7 +174,7 @@ def run_session(
         theta0 = theta if theta0 is None else theta0
         offsets.append(float(np.abs(scale * action).sum()))
         motion.append(float(np.abs(theta - theta0).sum()))
-        times.append(float(obs[38]))
+        times.append(float(obs[_OBS_TIME]))
         pos.append(np.asarray(obs[OBS_PEN]))
         quat.append(np.asarray(obs[OBS_QUAT]))
         pinched.append(bool(info["index_contact"] and info["thumb_contact"]))

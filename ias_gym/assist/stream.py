@@ -27,8 +27,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym.envs.glove_grasp import OBSERVATION
 from ias_gym.errors import InputError
-from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, GloveReading, GloveWrapper
+from ias_gym.glove.device import GloveDevice, GloveReading, GloveWrapper
 from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS
 
 if TYPE_CHECKING:
@@ -42,11 +43,9 @@ FloatArray = NDArray[np.float64]
 #: Demonstration info keys under which :func:`record_session` stores Ψ and Θ ``(T + 1, 10)``.
 READINGS_INFO = "glove_readings"
 THETA_INFO = "glove_theta"
-#: Columns of a glove observation (``IAS-GloveGrasp-v0``): joint angles (10), then after
-#: their velocities (10) and the pen's position, quaternion, velocity and angular velocity
-#: (13), the force display (5); the episode time is the last column.
-_OBS_JOINTS = slice(0, N_JOINTS)
-_OBS_TAU = slice(33, 33 + len(ACTUATED_JOINTS))
+#: The glove observation's joint angles and force display (``IAS-GloveGrasp-v0``).
+_OBS_JOINTS = OBSERVATION["joint_angles"]
+_OBS_TAU = OBSERVATION["feedback_torques"]
 
 
 @dataclass(frozen=True, eq=False)

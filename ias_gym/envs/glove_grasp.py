@@ -55,6 +55,9 @@ FloatArray = NDArray[np.float64]
 __all__ = [
     "INDEX_GEOMS",
     "NONFINITE_THETA_FAULT",
+    "OBSERVATION",
+    "OBSERVATION_PARTS",
+    "OBSERVATION_SIZE",
     "REWARD_TERMS",
     "THUMB_GEOMS",
     "FromPreShape",
@@ -64,6 +67,35 @@ __all__ = [
     "load_glove_scene",
     "pen_operator",
 ]
+
+
+#: The glove world's observation, in order: each part's name and size. :data:`OBSERVATION`
+#: maps the names to their slices; consumers index by name, never by column number.
+OBSERVATION_PARTS: tuple[tuple[str, int], ...] = (
+    ("joint_angles", len(JOINT_NAMES)),  # hand joint angles [rad], JOINT_NAMES order
+    ("joint_velocities", len(JOINT_NAMES)),  # [rad/s]
+    ("pen_position", 3),  # pen centre relative to its start, world frame [m]
+    ("pen_quat", 4),  # pen orientation quaternion (w, x, y, z), world frame
+    ("pen_velocity", 3),  # [m/s], world frame
+    ("pen_omega", 3),  # [rad/s], world frame
+    ("feedback_torques", len(ACTUATED_JOINTS)),  # force display on ACTUATED_JOINTS [N m]
+    ("time", 1),  # episode time [s]
+)
+
+
+def observation_layout(parts: tuple[tuple[str, int], ...]) -> dict[str, slice]:
+    """Names to slices of an observation made of ``parts`` (name, size) in order."""
+    out, start = {}, 0
+    for name, size in parts:
+        out[name] = slice(start, start + size)
+        start += size
+    return out
+
+
+#: Names to slices of the glove world's observation (:data:`OBSERVATION_PARTS`).
+OBSERVATION: dict[str, slice] = observation_layout(OBSERVATION_PARTS)
+#: Size of the glove world's observation.
+OBSERVATION_SIZE = sum(size for _, size in OBSERVATION_PARTS)
 
 
 #: The simulated persons: in the loop (:class:`~ias_gym.glove.closed_loop.ClosedLoopOperator`)
@@ -159,7 +191,9 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     ``(39,)`` float64: hand joint angles (10) [rad] and velocities (10) [rad/s] (JOINT_NAMES
     order), pen centre relative to its start (3) [m], pen orientation quaternion (4), pen
     linear (3) [m/s] and angular (3) [rad/s] velocity (world frame), force-display torques on
-    :data:`~ias_gym.glove.device.ACTUATED_JOINTS` (5) [N m], episode time (1) [s].
+    :data:`~ias_gym.glove.device.ACTUATED_JOINTS` (5) [N m], episode time (1) [s]. The parts
+    by name: :attr:`observation_layout` (``env.observation_layout["pen_position"]`` is a
+    slice; :data:`OBSERVATION_PARTS`).
 
     ## Rewards
     The sum of four terms, each in ``info["reward_<name>"]``: ``pinch = contact_weight``
@@ -319,7 +353,11 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self._fault = ""  # latched for the episode: a broken calibration stays broken
 
         self.action_space = spaces.Box(-1.0, 1.0, shape=(len(JOINT_NAMES),), dtype=np.float32)
-        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(39,), dtype=np.float64)
+        self.observation_space = spaces.Box(
+            -np.inf, np.inf, shape=(OBSERVATION_SIZE,), dtype=np.float64
+        )
+        #: Names to slices of the observation (:data:`OBSERVATION`; subclasses extend it).
+        self.observation_layout = dict(OBSERVATION)
         self._steps = 0
         cfg = self.config
         self._alpha = cfg.control_dt / (cfg.filter_tau + cfg.control_dt)
