@@ -365,3 +365,34 @@ def test_cli_records_and_shows_a_glove_session(
               "--env-kwargs", '{"person_id": "p1"}', "--db", db, "--no-progress"])  # fmt: skip
     with SkillDB(db) as database:
         assert len(database) == 1  # the refused runs stored nothing
+
+
+def test_a_recorded_skill_carries_its_own_timeline(tmp_path: Path) -> None:
+    """A glove skill session stores its phase per sample: the record alone gives where the
+    skill's motion starts and ends (the env's own times), and transfer starts there; a record
+    without phases (an older one) says it has none."""
+    import dataclasses
+
+    from ias_gym.skills.glove_session import PHASE_INFO, motion_window
+    from ias_gym.skills.transfer import skill_start_index
+
+    path = tmp_path / "timeline.db"
+    record_skills_spec(
+        ENV_ID, "teleop", 1, path, seed=0, progress=False, env_kwargs={"skill": "tilt_left"}
+    )
+    env = gym.make(ENV_ID, skill="tilt_left")
+    start, end = env.unwrapped.skill_start, env.unwrapped.skill_end
+    env.close()
+    with SkillDB(path, readonly=True) as db:
+        skill = db.get(db.ids()[0])
+    window = motion_window(skill)
+    assert window is not None and start is not None and end is not None
+    assert window[0] == pytest.approx(start, abs=0.0101) and window[1] == pytest.approx(
+        end, abs=0.0101
+    )
+    assert skill.model.time[skill_start_index(skill)] == pytest.approx(window[0])
+    infos = {k: v for k, v in skill.demonstration.infos.items() if k != PHASE_INFO}
+    older = dataclasses.replace(
+        skill, demonstration=dataclasses.replace(skill.demonstration, infos=infos)
+    )
+    assert motion_window(older) is None

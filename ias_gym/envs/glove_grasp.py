@@ -34,7 +34,13 @@ from ias_gym.glove.ids import check_id
 from ias_gym.glove.operator import FromPreShape, skill_operator
 from ias_gym.glove.operator import pen_operator as _pen_operator
 from ias_gym.glove.profile_cache import default_calibration
-from ias_gym.glove.skills import SkillStyle, check_skill, skill_object_target, skill_start_time
+from ias_gym.glove.skills import (
+    SkillStyle,
+    check_skill,
+    skill_motion_time,
+    skill_object_target,
+    skill_start_time,
+)
 from ias_gym.sim.glove_contacts import GlovePenPhysics, PenContactPass
 from ias_gym.sim.glove_scene import (
     FINGER_ABOVE,
@@ -231,6 +237,9 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     :data:`PLACE_TOLERANCE` of its start with both fingers holding it.
     ``info["operator_failure"]`` says why the simulated person failed on their side (``""``:
     they did not; e.g. ``"dropped the pen"``: they saw it fall and gave up).
+    ``info["skill_phase"]``: 0 before the skill's own motion (or without a skill), 1 during
+    it, 2 after; a recorded session keeps it, so its timeline travels with it
+    (:func:`~ias_gym.skills.glove_session.motion_window`).
 
     ## Arguments
     ``render_mode`` (``None`` or ``"rgb_array"``), ``person``, ``calibration`` and
@@ -316,6 +325,12 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         #: Episode time [s] where the skill's own motion begins (None: no skill).
         self.skill_start: float | None = (
             None if self.config.skill is None else skill_start_time(self.config.skill, self.person)
+        )
+        #: Episode time [s] where the skill's own motion ends (None: no skill).
+        self.skill_end: float | None = (
+            None
+            if self.skill_start is None or self.config.skill is None
+            else self.skill_start + skill_motion_time(self.config.skill, self.style.speed)
         )
         self.frame_skip = round(self.config.control_dt / m.opt.timestep)
         if self.frame_skip < 1 or not math.isclose(
@@ -510,7 +525,16 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             "index_contact": self._touch[0],
             "thumb_contact": self._touch[1],
             "operator_failure": self._operator_failure(),
+            "skill_phase": self._skill_phase(),
         }
+
+    def _skill_phase(self) -> int:
+        """Where the skill is (stored with every recorded session, so that it describes
+        itself): 0 before its own motion (or without a skill), 1 during it, 2 after."""
+        if self.skill_start is None or self.skill_end is None:
+            return 0
+        t = self._steps * self.config.control_dt
+        return 0 if t < self.skill_start else (1 if t < self.skill_end else 2)
 
     def _operator_failure(self) -> str:
         """Why the simulated person could not do the skill (``""``: nothing on their side)."""

@@ -21,8 +21,9 @@ paper frame and units (see :mod:`ias_gym.sim.glove_contacts`):
 
 Skills (:mod:`ias_gym.glove.skills`): an env made with ``skill=NAME`` performs that skill
 after the pinch-lift; a recording stores it with ``Skill.name == NAME`` and
-``env_kwargs["skill"] == NAME``, and its own motion starts at
-:func:`ias_gym.glove.skills.skill_start_time` ``(NAME, person_id)`` [s].
+``env_kwargs["skill"] == NAME``, and the env's ``info["skill_phase"]`` at every sample (0
+before the skill's own motion, 1 during it, 2 after): :func:`motion_window` reads the motion's
+start and end from the record itself.
 
 The env has no expert: a glove session is teleoperation (the ``teleop`` policy of
 :func:`ias_gym.baselines.policies.load_policy`, zero action). Provenance: the person is the env's
@@ -37,7 +38,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ias_gym.baselines.policies import TELEOP
-from ias_gym.skills.skill import SkillModelSamples
+from ias_gym.skills.skill import Skill, SkillModelSamples
 
 #: Internal forces of the soft-finger pinch: 8 intensities - rank 6 (eq. 6).
 N_INTERNAL = 2
@@ -98,3 +99,26 @@ class GloveSkillModelRecorder(SkillModelSamples):
             c_h = np.full(c.shape, np.nan)
         # sliding left out: a glove session has no sliding schedule
         self._append(time=env.data.time, pen=p, W=W, touching=active, c=c, c_h=c_h, f_int=f_int)
+
+
+#: Demonstration info key of the skill's phase per sample (``IAS-GloveGrasp-v0``).
+PHASE_INFO = "skill_phase"
+
+
+def motion_window(skill: Skill) -> tuple[float, float] | None:
+    """``(start, end)`` [s] of a glove skill's own motion, from its record
+    (:data:`PHASE_INFO`), or None for a record without phases (made before they were stored,
+    or not a glove skill session). A skill that holds still (``lift_hold``) has
+    ``start == end``.
+    """
+    phase = skill.demonstration.infos.get(PHASE_INFO)
+    if phase is None:
+        return None
+    phase = np.asarray(phase)
+    time = np.asarray(skill.model.time, dtype=np.float64)
+    begun = np.flatnonzero(phase >= 1)
+    if begun.size == 0:
+        return None
+    ended = np.flatnonzero(phase >= 2)
+    start = float(time[begun[0]])
+    return start, float(time[ended[0]]) if ended.size else float(time[-1])

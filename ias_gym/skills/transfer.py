@@ -48,6 +48,7 @@ from ias_gym.grasp.grasp_margin import margin_series
 from ias_gym.sim import hands
 from ias_gym.sim.pen import rpy_to_matrix
 from ias_gym.skills.db import SkillDB
+from ias_gym.skills.glove_session import motion_window
 from ias_gym.skills.skill import Skill
 
 FloatArray = NDArray[np.float64]
@@ -110,14 +111,19 @@ def hand_workspace(hand: str) -> HandWorkspace:
 def skill_start_index(skill: Skill) -> int:
     """The sample where the skill's own motion starts: the grasp is established.
 
-    A glove skill of the glove-skills library names its start
-    (``ias_gym.glove.skills.skill_start_time``); otherwise it is the first sample from which
-    every finger touches the object and the internal forces are defined.
+    A glove session stores where its skill's motion starts (:func:`motion_window`); a record
+    made before it did names a skill of the glove-skills library and its person, whose
+    start the person generator gives (``ias_gym.glove.skills.skill_start_time``);
+    otherwise it is the first sample from which every finger touches the object and the
+    internal forces are defined.
 
     Raises:
         SkillTransferError: the fingers never hold the object together.
     """
     model = skill.model
+    window = motion_window(skill)
+    if window is not None:
+        return int(np.searchsorted(model.time, window[0] - 1e-9))
     try:
         from ias_gym.glove.skills import SKILLS, skill_start_time
 
