@@ -186,14 +186,23 @@ def test_hand_size_is_another_hand_running_the_stock_pinch() -> None:
 
 @pytest.mark.closed_loop
 def test_assistant_turns_a_weak_grip_into_a_success(templates) -> None:
+    """Three persons of a typical range of motion: each one's weak grip drops the pen without
+    help, and for at least two of them the assistant saves the session from every nearby
+    start (measured: all four of the first such persons with the default calibrations, three
+    of four with calibrations trained under seed 1)."""
     kw = {"skill": "lift_hold", "duration": 2.5}
-    reference = run_session(make(**kw), None, 0)
-    env = make(impairment="weak_grip", **kw)
-    unassisted = run_session(env, None, 0)
-    assert not session_success(unassisted, reference)  # the pen falls without help
-    for options in perturbed_starts(env, 0, n=2):
-        assisted = run_session(env, AnalyticAssistant(templates), 0, options)
-        assert session_success(assisted, reference), options is None
+    saved = 0
+    for person in typical_persons(3):
+        reference = run_session(gym.make("IAS-GloveAssist-v0", person_id=person, **kw), None, 0)
+        env = gym.make("IAS-GloveAssist-v0", person_id=person, impairment="weak_grip", **kw)
+        unassisted = run_session(env, None, 0)
+        assert not session_success(unassisted, reference), person  # the pen falls without help
+        saved += all(
+            session_success(run_session(env, AnalyticAssistant(templates), 0, options), reference)
+            for options in perturbed_starts(env, 0, n=2)
+        )
+        env.close()
+    assert saved >= 2
 
 
 @pytest.mark.closed_loop
@@ -457,10 +466,10 @@ def test_a_weak_grip_hidden_in_the_hold_is_seen_in_its_closing(
     """A person whose own pinch is closer than the library's hides a weak grip in the
     hold's pose; its closing from rest still falls short. With the hold's pose blind (its
     deadband infinite, as for such a person), the closing alone opens the weak grip's pinch
-    (> 0.01 rad) for most of seven persons of a typical range of motion and never an
-    unimpaired one's (an unimpaired closing lies within the deadband); blind as well,
-    nothing opens it. The estimate reads the operator's targets, before the physics: no
-    start 1e-9 away changes it."""
+    (> 0.01 rad) for most of seven persons of a typical range of motion, each person's at
+    least as far as their unimpaired pinch and on average more than three times as far;
+    blind as well, nothing opens it. The estimate reads the operator's targets, before the
+    physics: no start 1e-9 away changes it, but another trained calibration does."""
     import ias_gym.assist.assistants as assistants
 
     def opening(person: str, impairment: str) -> float:
@@ -479,8 +488,12 @@ def test_a_weak_grip_hidden_in_the_hold_is_seen_in_its_closing(
     monkeypatch.setattr(assistants, "OPENING_DEADBAND", math.inf)
     weak = {person: opening(person, "weak_grip") for person in CLOSING_PERSONS}
     assert sum(o > 0.01 for o in weak.values()) > len(weak) / 2, weak
-    for person in CLOSING_PERSONS:
-        assert opening(person, "none") == 0.0, person
+    # Another trained calibration can give an unimpaired person an opening too (up to 0.041
+    # rad with calibration seeds 1-3, against 0.008-0.117 for the weak grips): the weak grip
+    # opens each person's pinch at least as far, and on average far more.
+    none = {person: opening(person, "none") for person in CLOSING_PERSONS}
+    assert all(weak[p] >= none[p] for p in CLOSING_PERSONS), (weak, none)
+    assert np.mean(list(weak.values())) > 3.0 * np.mean(list(none.values())), (weak, none)
     monkeypatch.setattr(assistants, "CLOSING_DEADBAND", math.inf)
     assert opening("p3", "weak_grip") == 0.0
 
