@@ -35,6 +35,7 @@ from ias_gym.baselines.policies import (  # re-exported: the loader's home is th
 from ias_gym.errors import IasGymError, InputError
 from ias_gym.outputs import atomic_output, check_output_file
 from ias_gym.parallel import SERIAL, Backend, prepare_here, run_jobs, worker_resource
+from ias_gym.settings import seed_from_environment
 
 #: Frame rate of evaluation videos [1/s]; the env's frames are thinned to it.
 VIDEO_FPS = 25
@@ -78,16 +79,7 @@ def perturb_seed() -> int | None:
     Raises:
         InputError: the variable is set but is not an integer >= 0 (a numpy seed).
     """
-    value = os.environ.get(PERTURB_SEED_VAR, "").strip()
-    if not value:
-        return None
-    try:
-        seed = int(value)
-    except ValueError:
-        seed = -1
-    if seed < 0:
-        raise InputError(f"{PERTURB_SEED_VAR} must be an integer >= 0, not {value!r}")
-    return seed
+    return seed_from_environment(PERTURB_SEED_VAR)
 
 
 def perturbed_starts(

@@ -15,11 +15,11 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from ias_gym.errors import InputError
 from ias_gym.glove.calibration import ANN_GROUPS, Calibration
 from ias_gym.glove.hand import PersonParams
 from ias_gym.glove.ids import check_id
 from ias_gym.glove.profile import ProfileError, load_profile, save_profile
+from ias_gym.settings import seed_from_environment
 
 
 def cache_dir() -> Path:
@@ -58,16 +58,7 @@ def calibration_seed() -> int | None:
     Raises:
         InputError: the variable is set but is not an integer >= 0 (a numpy seed).
     """
-    value = os.environ.get(CALIBRATION_SEED_VAR, "").strip()
-    if not value:
-        return None
-    try:
-        seed = int(value)
-    except ValueError:
-        seed = -1
-    if seed < 0:
-        raise InputError(f"{CALIBRATION_SEED_VAR} must be an integer >= 0, not {value!r}")
-    return seed
+    return seed_from_environment(CALIBRATION_SEED_VAR)
 
 
 def default_calibration(person: PersonParams, *, progress: bool = True) -> Calibration:
