@@ -55,9 +55,9 @@ from tests.closed_loop import perturbed_starts
 PERSON = "p3"
 
 
-def typical_person(n: int = 20, seed: int = 0) -> str:
-    """The first person of the population drawn with ``seed`` whose range of motion lies
-    within half a standard deviation of the population's mean.
+def typical_persons(k: int, seed: int = 0) -> tuple[str, ...]:
+    """The first ``k`` persons of the population drawn with ``seed`` whose range of motion
+    lies within half a standard deviation of the population's mean.
 
     The range of motion is the parameter an unimpaired pinch's difference from the
     library's follows: a person whose range is narrower closes the pinch less far (their
@@ -67,10 +67,18 @@ def typical_person(n: int = 20, seed: int = 0) -> str:
     with 0.93-1.24 one, 0.011 rad).
     """
     dist = PARAMETERS["range_of_motion"].distribution
-    for person in population_ids(n, seed):
-        if abs(PersonParams.sample(person).range_of_motion - dist.a) <= 0.5 * dist.b:
-            return person
-    raise AssertionError(f"no person of population seed {seed} within half an SD")
+    ids = tuple(
+        p
+        for p in population_ids(20 * k, seed)
+        if abs(PersonParams.sample(p).range_of_motion - dist.a) <= 0.5 * dist.b
+    )
+    assert len(ids) >= k, f"fewer than {k} persons of population seed {seed} within half an SD"
+    return ids[:k]
+
+
+def typical_person(seed: int = 0) -> str:
+    """The first of :func:`typical_persons`."""
+    return typical_persons(1, seed)[0]
 
 
 @pytest.fixture(scope="module")
@@ -445,19 +453,6 @@ def test_the_opening_of_a_biased_calibration_is_estimated(templates) -> None:
         assert assistant.opening >= assistant.bias, person
         estimates.append(assistant.bias)
     assert sum(0.7 * bias < b < 1.15 * bias for b in estimates) >= 3, estimates
-
-
-#: Development persons of :func:`test_a_weak_grip_hidden_in_the_hold_is_seen_in_its_closing`.
-def typical_persons(k: int, seed: int = 0) -> tuple[str, ...]:
-    """The first ``k`` persons drawn with ``seed`` whose range of motion is typical
-    (:func:`typical_person`'s rule)."""
-    dist = PARAMETERS["range_of_motion"].distribution
-    ids = [
-        p
-        for p in population_ids(10 * k, seed)
-        if abs(PersonParams.sample(p).range_of_motion - dist.a) <= 0.5 * dist.b
-    ]
-    return tuple(ids[:k])
 
 
 #: Persons of the closing test: seven of a typical range of motion (by the rule, not by an
