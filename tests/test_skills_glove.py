@@ -28,6 +28,7 @@ from ias_gym.sim.glove_scene import (
 from ias_gym.sim.pen_hand import mj_to_paper
 from ias_gym.skills import (
     SkillDB,
+    SkillDBError,
     SkillModel,
     glove_session_source,
 )
@@ -396,3 +397,91 @@ def test_a_recorded_skill_carries_its_own_timeline(tmp_path: Path) -> None:
         skill, demonstration=dataclasses.replace(skill.demonstration, infos=infos)
     )
     assert motion_window(older) is None
+
+
+def test_a_recorded_session_describes_its_person_and_intended_motion(tmp_path: Path) -> None:
+    """A session stores its person's parameters and the object motion they meant (the
+    reward's target), and a record stored without them (an older one) gets exactly those from
+    ``skills migrate``, which never replaces what a record has and leaves other records."""
+    import dataclasses
+    import sqlite3
+
+    from ias_gym.cli import main
+    from ias_gym.glove.skills import SkillStyle, person_parameters, skill_object_target
+    from ias_gym.skills.glove_session import TARGET_INFO, object_target
+
+    path = tmp_path / "described.db"
+    record_skills_spec(
+        ENV_ID, "teleop", 1, path, seed=0, progress=False, env_kwargs={"skill": "seesaw_slow"}
+    )
+    record_skills_spec("IAS-PenSlide-v0", "expert", 1, path, seed=0, progress=False)
+    with SkillDB(path) as db:
+        glove_id, pen_id = db.ids()
+        skill = db.get(glove_id)
+        assert db.get(pen_id).person_params is None  # no person demonstrated it
+        assert skill.person_params == pytest.approx(person_parameters("p1"))
+        target = object_target(skill)
+        assert target is not None
+        style = SkillStyle.sample("p1")
+        expected = np.array(
+            [skill_object_target("seesaw_slow", t, style) for t in skill.model.time]
+        )
+        np.testing.assert_allclose(np.stack(target, axis=1), expected, atol=1e-12)
+        assert np.ptp(target[1]) > 0.05  # a see-saw's target tilts
+        # an older record: the same session without them
+        infos = {k: v for k, v in skill.demonstration.infos.items() if k not in TARGET_INFO}
+        older = dataclasses.replace(
+            skill,
+            demonstration=dataclasses.replace(skill.demonstration, infos=infos),
+            person_params=None,
+            id=None,
+        )
+        older_id = db.add(older)
+    assert main(["skills", "migrate", "--db", str(path)]) == 0
+    with SkillDB(path, readonly=True) as db:
+        migrated = db.get(older_id)
+        assert migrated.person_params == skill.person_params
+        for key in TARGET_INFO:
+            np.testing.assert_allclose(
+                migrated.demonstration.infos[key], skill.demonstration.infos[key], atol=1e-12
+            )
+        assert db.get(pen_id).person_params is None
+    with sqlite3.connect(path) as conn:  # two arrays added, nothing else
+        (count,) = conn.execute(
+            "SELECT count(*) FROM arrays WHERE skill_id = ?", (older_id,)
+        ).fetchone()
+        (first,) = conn.execute(
+            "SELECT count(*) FROM arrays WHERE skill_id = ?", (glove_id,)
+        ).fetchone()
+    assert count == first
+    with SkillDB(path) as db:
+        with pytest.raises(SkillDBError, match="has the infos"):
+            db.describe(older_id, infos={TARGET_INFO[0]: np.zeros(skill.length + 1)})
+        with pytest.raises(SkillDBError, match="has its person_params"):
+            db.describe(older_id, person_params={"hand_scale": 1.0})
+        with pytest.raises(ValueError, match="finite"):
+            db.describe(pen_id, person_params={"hand_scale": float("nan")})
+
+
+def test_a_session_without_phases_is_left_and_consumers_say_so(tmp_path: Path) -> None:
+    """A glove record without phases cannot be described from today's person generator: the
+    migration leaves it and says why; the recognition metrics refuse it naming the fix."""
+    import dataclasses
+
+    from ias_gym.assist.metrics import labelled_session
+    from ias_gym.skills.glove_session import PHASE_INFO, describe_session
+
+    path = tmp_path / "old.db"
+    record_skills_spec(
+        ENV_ID, "teleop", 1, path, seed=0, progress=False, env_kwargs={"skill": "tilt_left"}
+    )
+    with SkillDB(path, readonly=True) as db:
+        skill = db.get(db.ids()[0])
+    infos = {k: v for k, v in skill.demonstration.infos.items() if k != PHASE_INFO}
+    older = dataclasses.replace(
+        skill, demonstration=dataclasses.replace(skill.demonstration, infos=infos)
+    )
+    add, person, why = describe_session(older)
+    assert not add and person is None and "record it anew" in why
+    with pytest.raises(InputError, match=r"does not store its phases.*skills record"):
+        labelled_session(older)

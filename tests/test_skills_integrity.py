@@ -224,6 +224,7 @@ def make_version_1(path: Path) -> list[int]:
     """A database as schema version 1 wrote it: no checksum columns."""
     ids = make_db(path, 3)
     with sqlite3.connect(path) as conn:
+        conn.execute("ALTER TABLE skills DROP COLUMN person_params")
         conn.execute("ALTER TABLE arrays DROP COLUMN checksum")
         conn.execute("ALTER TABLE skills DROP COLUMN initial_observation_checksum")
         conn.execute("PRAGMA user_version = 1")
@@ -247,9 +248,9 @@ def test_version_1_is_listed_read_only_but_its_arrays_need_a_migration(
     assert path.read_bytes() == before  # read-only commands changed nothing
 
     assert run(["migrate", "--db", str(path)]) == 0
-    assert "from schema version 1 to 2 (3 skills)" in capsys.readouterr().out
+    assert "from schema version 1 to 3 (3 skills;" in capsys.readouterr().out
     with SkillDB(path, readonly=True) as db:
-        assert db.schema_version == SCHEMA_VERSION == 2
+        assert db.schema_version == SCHEMA_VERSION == 3
         for skill_id in ids:
             db.check_skill(skill_id)
     with sqlite3.connect(path) as conn:

@@ -85,7 +85,6 @@ from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS, joint_index
 from ias_gym.glove.skills import SKILL_TIMINGS, SKILLS, skill_start_time
 from ias_gym.grasp.grasp_margin import grasp_margin
 from ias_gym.skills.db import SkillDB
-from ias_gym.skills.glove_session import motion_window
 from ias_gym.skills.transfer import (
     GLOVE_PAD_TORSION,
     GLOVE_PEN_MU,
@@ -257,8 +256,7 @@ def load_templates(db_path: str | Path | None = None) -> dict[str, SkillTemplate
             margins = demonstrated_margin(skill)[k:]
             finite = margins[np.isfinite(margins)]
             margin = float(np.median(np.minimum(finite, 10.0))) if finite.size else 1.2
-            window = motion_window(skill)  # the record's own, or (older records) the generator's
-            start = window[0] if window else skill_start_time(skill.name, skill.person_id)
+            start = float(model.time[k])  # the record's own motion start (or its grasp's)
             obs = np.asarray(skill.demonstration.observations, dtype=np.float64)
             per = model.c.shape[1] // model.touching.shape[1]
             normal = np.nan_to_num(np.asarray(model.c)[:, ::per]).sum(axis=1)

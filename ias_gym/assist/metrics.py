@@ -1,11 +1,10 @@
 """How well a recogniser knows the intent: accuracy over the skill's motion, triggers, unknowns.
 
-Every measure counts a session from where the skill's own motion starts
-(:func:`~ias_gym.glove.skills.skill_start_time`): the reach-pinch-lift before it is the same
-for every skill. The *observed fraction* f of a session is the time
-``t_start + f (t_end - t_start)``, where ``t_end - t_start`` is the motion's length at the
-person's speed (:func:`motion_window`); ``lift_hold`` has no motion, so its window is the
-hold until the session's end.
+Every measure counts a session from where the skill's own motion starts, as the session's
+record says (:func:`truth_window`: its stored phases): the reach-pinch-lift before it is the
+same for every skill. The *observed fraction* f of a session is the time
+``t_start + f (t_end - t_start)``; ``lift_hold`` has no motion, so its window is the hold
+until the session's end.
 
 - ``accuracy[f]``: the share of sessions whose posterior's most probable name (``"unknown"``
   included) at fraction f is the true skill; ``recog_acc_at_33`` and ``recog_acc_at_60``;
@@ -37,13 +36,9 @@ from ias_gym.assist.recognition import (
 )
 from ias_gym.assist.stream import SessionFrame, frames_from_skill
 from ias_gym.errors import InputError
-from ias_gym.glove.skills import (
-    SKILLS,
-    SkillStyle,
-    check_skill,
-    skill_motion_time,
-    skill_start_time,
-)
+from ias_gym.glove.skills import SKILLS, check_skill
+from ias_gym.skills.glove_session import PHASE_INFO
+from ias_gym.skills.glove_session import motion_window as glove_motion_window
 
 if TYPE_CHECKING:
     from ias_gym.skills import Skill, SkillDB
@@ -63,7 +58,7 @@ class LabelledSession:
         person_id: who performed it.
         frames: its frames from reset on.
         t_start: where the skill's own motion starts [s].
-        t_end: where it ends [s] (:func:`motion_window`).
+        t_end: where it ends [s] (:func:`truth_window`).
     """
 
     skill: str
@@ -77,22 +72,22 @@ class LabelledSession:
         return library_session(self.skill, self.person_id, self.frames)
 
 
-def motion_time(skill: str, person_id: str) -> float:
-    """Length [s] of ``skill``'s own motion for ``person_id`` (``SkillOperator.motion_time``).
+def truth_window(skill: Skill) -> tuple[float, float]:
+    """``(t_start, t_end)`` [s] of a stored glove session's own motion, from its record
+    (:func:`~ias_gym.skills.glove_session.motion_window`); a skill without motion
+    (``lift_hold``) holds to the session's end.
 
     Raises:
-        InputError: unknown skill or invalid id.
+        InputError: the record has no phases (recorded before sessions stored them).
     """
-    return skill_motion_time(skill, SkillStyle.sample(person_id).speed)
-
-
-def motion_window(skill: str, person_id: str, session_end: float) -> tuple[float, float]:
-    """``(t_start, t_end)`` [s] of the skill's own motion in a session ending at
-    ``session_end`` [s]; a skill without motion (``lift_hold``) holds to the end."""
-    start = skill_start_time(skill, person_id)
-    length = motion_time(skill, person_id)
-    end = start + length if length > 0 else session_end
-    return start, min(end, session_end)
+    window = glove_motion_window(skill)
+    if window is None:
+        raise InputError(
+            f"skill {skill.id} ({skill.name!r}) does not store its phases (info "
+            f"{PHASE_INFO!r}); record it anew with `ias-gym skills record`"
+        )
+    start, end = window
+    return start, end if end > start else float(skill.model.time[-1])
 
 
 def labelled_session(skill: Skill) -> LabelledSession:
@@ -108,9 +103,8 @@ def labelled_session(skill: Skill) -> LabelledSession:
             f"skill {skill.id} ({skill.name!r}) is not a labelled glove session: it needs "
             f"env_kwargs skill in {SKILLS} and a person id"
         )
-    frames = frames_from_skill(skill)
-    start, end = motion_window(name, person, frames[-1].time_s)
-    return LabelledSession(str(name), person, frames, start, end)
+    start, end = truth_window(skill)
+    return LabelledSession(str(name), person, frames_from_skill(skill), start, end)
 
 
 def record_sessions(
@@ -157,7 +151,7 @@ def record_sessions(
             env.close()
         if db is not None:
             db.add(stored)
-        start, end = motion_window(skill, person, frames[-1].time_s)
+        start, end = truth_window(stored)
         out.append(LabelledSession(skill, person, frames, start, end))
     return out
 

@@ -217,15 +217,29 @@ def _delete(args: argparse.Namespace) -> int:
 
 def _migrate(args: argparse.Namespace) -> int:
     from ias_gym.skills.db import SCHEMA_VERSION, SkillDB
+    from ias_gym.skills.glove_session import describe_session
 
     with SkillDB(args.db, readonly=True) as db:  # read the version without changing it
         before = db.schema_version
-    if before == SCHEMA_VERSION:
-        print(f"{args.db} is at schema version {SCHEMA_VERSION}; nothing to do")
-        return 0
     with SkillDB(args.db, create=False) as db:  # opening for writing migrates
         after, count = db.schema_version, len(db)
-    print(f"migrated {args.db} from schema version {before} to {after} ({count} skills)")
+        described, left = 0, []
+        for skill_id in db.ids():  # then each session gets what it lacks of its description
+            infos, person, why = describe_session(db.get(skill_id))
+            if why:
+                left.append(f"skill {skill_id}: {why}")
+            elif infos or person is not None:
+                db.describe(skill_id, infos=infos, person_params=person)
+                described += 1
+    if before == SCHEMA_VERSION and not described:
+        print(f"{args.db} is at schema version {SCHEMA_VERSION}; nothing to do")
+    else:
+        print(
+            f"migrated {args.db} from schema version {before} to {after} ({count} skills; "
+            f"{described} given their intended motion and person)"
+        )
+    for line in left:
+        print(f"  left as it is: {line}")
     return 0
 
 
@@ -392,11 +406,15 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
 
     migrate = commands.add_parser(
         "migrate",
-        help="bring an older database to this schema version (adds checksums)",
+        help="bring an older database to this schema version and describe its sessions",
         description="Open an existing database for writing, which migrates it: schema "
         "version 1 gets the SHA-256 checksum of every stored array, computed from the "
-        "bytes as they are now. Read-only commands refuse to load arrays of a version-1 "
-        "file until it is migrated.",
+        "bytes as they are now (read-only commands refuse to load arrays of a version-1 "
+        "file until it is migrated); version 3 a column for the person's parameters. "
+        "Then every simulated person's glove session recorded with its phases gets what "
+        "it lacks: its intended object motion (infos target_height [m], target_tilt "
+        "[rad]) and its person's parameters, from the person generator. Nothing stored "
+        "is replaced; a session that cannot be described is listed with the reason.",
     )
     db_argument(migrate)
     migrate.set_defaults(run=_migrate)

@@ -141,6 +141,10 @@ class GloveGraspConfig:
             raise ValueError("control_dt and duration must be positive [s]")
 
 
+#: Info keys of the person's intended object motion (:func:`skill_object_target`): the pen's
+#: height above its start [m] and its tilt [rad] as their plan means them now. A recorded
+#: session keeps them, so it carries the object trajectory it was meant to follow.
+TARGET_INFO: tuple[str, str] = ("target_height", "target_tilt")
 #: ``info["fault"]`` when the calibration turns the glove's readings into NaN or inf (a
 #: broken calibration): the step keeps the last finite targets and ends the episode.
 NONFINITE_THETA_FAULT = "calibration gave non-finite joint angles (check the glove profile)"
@@ -238,8 +242,11 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     ``info["operator_failure"]`` says why the simulated person failed on their side (``""``:
     they did not; e.g. ``"dropped the pen"``: they saw it fall and gave up).
     ``info["skill_phase"]``: 0 before the skill's own motion (or without a skill), 1 during
-    it, 2 after; a recorded session keeps it, so its timeline travels with it
-    (:func:`~ias_gym.skills.glove_session.motion_window`).
+    it, 2 after; ``info["target_height"]`` [m] and ``info["target_tilt"]`` [rad]: the
+    intended object motion the reward follows (:data:`TARGET_INFO`). A recorded session keeps
+    them, so its timeline and its intended object trajectory travel with it
+    (:func:`~ias_gym.skills.glove_session.motion_window`,
+    :func:`~ias_gym.skills.glove_session.object_target`).
 
     ## Arguments
     ``render_mode`` (``None`` or ``"rgb_array"``), ``person``, ``calibration`` and
@@ -526,6 +533,7 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             "thumb_contact": self._touch[1],
             "operator_failure": self._operator_failure(),
             "skill_phase": self._skill_phase(),
+            **dict(zip(TARGET_INFO, self._target(), strict=True)),
         }
 
     def _skill_phase(self) -> int:
@@ -543,14 +551,20 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             return ""
         return op.infeasible or op.failure
 
+    def _target(self) -> tuple[float, float]:
+        """The person's intended (pen height [m], tilt [rad]) now
+        (:func:`~ias_gym.glove.skills.skill_object_target`); the pinch-lift's without a skill."""
+        return skill_object_target(
+            self.config.skill, self._steps * self.config.control_dt, self.style
+        )
+
     def _rewards(self, action: FloatArray) -> dict[str, float]:
         cfg = self.config
         dz = float(self.data.xpos[self._pen_body][2] - self._pen_start[2])
         if cfg.skill is None:  # the pinch-lift alone: up to lift_height
             lift, track = min(max(dz / cfg.lift_height, 0.0), 1.0), 0.0
         else:  # the skill's intended object motion, as this person means to do it
-            t = self._steps * cfg.control_dt
-            height, target = skill_object_target(cfg.skill, t, self.style)
+            height, target = self._target()
             lift = _tolerance(dz - height, HEIGHT_TOLERANCE)
             tilt = pen_tilt(self.data.xquat[self._pen_body]) - self._tilt_start
             track = _tolerance(tilt - target, TILT_TOLERANCE)

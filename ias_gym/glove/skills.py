@@ -229,8 +229,14 @@ def person_parameters(person_id: str) -> dict[str, float]:
     Raises:
         InputError: an invalid id.
     """
-    hand = PersonParams.sample(person_id).to_dict()
-    values = {**hand, **asdict(SkillStyle.sample(person_id))}
+    return parameters_of(PersonParams.sample(person_id), SkillStyle.sample(person_id))
+
+
+def parameters_of(person: PersonParams, style: SkillStyle) -> dict[str, float]:
+    """:func:`person_parameters` of a given hand and style (e.g. a glove env's, which a
+    recording stores with the session)."""
+    hand = person.to_dict()
+    values = {**hand, **asdict(style)}
     out = {
         key: float(value)
         for key, value in values.items()

@@ -67,7 +67,7 @@ changed)::
     skills(id INTEGER PRIMARY KEY AUTOINCREMENT, name, task, source, person_id, created,
            package_version, seed, env_kwargs (JSON), is_success, episode_return, length,
            duration [s], observation_dim, initial_observation (float64 bytes),
-           initial_observation_checksum (version 2))
+           initial_observation_checksum (version 2), person_params (JSON, version 3))
     arrays(id INTEGER PRIMARY KEY, skill_id -> skills(id) ON DELETE CASCADE,
            part ('demo' | 'info' | 'model'), name, dtype, shape (JSON), data BLOB,
            checksum (version 2), UNIQUE(skill_id, part, name))
@@ -84,6 +84,7 @@ from __future__ import annotations
 import json
 import sqlite3
 import time
+from collections.abc import Mapping
 from datetime import datetime, timezone
 from pathlib import Path
 from types import TracebackType
@@ -99,6 +100,7 @@ from ias_gym.skills.db_schema import (
     APPLICATION_ID,
     CHECKSUM_VERSION,
     MIGRATIONS,
+    PERSON_VERSION,
     SCHEMA_VERSION,
 )
 from ias_gym.skills.db_sqlite import (
@@ -114,6 +116,8 @@ from ias_gym.skills.skill import (
     Demonstration,
     Skill,
     SkillModel,
+    check_person_params,
+    check_storable_array,
 )
 
 # The names other modules and the tests import from here (the code lives in db_*.py).
@@ -125,6 +129,7 @@ __all__ = [
     "MAX_LISTED_IDS",
     "MIGRATIONS",
     "MODEL_ARRAYS",
+    "PERSON_VERSION",
     "SCHEMA_VERSION",
     "Demonstration",
     "Skill",
@@ -214,6 +219,7 @@ class SkillDB(SkillQueries):
                     self._use_wal(timeout)
                     self._migrate()
                 self._checksums = self._pragma("user_version") >= CHECKSUM_VERSION
+                self._person_params = self._pragma("user_version") >= PERSON_VERSION
         except BaseException:
             conn.close()
             self._conn = None
@@ -384,13 +390,14 @@ class SkillDB(SkillQueries):
             int(first.size),
             first.tobytes(),
             _initial_observation_checksum(first.tobytes()),
+            _person_json(skill.person_params),
         )
         with self._errors("write"), self._transaction():
             cur = self.conn.execute(
                 "INSERT INTO skills (name, task, source, person_id, created, package_version, "
                 "seed, env_kwargs, is_success, episode_return, length, duration, "
-                "observation_dim, initial_observation, initial_observation_checksum) "
-                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                "observation_dim, initial_observation, initial_observation_checksum, "
+                "person_params) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 record,
             )
             skill_id = cur.lastrowid
@@ -401,6 +408,61 @@ class SkillDB(SkillQueries):
                 [(skill_id, *row) for row in encoded],
             )
         return int(skill_id)
+
+    def describe(
+        self,
+        skill_id: int,
+        *,
+        infos: Mapping[str, NDArray[Any]] | None = None,
+        person_params: Mapping[str, float] | None = None,
+    ) -> None:
+        """Add what a skill stored before lacks, in one transaction: demonstration ``infos``
+        it does not have yet (an info it has is never replaced) and, where it has none, its
+        person's parameters (:func:`ias_gym.skills.glove_session.describe_session` computes
+        them; ``ias-gym skills migrate`` runs it).
+
+        Raises:
+            SkillNotFoundError: no skill has this id.
+            ValueError: an info of the wrong length, or invalid parameters (nothing stored).
+            SkillDBError: the skill has the info or the parameters already, or the database
+                is read-only.
+        """
+        self._check_writable()
+        summary = self.summary(skill_id)
+        new = dict(infos or {})
+        for key, value in new.items():
+            check_storable_array(f"infos[{key!r}]", value)
+            if len(value) != summary.length + 1:
+                raise ValueError(
+                    f"infos[{key!r}] must have {summary.length + 1} rows (reset + one per "
+                    f"step) for skill {skill_id}, got shape {value.shape}"
+                )
+        if person_params is not None:
+            check_person_params(person_params)
+            if summary.person_params is not None:
+                raise SkillDBError(f"skill {skill_id} in {self.path} has its person_params")
+        encoded = [("info", key, *_encode(value)) for key, value in sorted(new.items())]
+        with self._errors("write"), self._transaction():
+            have = {
+                r[0]
+                for r in self.conn.execute(
+                    "SELECT name FROM arrays WHERE skill_id = ? AND part = 'info'", (skill_id,)
+                )
+            }
+            if have & new.keys():
+                raise SkillDBError(
+                    f"skill {skill_id} in {self.path} has the infos {sorted(have & new.keys())}"
+                )
+            self.conn.executemany(
+                "INSERT INTO arrays (skill_id, part, name, dtype, shape, data, checksum) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                [(int(skill_id), *row) for row in encoded],
+            )
+            if person_params is not None:
+                self.conn.execute(
+                    "UPDATE skills SET person_params = ? WHERE id = ?",
+                    (_person_json(person_params), int(skill_id)),
+                )
 
     def delete(self, skill_id: int) -> str:
         """Delete a skill and its arrays (one transaction), whatever state its arrays are in
@@ -422,3 +484,10 @@ class SkillDB(SkillQueries):
                 raise self._not_found(skill_id)
             self.conn.execute("DELETE FROM skills WHERE id = ?", (int(skill_id),))
         return str(row[0])
+
+
+def _person_json(params: Mapping[str, float] | None) -> str | None:
+    """A person's parameters as stored (sorted JSON of numbers), or None."""
+    if params is None:
+        return None
+    return json.dumps(check_person_params(params), sort_keys=True, allow_nan=False)

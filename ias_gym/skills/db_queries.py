@@ -20,7 +20,14 @@ from numpy.typing import NDArray
 
 from ias_gym.skills.db_arrays import _decode, array_checksum
 from ias_gym.skills.db_sqlite import SkillDBError, SkillNotFoundError
-from ias_gym.skills.skill import DEMO_ARRAYS, MODEL_ARRAYS, Demonstration, Skill, SkillModel
+from ias_gym.skills.skill import (
+    DEMO_ARRAYS,
+    MODEL_ARRAYS,
+    Demonstration,
+    Skill,
+    SkillModel,
+    check_person_params,
+)
 
 if TYPE_CHECKING:
     from ias_gym.skills.db_sqlite import _ErrorTranslation, _Transaction
@@ -28,7 +35,8 @@ if TYPE_CHECKING:
 #: An unknown id's error lists the ids there are up to this many (else their range).
 MAX_LISTED_IDS = 20
 
-#: Columns of ``skills`` that make up a :class:`SkillSummary` (in its field order).
+#: Columns of ``skills`` that make up a :class:`SkillSummary` (in its field order), without
+#: the last, ``person_params`` (:meth:`SkillQueries._summary_columns`).
 _SUMMARY_COLUMNS = (
     "id, name, task, source, person_id, created, package_version, seed, env_kwargs, "
     "is_success, episode_return, length, duration"
@@ -59,15 +67,18 @@ class SkillSummary:
     episode_return: float
     length: int
     duration: float
+    person_params: dict[str, float] | None = None
 
     @classmethod
     def _from_row(cls, row: tuple[Any, ...], path: Path) -> SkillSummary:
         (id_, name, task, source, person, created, version, seed, kwargs) = row[:9]
-        success, ret, length, duration = row[9:13]
+        success, ret, length, duration, params = row[9:14]
         try:
             env_kwargs = json.loads(kwargs)
             if not isinstance(env_kwargs, dict):
                 raise TypeError(f"a {type(env_kwargs).__name__}, not an object")
+            # JSON of plain numbers: parsing it runs no code
+            person_params = None if params is None else check_person_params(json.loads(params))
             return cls(
                 id=int(id_),
                 name=name,
@@ -82,6 +93,7 @@ class SkillSummary:
                 episode_return=float(ret),
                 length=int(length),
                 duration=float(duration),
+                person_params=person_params,
             )
         except (TypeError, ValueError) as exc:  # a damaged row: one error type, its id
             raise SkillDBError(
@@ -104,6 +116,7 @@ class SkillQueries:
     path: Path
     readonly: bool
     _checksums: bool
+    _person_params: bool
 
     if TYPE_CHECKING:
 
@@ -118,6 +131,11 @@ class SkillQueries:
         def _transaction(self, mode: str = "IMMEDIATE") -> _Transaction: ...
 
     # ------------------------------------------------------------------ reads
+    def _summary_columns(self) -> str:
+        """The :class:`SkillSummary` columns (``NULL`` for a file before ``person_params``)."""
+        person = "person_params" if self._person_params else "NULL"
+        return f"{_SUMMARY_COLUMNS}, {person}"
+
     def _check_writable(self) -> None:
         if self.readonly:
             raise SkillDBError(f"skill database {self.path} is open read-only; open it with "
@@ -142,7 +160,7 @@ class SkillQueries:
             task: only skills of this env id.
             success: only successful (``True``) or failed (``False``) ones; ``None``: all.
         """
-        query = f"SELECT {_SUMMARY_COLUMNS} FROM skills"
+        query = f"SELECT {self._summary_columns()} FROM skills"
         where, params = _filters(task, success)
         with self._errors("read"):
             rows = self.conn.execute(f"{query}{where} ORDER BY id", params).fetchall()
@@ -170,7 +188,7 @@ class SkillQueries:
         """
         with self._errors("read"):
             row = self.conn.execute(
-                f"SELECT {_SUMMARY_COLUMNS} FROM skills WHERE id = ?", (int(skill_id),)
+                f"SELECT {self._summary_columns()} FROM skills WHERE id = ?", (int(skill_id),)
             ).fetchone()
             if row is None:
                 raise self._not_found(skill_id)
@@ -191,7 +209,7 @@ class SkillQueries:
         checksum = "checksum" if self._checksums else "NULL"
         with self._errors("read"), self._transaction("DEFERRED"):  # one consistent snapshot
             row = self.conn.execute(
-                f"SELECT {_SUMMARY_COLUMNS} FROM skills WHERE id = ?", (int(skill_id),)
+                f"SELECT {self._summary_columns()} FROM skills WHERE id = ?", (int(skill_id),)
             ).fetchone()
             if row is None:
                 raise self._not_found(skill_id)
@@ -222,6 +240,7 @@ class SkillQueries:
             seed=summary.seed,
             person_id=summary.person_id,
             env_kwargs=summary.env_kwargs,
+            person_params=summary.person_params,
             id=summary.id,
             created=summary.created,
             package_version=summary.package_version,
@@ -328,7 +347,7 @@ class SkillQueries:
         checksum = "initial_observation_checksum" if self._checksums else "NULL"
         with self._errors("read"):
             rows = self.conn.execute(
-                f"SELECT {_SUMMARY_COLUMNS}, initial_observation, {checksum} FROM skills"
+                f"SELECT {self._summary_columns()}, initial_observation, {checksum} FROM skills"
                 f"{where} ORDER BY id",
                 (*params, obs.size),
             ).fetchall()

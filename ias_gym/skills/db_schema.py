@@ -13,10 +13,13 @@ from collections.abc import Callable
 
 from ias_gym.skills.db_arrays import _initial_observation_checksum, array_checksum
 
-#: The schema version this code writes (``PRAGMA user_version``); 2 added the checksums.
-SCHEMA_VERSION = 2
+#: The schema version this code writes (``PRAGMA user_version``); 2 added the checksums, 3 the
+#: person's parameters.
+SCHEMA_VERSION = 3
 #: The first schema version with array checksums.
 CHECKSUM_VERSION = 2
+#: The first schema version with a skill's ``person_params`` (JSON, NULL where not known).
+PERSON_VERSION = 3
 #: ``PRAGMA application_id`` of a skill database: ASCII "IASS".
 APPLICATION_ID = 0x49415353
 
@@ -85,9 +88,17 @@ def _migrate_1_to_2(conn: sqlite3.Connection) -> None:
         )
 
 
+def _migrate_2_to_3(conn: sqlite3.Connection) -> None:
+    """Version 3 adds the demonstrating person's parameters (a JSON object of numbers, NULL
+    where they are not known: every skill stored before; ``ias-gym skills migrate`` fills
+    them in for the simulated persons' glove sessions)."""
+    conn.execute("ALTER TABLE skills ADD COLUMN person_params TEXT")
+
+
 #: ``MIGRATIONS[v]`` turns a version-``v`` database into version ``v + 1`` (inside a
 #: transaction that also sets ``user_version``).
 MIGRATIONS: dict[int, Callable[[sqlite3.Connection], None]] = {
     0: _migrate_0_to_1,
     1: _migrate_1_to_2,
+    2: _migrate_2_to_3,
 }

@@ -33,9 +33,10 @@ The env has no expert: a glove session is teleoperation (the ``teleop`` policy o
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ias_gym.baselines.policies import TELEOP
 from ias_gym.skills.skill import Skill, SkillModelSamples
@@ -103,6 +104,11 @@ class GloveSkillModelRecorder(SkillModelSamples):
 
 #: Demonstration info key of the skill's phase per sample (``IAS-GloveGrasp-v0``).
 PHASE_INFO = "skill_phase"
+#: Demonstration info keys of the person's intended pen height [m] and tilt [rad] per sample
+#: (``IAS-GloveGrasp-v0``'s ``TARGET_INFO``).
+TARGET_INFO: tuple[str, str] = ("target_height", "target_tilt")
+#: The env whose sessions are a simulated person's (their parameters come from the id).
+SIMULATED_TASK = "IAS-GloveGrasp-v0"
 
 
 def motion_window(skill: Skill) -> tuple[float, float] | None:
@@ -122,3 +128,57 @@ def motion_window(skill: Skill) -> tuple[float, float] | None:
     ended = np.flatnonzero(phase >= 2)
     start = float(time[begun[0]])
     return start, float(time[ended[0]]) if ended.size else float(time[-1])
+
+
+def object_target(skill: Skill) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """``(height [m], tilt [rad])`` per sample: the object motion the person meant to do, from
+    the record (:data:`TARGET_INFO`), or None for a record without it."""
+    infos = skill.demonstration.infos
+    if not all(key in infos for key in TARGET_INFO):
+        return None
+    height, tilt = (np.asarray(infos[key], dtype=np.float64) for key in TARGET_INFO)
+    return height, tilt
+
+
+def describe_session(skill: Skill) -> tuple[dict[str, NDArray[Any]], dict[str, float] | None, str]:
+    """What a stored simulated person's session lacks of its own description, computed once.
+
+    A session of :data:`SIMULATED_TASK` recorded with its phases (:data:`PHASE_INFO`: the
+    person generator of today made it) but without its intended object motion
+    (:data:`TARGET_INFO`) or its person's parameters gets them from the person generator by
+    its person id and skill, as the env would have stored them (the motion starts at the
+    recorded phase's start; the parameters are
+    :func:`~ias_gym.glove.skills.person_parameters`). ``ias-gym skills migrate`` stores them
+    (:meth:`~ias_gym.skills.db.SkillDB.describe`); no consumer recomputes them.
+
+    Returns:
+        ``(infos to add, person parameters to add or None, why a simulated person's session
+        cannot be described: "" when it can, or when nothing is missing or it is no such
+        session)``.
+    """
+    from ias_gym.glove.skills import SKILLS, SkillStyle, person_parameters, skill_object_target
+
+    infos = skill.demonstration.infos
+    # the env's skill (a glove skill's record is named after it, env_kwargs may be empty)
+    name = skill.env_kwargs.get("skill", skill.name if skill.name in SKILLS else None)
+    if skill.task != SIMULATED_TASK or skill.person_id is None:
+        return {}, None, ""  # not a simulated person's session: nothing to describe
+    if name is not None and name not in SKILLS:
+        return {}, None, f"an unknown skill {name!r}"
+    if PHASE_INFO not in infos:
+        return (
+            {},
+            None,
+            "recorded before sessions stored their phases, by a person generator that differs "
+            "from today's: record it anew (`ias-gym skills record`)",
+        )
+    add: dict[str, NDArray[Any]] = {}
+    if not all(key in infos for key in TARGET_INFO):
+        style = SkillStyle.sample(skill.person_id)
+        targets = np.array(
+            [skill_object_target(name, float(t), style) for t in skill.model.time],
+            dtype=np.float64,
+        )
+        add = {key: targets[:, i] for i, key in enumerate(TARGET_INFO) if key not in infos}
+    person = None if skill.person_params is not None else person_parameters(skill.person_id)
+    return add, person, ""

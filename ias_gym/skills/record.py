@@ -33,7 +33,7 @@ from tqdm import tqdm
 from ias_gym.baselines.policies import Policy, RandomPolicy, load_policy, policy_source
 from ias_gym.errors import InputError
 from ias_gym.glove.ids import check_id
-from ias_gym.glove.skills import check_skill
+from ias_gym.glove.skills import check_skill, parameters_of
 from ias_gym.grasp.grip_transform import GraspRankError, GripTransform
 from ias_gym.parallel import SERIAL, Backend, iter_jobs, prepare_here, worker_resource
 from ias_gym.skills.db import SkillDB
@@ -233,6 +233,9 @@ def record_episode(
         seed=seed,
         person_id=person_id,
         env_kwargs=dict(env_kwargs or {}),
+        person_params=(
+            None if glove_env is None else parameters_of(glove_env.person, glove_env.style)
+        ),
     )
 
 

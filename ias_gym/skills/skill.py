@@ -361,6 +361,10 @@ class Skill:
         seed: the episode's reset seed (``None``: not seeded, e.g. a glove session).
         person_id: who demonstrated it (glove sessions), optional.
         env_kwargs: keyword arguments the env was made with (JSON-serialisable).
+        person_params: the demonstrating person's parameters by name, where they are known
+            (a simulated person's drawn hand and style:
+            :func:`~ias_gym.glove.skills.person_parameters`); ``None`` otherwise (a real
+            glove's wearer, a policy).
         id, created, package_version: filled in by the database (``None`` before storing).
     """
 
@@ -373,6 +377,7 @@ class Skill:
     seed: int | None = None
     person_id: str | None = None
     env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    person_params: Mapping[str, float] | None = None
     id: int | None = None
     created: str | None = None
     package_version: str | None = None
@@ -404,8 +409,32 @@ class Skill:
             raise ValueError(f"env_kwargs must be JSON-serialisable: {exc}") from exc
         if "person_id" in self.env_kwargs:  # re-creating the env would name files with it
             check_id(self.env_kwargs["person_id"], "skill env_kwargs person_id")
+        if self.person_params is not None:
+            check_person_params(self.person_params)
         self.demonstration.validate()
         self.model.validate(samples=self.demonstration.length + 1)
+
+
+def check_person_params(value: object, what: str = "skill person_params") -> dict[str, float]:
+    """``value`` as a person's parameters: a mapping of non-empty names to finite numbers.
+
+    Raises:
+        ValueError: saying which entry is wrong.
+    """
+    if not isinstance(value, Mapping):
+        raise ValueError(
+            f"{what} must be a mapping of names to numbers, got {type(value).__name__}"
+        )
+    out: dict[str, float] = {}
+    for key, number in value.items():
+        if not isinstance(key, str) or not key:
+            raise ValueError(f"{what} names must be non-empty strings, got {key!r}")
+        if isinstance(number, bool) or not isinstance(number, (int, float, np.number)):
+            raise ValueError(f"{what}[{key!r}] must be a number, got {number!r}")
+        if not np.isfinite(number):
+            raise ValueError(f"{what}[{key!r}] must be finite, got {number!r}")
+        out[key] = float(number)
+    return out
 
 
 def check_storable_array(what: str, value: Any) -> None:

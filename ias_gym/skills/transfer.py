@@ -111,11 +111,9 @@ def hand_workspace(hand: str) -> HandWorkspace:
 def skill_start_index(skill: Skill) -> int:
     """The sample where the skill's own motion starts: the grasp is established.
 
-    A glove session stores where its skill's motion starts (:func:`motion_window`); a record
-    made before it did names a skill of the glove-skills library and its person, whose
-    start the person generator gives (``ias_gym.glove.skills.skill_start_time``);
-    otherwise it is the first sample from which every finger touches the object and the
-    internal forces are defined.
+    A glove session stores where its skill's motion starts (:func:`motion_window`); for
+    any other record it is the first sample from which every finger touches the object and
+    the internal forces are defined.
 
     Raises:
         SkillTransferError: the fingers never hold the object together.
@@ -124,14 +122,6 @@ def skill_start_index(skill: Skill) -> int:
     window = motion_window(skill)
     if window is not None:
         return int(np.searchsorted(model.time, window[0] - 1e-9))
-    try:
-        from ias_gym.glove.skills import SKILLS, skill_start_time
-
-        if skill.name in SKILLS and skill.person_id is not None:
-            start = skill_start_time(skill.name, skill.person_id)
-            return int(np.searchsorted(model.time, start - 1e-9))
-    except ImportError:
-        pass
     held = model.touching.all(axis=1) & np.all(np.isfinite(model.c_h), axis=1)
     if not held.any():
         raise SkillTransferError(
