@@ -28,15 +28,19 @@ FloatArray = NDArray[np.float64]
 #: 2 N (measured; the pen weighs 1 N, mu = 0.25).
 PEN_PAD_GAP = -0.004
 #: Pen pinches (thumb CMC, thumb flexion, index DIP) [rad], the first in reach (and in the
-#: person's range of motion) is used: poses inside the calibration sessions' pinch range. The
-#: last, less opposed one is the pinch of a thumb whose range of motion is a fifth below the
-#: population's (``range_of_motion`` < 0.84: 4 % of persons, whose thumb cannot reach 1.0).
+#: person's range of motion) is used: poses inside the calibration sessions' pinch range. A
+#: thumb that cannot oppose to 1.1 rad flexes less (0.2 rad) first, so that the index comes
+#: onto the pen in the posture of the typical pinch (MCP about 0.7-0.8 rad, PIP 0.4-0.6 rad):
+#: in the virtual world the pen rests on the thumb's pad and the index presses it from the
+#: side, and a more flexed index (MCP below 0.6 rad) holds it too loosely for a tilt
+#: (measured on development persons). The last, least opposed one is for a thumb whose range
+#: of motion is a fifth below the population's (``range_of_motion`` < 0.84: 4 % of persons).
 PEN_PINCH_POSES: tuple[tuple[float, float, float], ...] = (
     (1.1, 0.4, 0.4),
+    (1.0, 0.2, 0.4),
     (1.0, 0.4, 0.4),
     (1.0, 0.6, 0.6),
     (1.1, 0.4, 0.2),
-    (1.0, 0.2, 0.4),
     (0.9, 0.4, 0.4),
 )
 
@@ -60,7 +64,12 @@ def pen_operator(
     this gap is set to the pen's diameter + :data:`PEN_PAD_GAP` (a person whose
     ``pad_contact`` is the pen's width), so the index comes down on the pen right across from
     the thumb pad: an antipodal pinch whose squeeze passes through the pen's axis (with the
-    bare-pad pinch, the pads meet at 110 degrees around the pen and squeeze it out). The
+    bare-pad pinch, the pads meet at 110 degrees around the pen and squeeze it out). That
+    holds in the person's planar hand; in the scene's hand the thumb's opposition turns its
+    pad out of the index's plane, and in the holds the measured contact normals are about
+    90 degrees apart: the thumb's pad carries the pen from below (about its weight), the
+    index presses on its side (0.1-0.5 N), so a deeper pinch rolls the pen more than it
+    squeezes it (see :data:`PEN_PINCH_POSES`). The
     glove still reads the real person (no pad contact, no pinch cross-talk: the pads touch
     the pen, not each other). The thumb is more opposed than in the default pinch
     (:data:`PEN_PINCH_POSES`) so that the index reaches across a 2 cm pen.
