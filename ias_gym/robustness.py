@@ -25,6 +25,7 @@ from ias_gym.evaluation import (
     make_env,
 )
 from ias_gym.parallel import SERIAL, Backend, prepare_here, run_jobs
+from ias_gym.rates import Rate
 
 #: The classes: name -> env kwargs. A person does not know mu or the pen's mass either.
 DISTURBANCES: dict[str, dict[str, Any]] = {
@@ -54,18 +55,26 @@ class RobustnessRow:
         success_rate: fraction of successful episodes [-].
         episodes: how many episodes.
         env_kwargs: the env kwargs of the class.
+        successes: how many succeeded.
     """
 
     disturbance: str
     success_rate: float
     episodes: int
     env_kwargs: dict[str, Any]
+    successes: int = 0
+
+    @property
+    def rate(self) -> Rate:
+        """The success rate with its 95 % Wilson interval."""
+        return Rate(self.successes, self.episodes)
 
     def as_json(self) -> dict[str, Any]:
-        """The JSON object of ``ias-gym robustness --json``."""
+        """The JSON object of ``ias-gym robustness --json`` (with the 95 % Wilson interval,
+        ``ci95_low``, ``ci95_high``)."""
         return {
             "disturbance": self.disturbance,
-            "success_rate": self.success_rate,
+            **self.rate.to_dict(),
             "episodes": self.episodes,
             "env_kwargs": self.env_kwargs,
         }
@@ -216,7 +225,13 @@ def run_robustness_spec(
     for k, name in enumerate(names):
         successes = [o.is_success for o in outcomes[k * episodes : (k + 1) * episodes]]
         rows.append(
-            RobustnessRow(name, sum(successes) / len(successes), episodes, DISTURBANCES[name])
+            RobustnessRow(
+                name,
+                sum(successes) / len(successes),
+                episodes,
+                DISTURBANCES[name],
+                successes=sum(successes),
+            )
         )
     return rows
 

@@ -24,7 +24,8 @@ def test_robustness_json_lines_and_minimum(capsys: pytest.CaptureFixture[str]) -
     lines = [json.loads(x) for x in capsys.readouterr().out.strip().splitlines()]
     assert [x["disturbance"] for x in lines] == ["nominal", "action_delay_1_step", "all"]
     for row in lines[:2]:
-        assert set(row) >= {"disturbance", "success_rate", "episodes"}
+        assert set(row) >= {"disturbance", "success_rate", "episodes", "ci95_low", "ci95_high"}
+        assert row["ci95_low"] <= row["success_rate"] <= row["ci95_high"] < 1.0  # 0 of 2
         assert row["episodes"] == 2 and row["success_rate"] == 0.0  # random actions fail
     assert lines[-1]["success_rate"] == min(x["success_rate"] for x in lines[:2])
 

@@ -43,10 +43,15 @@ def _robustness(args: argparse.Namespace) -> int:
         print(json.dumps(last))
         return 0
     width = max(len(r.disturbance) for r in rows)
-    print(f"{'disturbance':<{width}}  success  episodes")
+    print(f"{'disturbance':<{width}}  success  95 % interval  episodes")
     for row in rows:
-        print(f"{row.disturbance:<{width}}  {row.success_rate:7.0%}  {row.episodes:8d}")
-    print(f"{'all (minimum)':<{width}}  {last['success_rate']:7.0%}  {last['episodes']:8d}")
+        low, high = row.rate.interval
+        interval = f"[{low:.0%}, {high:.0%}]"
+        rate = f"{row.success_rate:7.0%}"
+        print(f"{row.disturbance:<{width}}  {rate}  {interval:>13}  {row.episodes:8d}")
+    print(
+        f"{'all (minimum)':<{width}}  {last['success_rate']:7.0%}  {'':>13}  {last['episodes']:8d}"
+    )
     return 0
 
 
