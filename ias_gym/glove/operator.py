@@ -28,19 +28,18 @@ FloatArray = NDArray[np.float64]
 #: 2 N (measured; the pen weighs 1 N, mu = 0.25).
 PEN_PAD_GAP = -0.004
 #: Pen pinches (thumb CMC, thumb flexion, index DIP) [rad], the first in reach (and in the
-#: person's range of motion) is used: poses inside the calibration sessions' pinch range. A
-#: thumb that cannot oppose to 1.1 rad flexes less (0.2 rad) first, so that the index comes
-#: onto the pen in the posture of the typical pinch (MCP about 0.7-0.8 rad, PIP 0.4-0.6 rad):
-#: in the virtual world the pen rests on the thumb's pad and the index presses it from the
-#: side, and a more flexed index (MCP below 0.6 rad) holds it too loosely for a tilt
-#: (measured on development persons). The last, least opposed one is for a thumb whose range
-#: of motion is a fifth below the population's (``range_of_motion`` < 0.84: 4 % of persons).
+#: person's range of motion) is used: poses inside the calibration sessions' pinch range. The
+#: last, less opposed one is the pinch of a thumb whose range of motion is a fifth below the
+#: population's (``range_of_motion`` < 0.84: 4 % of persons, whose thumb cannot reach 1.0).
+#: A thumb less opposed than 1.1 rad leaves the index more flexed on the pen (MCP 0.4-0.6
+#: rad instead of 0.7-0.8), which holds it more loosely in a tilt; trying a less flexed thumb
+#: (1.0, 0.2, 0.4) second helped development persons but not held-out ones (CHANGELOG).
 PEN_PINCH_POSES: tuple[tuple[float, float, float], ...] = (
     (1.1, 0.4, 0.4),
-    (1.0, 0.2, 0.4),
     (1.0, 0.4, 0.4),
     (1.0, 0.6, 0.6),
     (1.1, 0.4, 0.2),
+    (1.0, 0.2, 0.4),
     (0.9, 0.4, 0.4),
 )
 
