@@ -32,8 +32,7 @@ PEN_PAD_GAP = -0.004
 #: last, less opposed one is the pinch of a thumb whose range of motion is a fifth below the
 #: population's (``range_of_motion`` < 0.84: 4 % of persons, whose thumb cannot reach 1.0).
 #: A thumb less opposed than 1.1 rad leaves the index more flexed on the pen (MCP 0.4-0.6
-#: rad instead of 0.7-0.8), which holds it more loosely in a tilt; trying a less flexed thumb
-#: (1.0, 0.2, 0.4) second helped development persons but not held-out ones (CHANGELOG).
+#: rad instead of 0.7-0.8), which holds it more loosely in a tilt (measured).
 PEN_PINCH_POSES: tuple[tuple[float, float, float], ...] = (
     (1.1, 0.4, 0.4),
     (1.0, 0.4, 0.4),
