@@ -210,9 +210,9 @@ def run_session(
     skill = str(u.config.skill)
     mean_motion = float(np.mean(motion)) if motion else 0.0
     result = SessionResult(
-        times=obs[:, _OBS_TIME],
-        pen_position=obs[:, OBS_PEN],
-        pen_quat=obs[:, OBS_QUAT],
+        times=obs[:, _OBS_TIME].copy(),
+        pen_position=obs[:, OBS_PEN].copy(),
+        pen_quat=obs[:, OBS_QUAT].copy(),
         env_success=bool(info["is_success"]),
         held=bool(info["index_contact"] and info["thumb_contact"]),
         skill_start=skill_start_time(skill, u.person.person_id),
