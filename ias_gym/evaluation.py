@@ -35,6 +35,7 @@ from ias_gym.baselines.policies import (  # re-exported: the loader's home is th
 from ias_gym.errors import IasGymError, InputError
 from ias_gym.outputs import atomic_output, check_output_file
 from ias_gym.parallel import SERIAL, Backend, prepare_here, run_jobs, worker_resource
+from ias_gym.rollout import FrameRecorder, rollout
 from ias_gym.settings import seed_from_environment
 
 #: Frame rate of evaluation videos [1/s]; the env's frames are thinned to it.
@@ -182,37 +183,42 @@ def run_episode(
 ) -> EpisodeOutcome:
     """Run one episode of ``policy`` from ``env.reset(seed=seed)``.
 
-    The first ``predict`` gets ``episode_start=True`` and ``state=None`` (a stateful
-    policy, the expert's controller, starts afresh); later steps pass the state the
-    previous call returned. Actions are deterministic.
+    The episode is :func:`ias_gym.rollout.rollout`'s: the first ``predict`` gets
+    ``episode_start=True`` and ``state=None`` (a stateful policy, the expert's controller,
+    starts afresh); later steps pass the state the previous call returned. Actions are
+    deterministic.
 
     Args:
         env: the env (not closed here).
         policy: an object with SB3's ``predict``.
         seed: the reset seed.
         reset_options: ``options`` of ``env.reset`` (see :func:`evaluate`).
-        frames: if given, ``env.render()`` of every ``stride``-th step is appended.
+        frames: if given, ``env.render()`` before every ``stride``-th action is appended.
         stride: the frame stride (>= 1).
 
     Returns:
         The outcome.
     """
-    options = dict(reset_options) if reset_options is not None else None
-    obs, info = env.reset(seed=seed, options=options)
-    total, length, done = 0.0, 0, False
-    state: Any = None
-    while not done:
-        if frames is not None and length % stride == 0:
-            frames.append(env.render())  # type: ignore[arg-type]
-        action, state = policy.predict(
-            obs, state=state, episode_start=length == 0, deterministic=True
-        )
-        obs, reward, terminated, truncated, info = env.step(action)
-        total += float(reward)
-        length += 1
-        done = terminated or truncated
-    metrics = env.unwrapped.episode_metrics(info)  # type: ignore[attr-defined]
-    return EpisodeOutcome(bool(info["is_success"]), total, length, metrics)
+    grab = None if frames is None else FrameRecorder(stride, frames)
+    trajectory = rollout(
+        env,
+        policy,
+        seed,
+        reset_options=reset_options,
+        keep_observations=False,
+        keep_infos=False,
+        on_reset=None if grab is None else grab.on_reset,
+        on_step=None if grab is None else grab.on_step,
+    )
+    if frames is not None and trajectory.length % stride == 0:
+        frames.pop()  # a video shows the state before each action, not after the last one
+    metrics = env.unwrapped.episode_metrics(trajectory.final_info)  # type: ignore[attr-defined]
+    return EpisodeOutcome(
+        bool(trajectory.final_info["is_success"]),
+        trajectory.episode_return,
+        trajectory.length,
+        metrics,
+    )
 
 
 def seed_policy(policy: Policy, seed: int) -> None:

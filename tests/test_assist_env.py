@@ -96,7 +96,7 @@ def test_spaces_and_the_upcoming_targets_are_the_next_steps() -> None:
     assert env.action_space.shape == (10,)
     assert obs.shape == env.observation_space.shape == (49,)
     for _ in range(3):
-        upcoming = obs[39:].copy()
+        upcoming = obs[env.unwrapped.observation_layout["upcoming_theta"]].copy()
         obs, *_, info = env.step(np.zeros(10))
         # the assistant sees the targets the hand gets in the next step, not the last ones
         np.testing.assert_array_equal(info["operator_theta"], upcoming)

@@ -66,7 +66,7 @@ def test_sensor_noise_reaches_the_observation_and_the_expert_not_the_state() -> 
     env = gym.make("IAS-PenRotate-v0", force_noise=0.02, joint_velocity_noise=0.02)
     obs, _ = env.reset(seed=0)
     u = env.unwrapped
-    qvel_obs = obs[12:24]
+    qvel_obs = obs[u.observation_layout["joint_velocities"]]
     np.testing.assert_allclose(qvel_obs - u.data.qvel[u.physics.hand_dof_ids], u.sensor_noise.qvel)
     assert 0.005 < np.std(u.sensor_noise.qvel) < 0.05
     expert = ExpertPolicy(env)

@@ -7,8 +7,10 @@ import dataclasses
 import importlib
 import inspect
 
+import gymnasium as gym
 import pytest
 
+import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.envs.glove_grasp import GloveGraspConfig, GloveGraspEnv
 from ias_gym.registration import ENV_SPECS, HARDWARE_ENV_SPECS
 
@@ -66,3 +68,51 @@ def test_env_docstring_arguments_name_every_config_field_and_keyword(env_id: str
         names |= {f.name for f in dataclasses.fields(config)}
     missing = sorted(n for n in names if f"``{n}``" not in arguments)
     assert not missing, f"{cls.__name__}'s ## Arguments does not name {missing}"
+
+
+def observation_table(cls: type) -> list[tuple[str, str]] | None:
+    """``(name, size)`` rows of the first table in the ``## Observation Space`` of ``cls`` or
+    of the first base whose own docstring has one (``As IAS-...``); None: no table."""
+    for klass in cls.__mro__:
+        doc = klass.__dict__.get("__doc__")
+        if not doc or "## Observation Space" not in doc:
+            continue
+        section = inspect.cleandoc(doc).split("## Observation Space", 1)[1].split("\n## ", 1)[0]
+        rows = [
+            [cell.strip() for cell in line.strip().strip("|").split("|")]
+            for line in section.splitlines()
+            if line.strip().startswith("| ``")
+        ]
+        if rows:
+            return [(name.strip("`"), size) for name, size, *_ in rows]
+    return None
+
+
+#: Registered envs whose docstrings list the observation's parts in prose, not as a table.
+NO_OBSERVATION_TABLE = {"IAS-GloveGrasp-v0"}
+
+
+@pytest.mark.parametrize("env_id", sorted(REGISTERED))
+def test_env_docstring_tables_the_observation_layout(env_id: str) -> None:
+    """The docstring's table names the parts of ``env.unwrapped.observation_layout`` in
+    order, with their sizes (``3k``: 3 per finger of the env's hand)."""
+    table = observation_table(env_class(env_id))
+    if env_id in NO_OBSERVATION_TABLE:
+        assert table is None, f"{env_id} has a table now: test it (drop it from the set)"
+        return
+    assert table, f"{env_id}'s ## Observation Space has no table of the observation's parts"
+    if env_id == "IAS-GloveHardware-v0":  # needs a CAN bus; its layout is the glove world's
+        from ias_gym.envs.glove_grasp import OBSERVATION_PARTS
+
+        parts, fingers = OBSERVATION_PARTS, 0
+    else:
+        env = gym.make(env_id)
+        unwrapped = env.unwrapped
+        parts = tuple(
+            (name, s.stop - s.start)
+            for name, s in unwrapped.observation_layout.items()  # type: ignore[attr-defined]
+        )
+        fingers = len(getattr(getattr(unwrapped, "hand", None), "fingers", ()))
+        env.close()
+    sizes = [(name, 3 * fingers if size == "3k" else int(size)) for name, size in table]
+    assert sizes == list(parts)

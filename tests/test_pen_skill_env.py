@@ -46,13 +46,13 @@ def test_spaces_and_the_observations_reference_block() -> None:
     assert env.observation_space.shape == (78,)
     obs, _ = env.reset(seed=0)
     assert env.observation_space.contains(obs) and np.all(np.isfinite(obs))
-    # the reference now and 5, 10 steps ahead sit at 49:55, 55:61, 61:67
-    skill = env.skill
-    assert np.allclose(obs[49:52], skill.position[0]) and np.allclose(obs[52:55], skill.axis[0])
-    assert np.allclose(obs[55:58], skill.position[5]) and np.allclose(
-        obs[61:64], skill.position[10]
-    )
-    assert obs[73] == pytest.approx(skill.margin[0])
+    # the reference now and 5, 10 steps ahead
+    skill, part = env.skill, {k: obs[s] for k, s in env.observation_layout.items()}
+    assert np.allclose(part["reference_position"], skill.position[0])
+    assert np.allclose(part["reference_axis"], skill.axis[0])
+    assert np.allclose(part["reference_position_ahead_5"], skill.position[5])
+    assert np.allclose(part["reference_position_ahead_10"], skill.position[10])
+    assert part["grasp_margin_reference"][0] == pytest.approx(skill.margin[0])
     check_env(env, skip_render_check=True)  # its determinism check compares the infos
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
     assert env.observation_space.contains(obs) and isinstance(reward, float)

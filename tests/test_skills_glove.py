@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from ias_gym.cli.skills import add_skills_commands
-from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.envs.glove_grasp import OBSERVATION, GloveGraspEnv
 from ias_gym.errors import InputError
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.grasp.contacts import wrench_matrix
@@ -94,11 +94,11 @@ def test_pen_trajectory_is_the_lift_in_the_paper_frame(recorded: tuple[Path, lis
             # The observation's pen block (MuJoCo world) is the same motion: paper
             # (x, y, z) = MuJoCo (x, z, -y). Velocities are read from the same qvel; the
             # observed position is from the forward pass before the step's last 1 ms.
-            world = demo.observations[:, 27:30]
+            world = demo.observations[:, OBSERVATION["pen_velocity"]]
             np.testing.assert_array_equal(
                 model.pen_velocity, np.column_stack([world[:, 0], world[:, 2], -world[:, 1]])
             )
-            world = demo.observations[:, 20:23]
+            world = demo.observations[:, OBSERVATION["pen_position"]]
             np.testing.assert_allclose(
                 model.pen_position,
                 np.column_stack([world[:, 0], world[:, 2], -world[:, 1]]),

@@ -165,6 +165,7 @@ def evaluate_group(
 
     from ias_gym.baselines.policies import load_policy
     from ias_gym.evaluation import make_env
+    from ias_gym.rollout import rollout
 
     env = make_env(ENV_ID, hand=hand, skill_db=db, skill_ids=list(ids))
     policy = load_policy(policy_spec, env, seed=seeds[0])
@@ -172,18 +173,19 @@ def evaluate_group(
     runs = [(i, s) for i in range(len(ids)) for s in seeds]
     try:
         for index, seed in tqdm(runs, desc=label, unit="episode", leave=False):
-            obs, info = env.reset(seed=seed, options={"skill": index})
-            done, length, state = False, 0, None
-            while not done:
-                action, state = policy.predict(
-                    obs, state=state, episode_start=length == 0, deterministic=True
-                )
-                if visited is not None:
-                    visited.append((obs, action))
-                obs, _, terminated, truncated, info = env.step(action)
-                length += 1
-                done = terminated or truncated
-            held = not terminated and not info.get("sim_unstable", False)  # pen not dropped
+            trajectory = rollout(
+                env,
+                policy,
+                seed,
+                reset_options={"skill": index},
+                keep_observations=visited is not None,
+                keep_infos=False,
+            )
+            if visited is not None:
+                assert trajectory.observations is not None
+                visited.extend(zip(trajectory.observations[:-1], trajectory.actions, strict=True))
+            info, length = trajectory.final_info, trajectory.length
+            held = not trajectory.terminated and not info.get("sim_unstable", False)  # not dropped
             rows.append(
                 {
                     "skill_id": int(ids[index]),

@@ -101,7 +101,21 @@ class GloveAssistEnv(GloveGraspEnv):
 
     ## Observation Space
     ``(49,)`` float64: IAS-GloveGrasp-v0's 39, then the joint targets the operator's next
-    reading gives (10) [rad] (:attr:`upcoming_theta`).
+    reading gives (10) [rad] (:attr:`upcoming_theta`). By name:
+    ``env.unwrapped.observation_layout[name]`` is the part's slice
+    (:data:`OBSERVATION_PARTS` in order):
+
+    | name | size | content |
+    |---|---|---|
+    | ``joint_angles`` | 10 | hand joint angles [rad], ``JOINT_NAMES`` order |
+    | ``joint_velocities`` | 10 | their velocities [rad/s] |
+    | ``pen_position`` | 3 | pen centre relative to its start, world frame [m] |
+    | ``pen_quat`` | 4 | pen orientation quaternion (w, x, y, z), world frame |
+    | ``pen_velocity`` | 3 | pen centre velocity, world frame [m/s] |
+    | ``pen_omega`` | 3 | pen angular velocity, world frame [rad/s] |
+    | ``feedback_torques`` | 5 | force display on ``ACTUATED_JOINTS`` [N m] |
+    | ``time`` | 1 | episode time [s] |
+    | ``upcoming_theta`` | 10 | the joint targets the operator's next reading gives [rad] |
 
     ## Rewards
     As IAS-GloveGrasp-v0: ``lift``, ``pinch``, ``effort``.

@@ -40,7 +40,9 @@ from numpy.typing import NDArray
 
 from ias_gym.assist.impairments import Impairment, reference_kwargs
 from ias_gym.envs.glove_grasp import OBSERVATION
+from ias_gym.glove.hand import N_JOINTS
 from ias_gym.glove.skills import SKILL_TIMINGS, skill_start_time
+from ias_gym.rollout import rollout
 
 FloatArray = NDArray[np.float64]
 
@@ -83,6 +85,45 @@ class Assistant(Protocol):
 
     def posterior(self) -> dict[str, float]:
         """The recogniser's posterior after the last :meth:`act` (empty if none)."""
+
+
+class AssistantPolicy:
+    """An :class:`Assistant` as a policy of :func:`~ias_gym.rollout.rollout` (SB3's
+    ``predict``), or the operator alone (``assistant=None``: zero actions).
+
+    At an episode's start the assistant is reset on the unwrapped env; every step it acts on
+    the env (not on the observation), its action clipped to [-1, 1], and its recogniser's
+    most probable skill is appended to :attr:`top` (``""`` if it has no posterior).
+
+    Args:
+        env: the assist env the rollout steps (wrappers allowed).
+        assistant: the assistant, or None.
+    """
+
+    def __init__(self, env: gym.Env[Any, Any], assistant: Assistant | None) -> None:
+        self.env: Any = env.unwrapped
+        self.assistant = assistant
+        self.shape = env.action_space.shape or (N_JOINTS,)
+        #: The recogniser's top skill at each step so far (empty without an assistant).
+        self.top: list[str] = []
+
+    def predict(
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[FloatArray, Any]:
+        """The assistant's action for the env's current state (``observation`` unused)."""
+        if self.assistant is None:
+            return np.zeros(self.shape), state
+        if episode_start:
+            self.assistant.reset(self.env)
+            self.top = []
+        action = np.clip(np.asarray(self.assistant.act(self.env), dtype=np.float64), -1.0, 1.0)
+        post = self.assistant.posterior()
+        self.top.append(max(post, key=post.__getitem__) if post else "")
+        return action, state
 
 
 @dataclass
@@ -155,36 +196,23 @@ def run_session(
         The session's trajectory and measures (``success`` not yet judged).
     """
     u: Any = env.unwrapped
-    obs, info = env.reset(seed=seed, options=options)
-    if assistant is not None:
-        assistant.reset(u)
+    policy = AssistantPolicy(env, assistant)
+    trajectory = rollout(env, policy, seed, reset_options=options)
+    assert trajectory.observations is not None and trajectory.infos is not None
+    obs, infos = trajectory.observations[1:], trajectory.infos[1:]  # after each step
+    info = trajectory.final_info
     scale = float(u.config.action_scale)
-    times, pos, quat, offsets, motion, top, pinched = [], [], [], [], [], [], []
-    theta0: FloatArray | None = None
-    done = False
-    while not done:
-        if assistant is None:
-            action = np.zeros(env.action_space.shape or (10,))
-        else:
-            action = np.clip(np.asarray(assistant.act(u), dtype=np.float64), -1.0, 1.0)
-            post = assistant.posterior()
-            top.append(max(post, key=post.__getitem__) if post else "")
-        obs, _, terminated, truncated, info = env.step(action)
-        theta = np.asarray(info["operator_theta"])
-        theta0 = theta if theta0 is None else theta0
-        offsets.append(float(np.abs(scale * action).sum()))
-        motion.append(float(np.abs(theta - theta0).sum()))
-        times.append(float(obs[_OBS_TIME]))
-        pos.append(np.asarray(obs[OBS_PEN]))
-        quat.append(np.asarray(obs[OBS_QUAT]))
-        pinched.append(bool(info["index_contact"] and info["thumb_contact"]))
-        done = bool(terminated or truncated)
+    theta = [np.asarray(i["operator_theta"]) for i in infos]
+    offsets = [float(np.abs(scale * a).sum()) for a in trajectory.actions]
+    motion = [float(np.abs(t - theta[0]).sum()) for t in theta]
+    pinched = [bool(i["index_contact"] and i["thumb_contact"]) for i in infos]
+    top = policy.top
     skill = str(u.config.skill)
     mean_motion = float(np.mean(motion)) if motion else 0.0
     result = SessionResult(
-        times=np.asarray(times),
-        pen_position=np.asarray(pos),
-        pen_quat=np.asarray(quat),
+        times=obs[:, _OBS_TIME].copy(),
+        pen_position=obs[:, OBS_PEN].copy(),
+        pen_quat=obs[:, OBS_QUAT].copy(),
         env_success=bool(info["is_success"]),
         held=bool(info["index_contact"] and info["thumb_contact"]),
         skill_start=skill_start_time(skill, u.person.person_id),

@@ -1,11 +1,10 @@
 """The policy loader: a policy spec (a string of the command line) -> a policy object.
 
 A policy is any object with Stable-Baselines3's ``predict(obs, state=None,
-episode_start=None, deterministic=True) -> (action, state)`` (:class:`Policy`), as SB3's
-``evaluate_policy`` takes: the loops of :mod:`ias_gym.evaluation` and
-:mod:`ias_gym.skills.record` (layers above this one) take such objects and pass
-``episode_start=True`` on the first step of each episode, which resets a stateful one (the
-expert's controller).
+episode_start=None, deterministic=True) -> (action, state)`` (:class:`Policy`, defined with
+the episode loop :func:`ias_gym.rollout.rollout` and re-exported here), as SB3's
+``evaluate_policy`` takes: the rollout passes ``episode_start=True`` on the first step of
+each episode, which resets a stateful one (the expert's controller).
 
 :func:`load_policy` is the one place that dispatches on policy names: ``expert`` (the
 grip-transform controller of the pen tasks, :class:`~ias_gym.baselines.expert.ExpertPolicy`),
@@ -20,37 +19,15 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
 from ias_gym.baselines.batch import batch_size
 from ias_gym.errors import IasGymError, InputError
+from ias_gym.rollout import Policy  # re-exported: the protocol every episode loop calls
 from ias_gym.safe_sb3 import LoadedPolicy, load_sb3_policy
-
-
-class Policy(Protocol):
-    """Stable-Baselines3's policy interface: what the evaluation and recording loops call."""
-
-    def predict(
-        self,
-        observation: Any,
-        state: Any = None,
-        episode_start: Any = None,
-        deterministic: bool = True,
-    ) -> tuple[Any, Any]:
-        """The action for ``observation`` and the policy's next ``state``.
-
-        Args:
-            observation: the env's observation, or a batch ``(n, *obs_shape)`` from a vector
-                env (then the actions are ``(n, *act_shape)``).
-            state: the state the previous call returned (``None`` at an episode's start).
-            episode_start: true on the first step of an episode (a stateful policy resets).
-            deterministic: act deterministically (SB3: the mode of the distribution).
-        """
-        ...
-
 
 #: Loads a policy for an env (the env's spaces, the expert's physics): e.g.
 #: ``lambda env: load_policy("expert", env)``; for loops that build one env per setting.

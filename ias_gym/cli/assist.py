@@ -234,7 +234,9 @@ def _demo(args: argparse.Namespace) -> int:
     import numpy as np
 
     from ias_gym.assist.assistants import AnalyticAssistant, load_templates
+    from ias_gym.assist.evaluation import AssistantPolicy
     from ias_gym.evaluation import write_video
+    from ias_gym.rollout import FrameRecorder, rollout
 
     templates = load_templates(args.db)
     recogniser = _recogniser_factory(args.recogniser, None if args.db is None else Path(args.db))()
@@ -249,19 +251,20 @@ def _demo(args: argparse.Namespace) -> int:
             render_mode="rgb_array",
         )
         u: Any = env.unwrapped
-        env.reset(seed=args.seed)
         assistant = AnalyticAssistant(templates, recogniser) if assisted else None
-        if assistant is not None:
-            assistant.reset(u)
-        frames: list[Any] = [env.render()]
-        done = False
-        while not done:
-            action = assistant.act(u) if assistant is not None else np.zeros(10)
-            _, _, terminated, truncated, _ = env.step(action)
-            frames.append(env.render())
-            done = bool(terminated or truncated)
+        frames = FrameRecorder()  # the reset and every step
+        policy = AssistantPolicy(env, assistant)
+        rollout(
+            env,
+            policy,
+            args.seed,
+            keep_observations=False,
+            keep_infos=False,
+            on_reset=frames.on_reset,
+            on_step=frames.on_step,
+        )
         env.close()
-        runs.append(frames)
+        runs.append(frames.frames)
     n = max(len(r) for r in runs)
     # the shorter session (a dropped pen ends it) holds its last frame
     names = (f"unassisted ({args.impairment})", f"assisted ({args.impairment})")

@@ -22,6 +22,7 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from ias_gym.envs.disturbances import DisturbanceSettings, DisturbanceState, SensorNoise
+from ias_gym.envs.layout import ObservationParts, layout_size, observation_layout
 from ias_gym.envs.pen_hand_types import FloatArray, PenHandConfig, PenReference, PenState
 from ias_gym.envs.window import check_window_possible
 from ias_gym.errors import InputError
@@ -39,6 +40,25 @@ ANGLE_SCALE = math.radians(5.0)  # [rad]
 _TO_PAPER_INDEX = np.array([0, 2, 1])  # and negate the last
 
 
+def pen_observation_parts(n_joints: int, n_fingers: int) -> ObservationParts:
+    """The parts every pen task's observation begins with, in order (paper frame, SI).
+
+    Args:
+        n_joints: the hand's joints (3 per finger).
+        n_fingers: its fingers.
+    """
+    return (
+        ("joint_angles", n_joints),  # hand joint angles [rad], the hand's joint order
+        ("joint_velocities", n_joints),  # [rad/s]
+        ("pen_position", 3),  # pen centre relative to its nominal position [m]
+        ("pen_axis", 3),  # unit vector along the pen's axis (its roll is free)
+        ("pen_velocity", 3),  # [m/s]
+        ("pen_omega", 3),  # angular velocity [rad/s]
+        ("tip_forces", 3 * n_fingers),  # net force of each fingertip on the pen [N], 3 each
+        ("time_fraction", 1),  # time since reset / episode duration [-]
+    )
+
+
 def _as_index(ids: NDArray[np.integer[Any]]) -> slice | NDArray[np.integer[Any]]:
     """``ids`` as a slice when they are consecutive (indexing then gives a view)."""
     if len(ids) and np.array_equal(ids, np.arange(ids[0], ids[0] + len(ids))):
@@ -54,6 +74,10 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
     0.5 N m motors). Out-of-range values are clipped; NaN or inf raise ``ValueError``.
     Contacts are sampled once per step (``control_dt``): a contact gap is measured in whole
     control periods.
+
+    Observation: the parts of :func:`pen_observation_parts`, then the task's
+    (:meth:`_task_observation_parts`); by name in :attr:`observation_layout`
+    (``obs[env.observation_layout["pen_position"]]``).
     """
 
     metadata = {  # noqa: RUF012  (gymnasium's convention)
@@ -171,6 +195,18 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         self.action_space = spaces.Box(-1.0, 1.0, shape=(p.n_hand_dofs,), dtype=np.float32)
         obs_dim = len(self._observation())
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(obs_dim,), dtype=np.float64)
+        #: The observation's parts in order, ``(name, size)`` each (:mod:`ias_gym.envs.layout`).
+        self.observation_parts: ObservationParts = (
+            *pen_observation_parts(len(self._hand_q), p.n_fingers),
+            *self._task_observation_parts(),
+        )
+        #: Names to slices of the observation: ``obs[env.observation_layout["pen_axis"]]``.
+        self.observation_layout = observation_layout(self.observation_parts)
+        if layout_size(self.observation_parts) != obs_dim:
+            raise RuntimeError(
+                f"{type(self).__name__}'s observation parts {self.observation_parts} do not "
+                f"cover its {obs_dim} columns"
+            )
         self._renderer: Any = None
 
     # ------------------------------------------------------------------ task hooks
@@ -192,6 +228,10 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         """Update the task's per-step quantities from ``self.state`` (also at reset)."""
 
     def _task_observation(self) -> FloatArray:
+        raise NotImplementedError
+
+    def _task_observation_parts(self) -> ObservationParts:
+        """The parts of :meth:`_task_observation`, in order (``(name, size)`` each)."""
         raise NotImplementedError
 
     def _task_reward(self) -> dict[str, float]:

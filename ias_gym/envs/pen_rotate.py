@@ -15,6 +15,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from ias_gym.envs.layout import ObservationParts
 from ias_gym.envs.pen_hand_env import (
     POSITION_SCALE,
     FloatArray,
@@ -83,6 +84,25 @@ class PenRotateEnv(PenHandEnv):
     angular velocity (3); the net force of each fingertip on the pen (k x 3); episode time
     fraction (1); the tilt error, target tilt and target tilt rate about z (3); the pen's
     rotation error about the vertical y (1); sin and cos of w t (2).
+
+    By name: ``env.unwrapped.observation_layout[name]`` is the part's slice
+    (:attr:`~ias_gym.envs.pen_hand_env.PenHandEnv.observation_parts` in order); k fingers:
+
+    | name | size | content |
+    |---|---|---|
+    | ``joint_angles`` | 3k | hand joint angles [rad], the hand's joint order |
+    | ``joint_velocities`` | 3k | their velocities [rad/s] |
+    | ``pen_position`` | 3 | pen centre relative to nominal [m] |
+    | ``pen_axis`` | 3 | unit vector along the pen's axis |
+    | ``pen_velocity`` | 3 | pen centre velocity [m/s] |
+    | ``pen_omega`` | 3 | pen angular velocity [rad/s] |
+    | ``tip_forces`` | 3k | net force of each fingertip on the pen, 3 per finger [N] |
+    | ``time_fraction`` | 1 | time since reset / episode duration |
+    | ``tilt_error`` | 1 | the tilt error about z [rad] |
+    | ``target_tilt`` | 1 | the target tilt ``A sin(w t)`` [rad] |
+    | ``target_tilt_rate`` | 1 | its rate [rad/s] |
+    | ``turn_error`` | 1 | the pen's rotation error about the vertical y [rad] |
+    | ``target_phase`` | 2 | sin and cos of w t |
 
     ## Rewards
     Sum of named terms, each in ``info["reward_<name>"]``: ``track`` =
@@ -211,6 +231,15 @@ class PenRotateEnv(PenHandEnv):
         w_t = self.config.frequency * self.time
         return np.array(
             [self._errors[0], target, rate, self._errors[1], math.sin(w_t), math.cos(w_t)]
+        )
+
+    def _task_observation_parts(self) -> ObservationParts:
+        return (
+            ("tilt_error", 1),
+            ("target_tilt", 1),
+            ("target_tilt_rate", 1),
+            ("turn_error", 1),
+            ("target_phase", 2),
         )
 
     def _task_reward(self) -> dict[str, float]:

@@ -20,6 +20,7 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 
+from ias_gym.envs.layout import ObservationParts
 from ias_gym.envs.pen_hand_env import (
     FloatArray,
     PenHandConfig,
@@ -166,6 +167,33 @@ class PenSkillEnv(PenHandEnv):
     error ``axis_ref x axis`` (3); the reference grasp margin and the measured one (clipped
     to 10) (2); the skill's progress (time / skill duration, 1) and its translation and
     rotation scales (2).
+
+    By name: ``env.unwrapped.observation_layout[name]`` is the part's slice
+    (:attr:`~ias_gym.envs.pen_hand_env.PenHandEnv.observation_parts` in order); k fingers:
+
+    | name | size | content |
+    |---|---|---|
+    | ``joint_angles`` | 3k | hand joint angles [rad], the hand's joint order |
+    | ``joint_velocities`` | 3k | their velocities [rad/s] |
+    | ``pen_position`` | 3 | pen centre relative to nominal [m] |
+    | ``pen_axis`` | 3 | unit vector along the pen's axis |
+    | ``pen_velocity`` | 3 | pen centre velocity [m/s] |
+    | ``pen_omega`` | 3 | pen angular velocity [rad/s] |
+    | ``tip_forces`` | 3k | net force of each fingertip on the pen, 3 per finger [N] |
+    | ``time_fraction`` | 1 | time since reset / episode duration |
+    | ``reference_position`` | 3 | the reference pen position now [m] |
+    | ``reference_axis`` | 3 | the reference axis now |
+    | ``reference_position_ahead_5`` | 3 | the reference position 5 control steps ahead [m] |
+    | ``reference_axis_ahead_5`` | 3 | the reference axis 5 control steps ahead |
+    | ``reference_position_ahead_10`` | 3 | the reference position 10 control steps ahead [m] |
+    | ``reference_axis_ahead_10`` | 3 | the reference axis 10 control steps ahead |
+    | ``position_error`` | 3 | pen position minus the reference's [m] |
+    | ``axis_error`` | 3 | ``axis_ref x axis`` |
+    | ``grasp_margin_reference`` | 1 | the grasp margin to hold [-] |
+    | ``grasp_margin`` | 1 | the measured grasp margin, clipped to 10 (0: a finger off) [-] |
+    | ``progress`` | 1 | time / skill duration, at most 1 |
+    | ``scale`` | 1 | the skill's translation scale [-] |
+    | ``scale_rotation`` | 1 | its rotation scale [-] |
 
     ## Rewards
     Sum of named terms, each in ``info["reward_<name>"]``: ``track`` =
@@ -390,6 +418,25 @@ class PenSkillEnv(PenHandEnv):
         values += [*e_p, *cross, self.grasp_margin_reference(), min(margin, MARGIN_CLIP)]
         values += [min(t / max(skill.duration, dt), 1.0), skill.scale, skill.scale_rotation]
         return np.array(values)
+
+    def _task_observation_parts(self) -> ObservationParts:
+        ahead = [
+            part
+            for k in LOOK_AHEAD_STEPS
+            for part in ((f"reference_position_ahead_{k}", 3), (f"reference_axis_ahead_{k}", 3))
+        ]
+        return (
+            ("reference_position", 3),
+            ("reference_axis", 3),
+            *ahead,
+            ("position_error", 3),
+            ("axis_error", 3),
+            ("grasp_margin_reference", 1),
+            ("grasp_margin", 1),
+            ("progress", 1),
+            ("scale", 1),
+            ("scale_rotation", 1),
+        )
 
     def _task_reward(self) -> dict[str, float]:
         cfg = self.config

@@ -15,6 +15,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from ias_gym.envs.layout import ObservationParts
 from ias_gym.envs.pen_hand_env import (
     ANGLE_SCALE,
     POSITION_SCALE,
@@ -98,6 +99,24 @@ class PenSlideEnv(PenHandEnv):
     (4 x 3, MuJoCo contact sensors); episode time fraction (1); per finger its position
     along the pen minus its target (4) and the target's rate (4); the phase as one-hot
     (hold, phases 1-4, settle: 6); the targets along the pen (4).
+
+    By name: ``env.unwrapped.observation_layout[name]`` is the part's slice
+    (:attr:`~ias_gym.envs.pen_hand_env.PenHandEnv.observation_parts` in order):
+
+    | name | size | content |
+    |---|---|---|
+    | ``joint_angles`` | 12 | hand joint angles [rad], the hand's joint order |
+    | ``joint_velocities`` | 12 | their velocities [rad/s] |
+    | ``pen_position`` | 3 | pen centre relative to nominal [m] |
+    | ``pen_axis`` | 3 | unit vector along the pen's axis |
+    | ``pen_velocity`` | 3 | pen centre velocity [m/s] |
+    | ``pen_omega`` | 3 | pen angular velocity [rad/s] |
+    | ``tip_forces`` | 12 | net force of each fingertip on the pen, 3 per finger [N] |
+    | ``time_fraction`` | 1 | time since reset / episode duration |
+    | ``slide_error`` | 4 | each finger's position along the pen minus its target [m] |
+    | ``slide_target_rate`` | 4 | the targets' rates [m/s] |
+    | ``phase`` | 6 | one-hot: hold, phases 1-4, settle |
+    | ``slide_target`` | 4 | the targets along the pen [m] |
 
     ## Rewards
     The sum of named terms, each copied into ``info["reward_<name>"]``:
@@ -241,6 +260,10 @@ class PenSlideEnv(PenHandEnv):
         return np.concatenate(
             [self._slide_errors, self._schedule_obs[min(self._steps, self.max_steps)]]
         )
+
+    def _task_observation_parts(self) -> ObservationParts:
+        n = len(self._nominal_contact_x)
+        return (("slide_error", n), ("slide_target_rate", n), ("phase", 6), ("slide_target", n))
 
     def _task_reward(self) -> dict[str, float]:
         cfg = self.config

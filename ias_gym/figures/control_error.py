@@ -15,6 +15,7 @@ from ias_gym.envs.pen_rotate import PenRotateEnv
 from ias_gym.errors import InputError
 from ias_gym.figures._io import save_png_atomic, write_csv_atomic
 from ias_gym.outputs import prepare_output_dir
+from ias_gym.rollout import FunctionPolicy, rollout
 
 CSV_NAME = "control_error.csv"
 PNG_NAME = "control_error.png"
@@ -72,13 +73,9 @@ def control_error_table(
     )
     pen = env.pen_env
     assert isinstance(pen, PenRotateEnv)
-    env.reset(seed=seed, options=dict(options) if options is not None else None)
     rows = []
-    done = False
-    zero = np.zeros(12)
-    while not done:
-        _, _, terminated, truncated, _ = env.step(zero)
-        done = terminated or truncated
+
+    def sample(*_: Any) -> None:  # after every step
         position, rpy = pen.physics.pen_pose()
         last = env.controller.last
         assert last is not None
@@ -92,6 +89,17 @@ def control_error_table(
                 float(np.linalg.norm(last.c_h_measured - last.c_h_desired)),
             ]
         )
+
+    zero = np.zeros(env.action_space.shape or ())  # the expert alone: no object-level offset
+    rollout(
+        env,
+        FunctionPolicy(lambda _obs: zero),
+        seed,
+        reset_options=options,
+        keep_observations=False,
+        keep_infos=False,
+        on_step=sample,
+    )
     env.close()
     return np.array(rows)
 

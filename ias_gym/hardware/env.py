@@ -44,7 +44,19 @@ class GloveHardwareEnv(GloveGraspEnv):
     As IAS-GloveGrasp-v0: ``Box(-1, 1, (10,))`` joint-target offsets.
 
     ## Observation Space
-    As IAS-GloveGrasp-v0: ``(39,)`` float64.
+    As IAS-GloveGrasp-v0: ``(39,)`` float64. By name: ``env.unwrapped.observation_layout[name]``
+    is the part's slice (:data:`~ias_gym.envs.glove_grasp.OBSERVATION_PARTS` in order):
+
+    | name | size | content |
+    |---|---|---|
+    | ``joint_angles`` | 10 | hand joint angles [rad], ``JOINT_NAMES`` order |
+    | ``joint_velocities`` | 10 | their velocities [rad/s] |
+    | ``pen_position`` | 3 | pen centre relative to its start, world frame [m] |
+    | ``pen_quat`` | 4 | pen orientation quaternion (w, x, y, z), world frame |
+    | ``pen_velocity`` | 3 | pen centre velocity, world frame [m/s] |
+    | ``pen_omega`` | 3 | pen angular velocity, world frame [rad/s] |
+    | ``feedback_torques`` | 5 | force display on ``ACTUATED_JOINTS`` [N m] |
+    | ``time`` | 1 | episode time [s] |
 
     ## Rewards
     As IAS-GloveGrasp-v0: ``lift``, ``pinch`` and ``effort``.

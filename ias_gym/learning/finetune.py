@@ -22,6 +22,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
 from ias_gym.learning.demonstrations import GAMMA
+from ias_gym.rollout import rollout
 
 #: Rewards are multiplied by this while training (values of order one, not 100s) [-].
 REWARD_SCALE = 1.0 - GAMMA
@@ -146,15 +147,9 @@ class KeepBestPolicy(BaseCallback):
         env = gym.make(self.env_id, **self.env_kwargs)
         successes, returns = [], []
         for seed in self.seeds:
-            obs, info = env.reset(seed=seed)
-            total, done = 0.0, False
-            while not done:
-                action = self.model.predict(obs, deterministic=True)[0]
-                obs, reward, terminated, truncated, info = env.step(action)
-                total += float(reward)
-                done = terminated or truncated
-            successes.append(bool(info["is_success"]))
-            returns.append(total)
+            trajectory = rollout(env, self.model, seed, keep_observations=False, keep_infos=False)
+            successes.append(bool(trajectory.final_info["is_success"]))
+            returns.append(trajectory.episode_return)
         env.close()
         return float(np.mean(successes)), float(np.mean(returns))
 

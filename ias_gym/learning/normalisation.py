@@ -24,6 +24,9 @@ import torch
 from numpy.typing import NDArray
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 
+from ias_gym.baselines.policies import RandomPolicy
+from ias_gym.rollout import rollout
+
 FloatArray = NDArray[np.float32]
 
 #: Hidden layers of the actor and of the critic.
@@ -116,16 +119,16 @@ def rollout_statistics(
         env_kwargs: configuration overrides for ``gym.make``.
     """
     env = gym.make(env_id, **dict(env_kwargs or {}))
-    env.action_space.seed(seed)
-    obs, _ = env.reset(seed=seed)
-    rows = [obs]
-    episode = 0
-    for _ in range(steps - 1):
-        obs, _, terminated, truncated, _ = env.step(env.action_space.sample())
-        if terminated or truncated:
-            episode += 1
-            obs, _ = env.reset(seed=seed + episode)
-        rows.append(obs)
+    policy = RandomPolicy(env.action_space, seed)  # one stream of actions over the episodes
+    rows: list[Any] = []
+    episode, budget = 0, max(steps, 1)  # the reset observation at least
+    while len(rows) < budget:  # episode i from seed + i; its final observation is replaced
+        trajectory = rollout(  # by the next episode's reset one, as a vector env does
+            env, policy, seed + episode, max_steps=budget - len(rows) - 1, keep_infos=False
+        )
+        assert trajectory.observations is not None
+        rows.extend(trajectory.observations[:-1] if trajectory.done else trajectory.observations)
+        episode += 1
     env.close()
     return observation_statistics(np.stack(rows), std_floor)
 

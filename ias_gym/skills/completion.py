@@ -23,6 +23,7 @@ from ias_gym.glove.profile_cache import default_calibration
 from ias_gym.glove.skills import SKILLS, check_skill, person_parameters
 from ias_gym.parallel import SERIAL, Backend, run_jobs
 from ias_gym.rates import Rate
+from ias_gym.rollout import FunctionPolicy, rollout
 from ias_gym.sim.glove_scene import load_glove_scene
 
 #: Why a session failed (``SessionOutcome.reason``).
@@ -69,13 +70,13 @@ def glove_session(
         params = person_parameters(person_id)
         return SessionOutcome(person_id, skill, operator, False, "person", str(exc), 0.0, params)
     try:
-        _, info = env.reset(seed=seed)
         zero = np.zeros(env.action_space.shape or (), dtype=np.float32)
-        terminated = truncated = False
-        while not (terminated or truncated):
-            _, _, terminated, truncated, info = env.step(zero)
+        trajectory = rollout(
+            env, FunctionPolicy(lambda _obs: zero), seed, keep_observations=False, keep_infos=False
+        )
     finally:
         env.close()
+    info, terminated = trajectory.final_info, trajectory.terminated
     success = bool(info["is_success"])
     detail = str(info.get("operator_failure", ""))
     if success:

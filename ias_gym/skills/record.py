@@ -36,6 +36,7 @@ from ias_gym.glove.ids import check_id
 from ias_gym.glove.skills import check_skill, parameters_of
 from ias_gym.grasp.grip_transform import GraspRankError, GripTransform
 from ias_gym.parallel import SERIAL, Backend, iter_jobs, prepare_here, worker_resource
+from ias_gym.rollout import rollout
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.glove_session import GloveSkillModelRecorder, glove_session_source
 from ias_gym.skills.skill import Demonstration, Skill, SkillModel, SkillModelSamples
@@ -188,37 +189,28 @@ def record_episode(
                 f'{{"person_id": "{person_id}"}}'
             )
         person_id = person
-    obs, info = env.reset(seed=seed)
-    recorder.sample(unwrapped)
-    if glove_env is not None and glove_env.glove is not None:  # reset opens the glove
-        source = glove_session_source(source, glove_env.glove.glove_id)
-    observations, infos = [obs], [info]
-    actions: list[NDArray[Any]] = []
-    rewards: list[float] = []
-    terminations: list[bool] = []
-    truncations: list[bool] = []
-    done = False
-    action_dtype = env.action_space.dtype or np.float32
-    state: Any = None
-    while not done:
-        raw, state = policy.predict(obs, state=state, episode_start=not actions, deterministic=True)
-        action = np.asarray(raw, dtype=action_dtype)
-        obs, reward, terminated, truncated, info = env.step(action)
+
+    def sample(env: gym.Env[Any, Any], *_: Any) -> None:  # after the reset and every step
         recorder.sample(unwrapped)
-        observations.append(obs)
-        infos.append(info)
-        actions.append(action)
-        rewards.append(float(reward))
-        terminations.append(bool(terminated))
-        truncations.append(bool(truncated))
-        done = terminated or truncated
+
+    trajectory = rollout(
+        env,
+        policy,
+        seed,
+        action_dtype=env.action_space.dtype or np.float32,
+        on_reset=sample,
+        on_step=sample,
+    )
+    if glove_env is not None and glove_env.glove is not None:  # the glove the reset opened
+        source = glove_session_source(source, glove_env.glove.glove_id)
+    assert trajectory.observations is not None and trajectory.infos is not None
     demo = Demonstration(
-        observations=np.stack(observations),
-        actions=np.stack(actions),
-        rewards=np.asarray(rewards, dtype=np.float64),
-        terminations=np.asarray(terminations, dtype=bool),
-        truncations=np.asarray(truncations, dtype=bool),
-        infos=stack_infos(infos),
+        observations=trajectory.observations,
+        actions=trajectory.actions,
+        rewards=trajectory.rewards,
+        terminations=trajectory.terminations,
+        truncations=trajectory.truncations,
+        infos=stack_infos(trajectory.infos),
     )
     default_name = None
     if glove_env is not None:  # a glove skill is named after it
@@ -229,7 +221,7 @@ def record_episode(
         source=source,
         demonstration=demo,
         model=recorder.model(),
-        is_success=bool(info.get("is_success", False)),
+        is_success=trajectory.is_success,
         seed=seed,
         person_id=person_id,
         env_kwargs=dict(env_kwargs or {}),

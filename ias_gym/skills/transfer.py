@@ -45,6 +45,7 @@ from scipy.signal import savgol_filter
 from ias_gym.envs.pen_skill_env import PenSkillConfig, PenSkillEnv, SkillReference
 from ias_gym.errors import InputError
 from ias_gym.grasp.grasp_margin import margin_series
+from ias_gym.rollout import rollout
 from ias_gym.sim import hands
 from ias_gym.sim.pen import rpy_to_matrix
 from ias_gym.skills.db import SkillDB
@@ -508,13 +509,13 @@ def run_transfer(
     )
     try:
         policy: Any = ExpertPolicy(env) if method == "gt" else KinematicPolicy(env)
-        obs, info = env.reset(seed=seed, options={"skill": 0})
         rows: dict[str, list[Any]] = {
             k: [] for k in ("t", "p", "pr", "a", "ar", "m", "mr", "ch", "cf")
         }
         frames: list[NDArray[Any]] = []
 
-        def sample(info: dict[str, Any]) -> None:
+        def sample(_env: Any, *args: Any) -> None:  # after the reset and every step
+            info = args[-1]
             ref = env.reference()
             rows["t"].append(env.time)
             rows["p"].append(env.state.position.copy())
@@ -530,14 +531,19 @@ def run_transfer(
                 if frame is not None:
                     frames.append(frame)
 
-        sample(info)
-        done = False
-        while not done:
-            obs, _, terminated, truncated, info = env.step(policy.predict(obs)[0])
-            sample(info)
-            done = terminated or truncated
+        trajectory = rollout(
+            env,
+            policy,
+            seed,
+            reset_options={"skill": 0},
+            keep_observations=False,
+            keep_infos=False,
+            on_reset=sample,
+            on_step=sample,
+        )
     finally:
         env.close()
+    info = trajectory.final_info
     run = TransferRun(
         hand=hand,
         method=method,
