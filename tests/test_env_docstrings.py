@@ -89,7 +89,7 @@ def observation_table(cls: type) -> list[tuple[str, str]] | None:
 
 
 #: Registered envs whose docstrings list the observation's parts in prose, not as a table.
-NO_OBSERVATION_TABLE = {"IAS-GloveGrasp-v0"}
+NO_OBSERVATION_TABLE: set[str] = set()
 
 
 @pytest.mark.parametrize("env_id", sorted(REGISTERED))

@@ -187,8 +187,6 @@ HEIGHT_FROM = 0.5 * (SKILL_TIMINGS.hold + SKILL_TIMINGS.lift) - SKILL_TIMINGS.re
 #: 0.1 s late, and correcting that dropped the pen: p9, tilt_left, measured).
 HEIGHT_TIME_TOLERANCE = MAX_TIME_SHIFT
 _HEIGHT_SHIFTS = np.linspace(-HEIGHT_TIME_TOLERANCE, HEIGHT_TIME_TOLERANCE, 7)
-#: Column of the glove observation with the pen's height above its start.
-_OBS_HEIGHT = OBSERVATION["pen_position"].start + 2
 
 
 @dataclass(frozen=True)
@@ -263,10 +261,10 @@ def load_templates(db_path: str | Path | None = None) -> dict[str, SkillTemplate
             groups.setdefault(skill.name, []).append(
                 (
                     np.asarray(model.time, dtype=np.float64),
-                    obs[:, :N_JOINTS],
+                    obs[:, OBSERVATION["joint_angles"]],
                     start,
                     margin,
-                    obs[:, _OBS_HEIGHT],
+                    obs[:, OBSERVATION["pen_position"]][:, 2],  # the pen's height [m]
                     float(np.median(normal[k:])),
                 )
             )

@@ -37,7 +37,8 @@ from ias_gym.assist.impairments import (
     stock_person,
 )
 from ias_gym.envs.glove_grasp import OBSERVATION_PARTS as GLOVE_PARTS
-from ias_gym.envs.glove_grasp import GloveGraspEnv, observation_layout
+from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.envs.layout import observation_layout
 from ias_gym.errors import InputError
 from ias_gym.glove.device import GloveDevice, ReachPinchLiftTimings, SimulatedGlove
 from ias_gym.glove.hand import JOINT_HIGH, JOINT_LOW, N_JOINTS, PersonParams

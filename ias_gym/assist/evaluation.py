@@ -4,13 +4,12 @@ A session **succeeds** (:func:`session_success`) when
 
 - the env's own success holds at the end (the pen lifted, or for ``lift_place`` put back,
   still pinched) and both pads touch the pen at the end, and
-- the pen's motion relative to its pose at the skill's start
-  (:func:`~ias_gym.glove.skills.skill_start_time`), from there to the end and at the best
-  time shift up to :data:`MAX_TIME_SHIFT`, stays within
-  :data:`POSITION_TOLERANCE` (RMS of the centre's displacement error) and
-  :data:`ROTATION_TOLERANCE` (RMS of the axis' change error: the skills tilt and turn the
-  pen's axis; its roll about the axis, which the pads set at random, is no part of a skill)
-  of the **unimpaired person's**
+- the pen's motion relative to its pose at the skill's start (the env's ``skill_start``, the
+  phase a recorded session stores), from there to the end and at the best time shift up to
+  :data:`MAX_TIME_SHIFT`, stays within :data:`POSITION_TOLERANCE` (RMS of the centre's
+  displacement error) and :data:`ROTATION_TOLERANCE` (RMS of the axis' change error: the
+  skills tilt and turn the pen's axis; its roll about the axis, which the pads set at random,
+  is no part of a skill) of the **unimpaired person's**
   session: the same person, skill and seed with ``impairment="none"`` and no assistant
   (for ``hand_size``, with the same resized hand:
   :func:`~ias_gym.assist.impairments.reference_kwargs`).
@@ -41,7 +40,7 @@ from numpy.typing import NDArray
 from ias_gym.assist.impairments import Impairment, reference_kwargs
 from ias_gym.envs.glove_grasp import OBSERVATION
 from ias_gym.glove.hand import N_JOINTS
-from ias_gym.glove.skills import SKILL_TIMINGS, skill_start_time
+from ias_gym.glove.skills import SKILL_TIMINGS
 from ias_gym.rollout import rollout
 
 FloatArray = NDArray[np.float64]
@@ -207,7 +206,6 @@ def run_session(
     motion = [float(np.abs(t - theta[0]).sum()) for t in theta]
     pinched = [bool(i["index_contact"] and i["thumb_contact"]) for i in infos]
     top = policy.top
-    skill = str(u.config.skill)
     mean_motion = float(np.mean(motion)) if motion else 0.0
     result = SessionResult(
         times=obs[:, _OBS_TIME].copy(),
@@ -215,7 +213,7 @@ def run_session(
         pen_quat=obs[:, OBS_QUAT].copy(),
         env_success=bool(info["is_success"]),
         held=bool(info["index_contact"] and info["thumb_contact"]),
-        skill_start=skill_start_time(skill, u.person.person_id),
+        skill_start=float(u.skill_start if u.skill_start is not None else 0.0),
         intervention=float(np.mean(offsets)) / mean_motion if mean_motion > 0 else 0.0,
         top_skill=top,
         pinched=np.asarray(pinched, dtype=bool),

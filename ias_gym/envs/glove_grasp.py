@@ -25,6 +25,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from ias_gym.envs.layout import ObservationParts, layout_size, observation_layout
 from ias_gym.errors import InputError
 from ias_gym.glove.calibration import Calibration
 from ias_gym.glove.closed_loop import ClosedLoopOperator, pen_tilt
@@ -77,7 +78,7 @@ __all__ = [
 
 #: The glove world's observation, in order: each part's name and size. :data:`OBSERVATION`
 #: maps the names to their slices; consumers index by name, never by column number.
-OBSERVATION_PARTS: tuple[tuple[str, int], ...] = (
+OBSERVATION_PARTS: ObservationParts = (
     ("joint_angles", len(JOINT_NAMES)),  # hand joint angles [rad], JOINT_NAMES order
     ("joint_velocities", len(JOINT_NAMES)),  # [rad/s]
     ("pen_position", 3),  # pen centre relative to its start, world frame [m]
@@ -89,19 +90,10 @@ OBSERVATION_PARTS: tuple[tuple[str, int], ...] = (
 )
 
 
-def observation_layout(parts: tuple[tuple[str, int], ...]) -> dict[str, slice]:
-    """Names to slices of an observation made of ``parts`` (name, size) in order."""
-    out, start = {}, 0
-    for name, size in parts:
-        out[name] = slice(start, start + size)
-        start += size
-    return out
-
-
 #: Names to slices of the glove world's observation (:data:`OBSERVATION_PARTS`).
 OBSERVATION: dict[str, slice] = observation_layout(OBSERVATION_PARTS)
 #: Size of the glove world's observation.
-OBSERVATION_SIZE = sum(size for _, size in OBSERVATION_PARTS)
+OBSERVATION_SIZE = layout_size(OBSERVATION_PARTS)
 
 
 #: The simulated persons: in the loop (:class:`~ias_gym.glove.closed_loop.ClosedLoopOperator`)
@@ -198,12 +190,19 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     [-1, 1] are clipped; NaN or inf raise ``ValueError``.
 
     ## Observation Space
-    ``(39,)`` float64: hand joint angles (10) [rad] and velocities (10) [rad/s] (JOINT_NAMES
-    order), pen centre relative to its start (3) [m], pen orientation quaternion (4), pen
-    linear (3) [m/s] and angular (3) [rad/s] velocity (world frame), force-display torques on
-    :data:`~ias_gym.glove.device.ACTUATED_JOINTS` (5) [N m], episode time (1) [s]. The parts
-    by name: :attr:`observation_layout` (``env.observation_layout["pen_position"]`` is a
-    slice; :data:`OBSERVATION_PARTS`).
+    ``(39,)`` float64. By name: ``env.unwrapped.observation_layout[name]`` is the part's slice
+    (:data:`OBSERVATION_PARTS` in order):
+
+    | name | size | content |
+    |---|---|---|
+    | ``joint_angles`` | 10 | hand joint angles [rad], ``JOINT_NAMES`` order |
+    | ``joint_velocities`` | 10 | their velocities [rad/s] |
+    | ``pen_position`` | 3 | pen centre relative to its start, world frame [m] |
+    | ``pen_quat`` | 4 | pen orientation quaternion (w, x, y, z), world frame |
+    | ``pen_velocity`` | 3 | pen centre velocity, world frame [m/s] |
+    | ``pen_omega`` | 3 | pen angular velocity, world frame [rad/s] |
+    | ``feedback_torques`` | 5 | force display on ``ACTUATED_JOINTS`` [N m] |
+    | ``time`` | 1 | episode time [s] |
 
     ## Rewards
     The sum of four terms, each in ``info["reward_<name>"]``: ``pinch = contact_weight``
