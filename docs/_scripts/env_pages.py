@@ -80,7 +80,11 @@ def qualify(role: str, target: str, cls: type, module: ModuleType) -> str:
     if target.startswith("ias_gym."):
         return target
     head = target.split(".", 1)[0]
-    if hasattr(cls, head) or (role in ("attr", "meth") and "." not in target) or head in getattr(cls, "__annotations__", {}):
+    if (
+        hasattr(cls, head)
+        or (role in ("attr", "meth") and "." not in target)
+        or head in getattr(cls, "__annotations__", {})
+    ):
         return f"{cls.__module__}.{cls.__qualname__}.{target}"
     if hasattr(module, head):
         return f"{module.__name__}.{target}"

@@ -25,7 +25,7 @@ import numpy as np
 from PIL import Image
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import env_pages  # noqa: E402
+import env_pages
 
 OUT = env_pages.DOCS / "_static" / "envs"
 SIZE = (320, 240)
@@ -56,7 +56,7 @@ def frame(env_id: str) -> Image.Image:
         env = gym.make(env_id, render_mode="rgb_array", **kwargs)
         try:
             env.reset(seed=0)
-            zero = np.zeros(env.action_space.shape)
+            zero = np.zeros(env.action_space.shape or ())
             for _ in range(STEPS.get(env_id, 0)):
                 env.step(zero)
             rgb = env.render()

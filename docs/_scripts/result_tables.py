@@ -134,7 +134,7 @@ def assistance(phase: Mapping[str, Any], oracle: Mapping[str, Any]) -> str:
             for c in columns.values()
             if impairment in c
         ]
-        body.append(row + [str(first["sessions"])])
+        body.append([*row, str(first["sessions"])])
     table = rows(["impairment", "unassisted", *columns, "sessions"], body)
     latency = phase.get("switch_latency", {}).get("analytic+phase")
     note = ""
