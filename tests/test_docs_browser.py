@@ -4,7 +4,8 @@ The site (``docs/_build/html`` as ``make docs`` leaves it, else built here into 
 folder) is served on 127.0.0.1 and each page is loaded in Chromium. A page passes when every
 ``<img>`` has loaded (``complete`` with a ``naturalWidth`` above 0) and the page logged no
 error: no ``console.error``, no uncaught exception, no failed resource (a missing image, a
-script or a MathJax font answered 404 is a ``Log`` error). Skipped, saying why, where
+script or a MathJax font answered 404 is a ``Log`` error) and no formula that MathJax could
+not typeset. Skipped, saying why, where
 Chromium or websocket-client is missing; ``make test`` runs it after ``make docs``
 (``-m browser``).
 """
@@ -42,8 +43,11 @@ IMAGES_JS = """(async () => {
     await MathJax.startup.promise;
   }
   await document.fonts.ready;
-  return Array.from(document.images).map(i => ({
-    src: i.currentSrc || i.src, complete: i.complete, width: i.naturalWidth}));
+  return {
+    images: Array.from(document.images).map(i => ({
+      src: i.currentSrc || i.src, complete: i.complete, width: i.naturalWidth})),
+    mathErrors: Array.from(document.querySelectorAll("mjx-merror")).map(e => e.textContent),
+  };
 })()"""
 
 
@@ -195,8 +199,10 @@ def load(browser: str, url: str) -> tuple[list[dict[str, Any]], list[str]]:
         result = page.send(
             "Runtime.evaluate", expression=IMAGES_JS, awaitPromise=True, returnByValue=True
         )
-        images: list[dict[str, Any]] = result["result"]["value"]
-        return images, page.errors()
+        value: dict[str, Any] = result["result"]["value"]
+        # MathJax shows a formula it cannot typeset as an error box, not on the console
+        errors = [f"mathjax: {text}" for text in value["mathErrors"]]
+        return value["images"], page.errors() + errors
     finally:
         page.close()
         with urllib.request.urlopen(f"{browser}/json/close/{target['id']}", timeout=TIMEOUT):
@@ -225,8 +231,11 @@ def test_every_env_page_loads_with_its_picture(browser: str, base_url: str, env_
     assert any(i["src"].endswith(f"/{env_id}.png") for i in images), images
 
 
-def test_a_page_of_equations_typesets_with_the_local_mathjax(browser: str, base_url: str) -> None:
-    assert_page_loads(browser, f"{base_url}/grasp-model.html")
+@pytest.mark.parametrize("page", ["grasp-model.html", "control-law.html"])
+def test_the_equations_typeset_with_the_local_mathjax(
+    browser: str, base_url: str, page: str
+) -> None:
+    assert_page_loads(browser, f"{base_url}/{page}")
 
 
 def test_a_missing_image_fails_the_check(browser: str, base_url: str, site: Path) -> None:
