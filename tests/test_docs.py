@@ -122,3 +122,36 @@ def test_a_results_table_follows_its_numbers() -> None:
     assert "| ias4f | G(t) | all | 1 | 50 % | 0.25 / 0.50 | 1.00 | 12.3 % | 1 |" in (
         result_tables.transfer(result)
     )
+
+
+def readme_snippets() -> list[str]:
+    """The README's Python code blocks."""
+    return re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.DOTALL)
+
+
+def test_the_readme_has_its_two_snippets() -> None:
+    snippets = readme_snippets()
+    assert len(snippets) == 2
+    assert 'gym.make("IAS-PenSlide-v0")' in snippets[0] and "ExpertPolicy" in snippets[0]
+    assert "record_skills" in snippets[1] and "SkillDB" in snippets[1]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("index", [0, 1])
+def test_every_readme_snippet_runs(index: int, tmp_path: Path) -> None:
+    """Each snippet as a newcomer would run it: a fresh interpreter in an empty folder."""
+    import os
+    import subprocess
+
+    script = tmp_path / "snippet.py"
+    script.write_text(readme_snippets()[index])
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    done = subprocess.run(
+        [sys.executable, str(script)],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
