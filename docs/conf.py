@@ -53,6 +53,8 @@ autodoc_default_options = {"members": True, "show-inheritance": True, "ignore-mo
 autodoc_inherit_docstrings = False
 autodoc_member_order = "bysource"
 autodoc_typehints = "signature"
+# numpy's ArrayLike by its name: expanded, it is a union of some twenty types
+autodoc_type_aliases = {"ArrayLike": "numpy.typing.ArrayLike"}
 autodoc_mock_imports = ["torch", "stable_baselines3", "ray"]
 napoleon_google_docstring = True
 napoleon_numpy_docstring = False
