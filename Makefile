@@ -11,7 +11,7 @@ TORCH_PIN := torch==2.13.0
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: setup demo test test-perturbed lint bench clean
+.PHONY: setup demo test test-perturbed lint docs browser-check bench clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -40,10 +40,28 @@ lint: setup
 	$(BIN)/lint-imports  # the layers and contracts of [tool.importlinter] in pyproject.toml
 
 # Every core for the tests that only compute (a file's tests stay on one worker, so its
-# fixtures are built once), then the real-time CAN-bus tests alone (pyproject's markers).
+# fixtures are built once), then the real-time CAN-bus tests alone (pyproject's markers),
+# then the docs site and its check in a headless Chromium (skipped, saying why, without one).
 test: lint
-	$(BIN)/python -m pytest -q -n auto --dist loadfile -m "not realtime"
+	$(BIN)/python -m pytest -q -n auto --dist loadfile -m "not realtime and not browser"
 	$(BIN)/python -m pytest -q -m realtime
+	$(MAKE) browser-check
+
+# The documentation site, warnings as errors, into docs/_build/html. conf.py first writes
+# the env pages (from the env docstrings), the API pages and the results tables (from the
+# result JSON files); the env pictures are committed (docs/_scripts/render_env_images.py).
+docs: setup
+	$(BIN)/python -m sphinx -W --keep-going -q -b html docs docs/_build/html
+
+APT_CHROMIUM := DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium
+
+# The built site in headless Chromium (pyproject's browser marker). Installs Debian's
+# chromium where it can (root and apt-get); without it the tests are skipped with the reason.
+browser-check: docs
+	@command -v chromium >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 \
+		&& { $(APT_CHROMIUM) || { apt-get update -qq && $(APT_CHROMIUM); }; } >/dev/null 2>&1; } \
+		|| echo "make browser-check: chromium could not be installed; the browser tests are skipped"
+	$(BIN)/python -m pytest -q -rs -m browser tests/test_docs_browser.py
 
 # The closed-loop tests once more (pyproject's closed_loop marker) as another machine would
 # run them: every start moved by ~1e-9 (IAS_GYM_PERTURB_SEED, a new one each run unless
@@ -65,4 +83,5 @@ bench: setup
 	$(BIN)/python bench/run_all.py
 
 clean:
-	rm -rf $(VENV) $(OUT) .pytest_cache .mypy_cache .ruff_cache .import_linter_cache
+	rm -rf $(VENV) $(OUT) .pytest_cache .mypy_cache .ruff_cache .import_linter_cache \
+		docs/_build docs/_generated docs/api

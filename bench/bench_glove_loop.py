@@ -14,7 +14,8 @@ run (:func:`~ias_gym.hardware.bench.run_glove_bench`, the runs alternating):
 
 ``--priority P`` runs all three (and their threads) under SCHED_FIFO at priority P, and
 ``--load N`` starts N busy Python processes for the whole run (the "loaded" rows of the
-README: each spins on one core's worth of work, as the machine's other users would).
+table in docs/can-protocol.md: each spins on one core's worth of work, as the machine's
+other users would).
 
 Then the host watchdog: ``--silences`` times the emulator goes quiet for 100 ms at 1 kHz, and
 the time from the last valid sample to the trip is measured.

@@ -1,7 +1,7 @@
 """The package's layers: imports go downward only, the library never imports the command line.
 
-The layer order and the contracts are ``[tool.importlinter]`` in pyproject.toml (README,
-"Layout"). These tests run the contracts and check, at run time, the two properties the
+The layer order and the contracts are ``[tool.importlinter]`` in pyproject.toml
+(docs/layout.md). These tests run the contracts and check, at run time, the two properties the
 layering is for: a library module never holds argparse (the command line is the top
 layer, :mod:`ias_gym.cli`), and importing ``ias_gym.baselines`` (where the pure control law
 lives) does not load the envs or MuJoCo.

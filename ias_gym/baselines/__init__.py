@@ -1,6 +1,6 @@
 """The paper's control law (Theorem 1, eq. 45) and the policies built on it.
 
-This package spans two layers (see the README's layout section), so its ``__init__``
+This package spans two layers (see docs/layout.md), so its ``__init__``
 imports nothing: ``import ias_gym.baselines.law`` must not drag the envs in.
 
 - :mod:`~ias_gym.baselines.law`: the law as pure functions (numpy only);

@@ -9,15 +9,15 @@ Which joints move the pinched pen how (measured in ``IAS-GloveGrasp-v0``, person
 sine of the joint's target after the lift, period 2 s; ranges of the pen's pose over the
 motion, paper frame: x the pen's axis, y up, yaw = the see-saw tilt of sec. 4.3):
 
-=========================  ==============================================================
-joint (amplitude)          pen motion
-=========================  ==============================================================
+==========================  ==============================================================
+joint (amplitude)           pen motion
+==========================  ==============================================================
 wrist_pronation (0.12 rad)  yaw 12 deg (the see-saw tilt), x 17 mm; 0.3 rad drops the pen
 wrist_deviation (0.15 rad)  pitch 17 deg (a turn about the vertical), x 34 mm
 wrist_flexion (0.2 rad)     height 49 mm, roll 36 deg (the pen rolls between the pads)
 index_mcp - thumb_flexion   roll 39 deg (about the pen's own axis), little translation
 index_mcp + thumb_flexion   roll 76 deg, height 12 mm
-=========================  ==============================================================
+==========================  ==============================================================
 
 The glove hand is planar (index and thumb flex in one plane across the pen, see
 HUMAN_HAND.md): its fingers roll the pen about its own axis and move it across, but cannot

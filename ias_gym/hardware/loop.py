@@ -112,7 +112,7 @@ def realtime_priority(priority: int | None) -> Iterator[None]:
     Threads started inside inherit it (the glove's receiver, an in-process emulator), so a
     loop and its helpers all run ahead of the machine's ordinary processes; the thread's
     previous policy comes back on exit. On a loaded machine this is what keeps a 1 kHz
-    CPython loop on time (measured in the README's CAN section); it needs root,
+    CPython loop on time (measured in docs/can-protocol.md); it needs root,
     ``CAP_SYS_NICE`` or an ``ulimit -r`` of at least ``priority``.
 
     Args:

@@ -47,11 +47,12 @@ _SUMMARY_COLUMNS = (
 class SkillSummary:
     """A skill's row without its arrays (what :meth:`SkillDB.list_skills` returns).
 
+    The fields not listed here are those of :class:`Skill`.
+
     Attributes:
         episode_return: undiscounted return of the demonstration.
         length: number of steps.
         duration: time spanned by the skill model [s].
-        (the others as in :class:`Skill`)
     """
 
     id: int

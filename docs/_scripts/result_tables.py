@@ -1,0 +1,256 @@
+"""The results tables of the docs, written at build time from the result JSON files.
+
+Each results page includes a table from ``docs/_generated/`` (not committed) that this
+script writes from the JSON file that the script measuring it left in ``docs/``, so a page
+shows the numbers of the latest run:
+
+=====================================  ==================================  =================
+JSON in ``docs/``                      written by                          table
+=====================================  ==================================  =================
+``transfer_results.json``              ``train/transfer_table.py``         ``transfer.md``
+``recognition_results.json``           ``train/recognition_table.py``      ``recognition.md``
+``assist_table_phase.json``,           ``train/assist_table.py``           ``assistance.md``
+``assist_table_oracle.json``
+``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
+``completion_table.json``              ``train/completion_table.py``       ``completion.md``
+=====================================  ==================================  =================
+
+    python docs/_scripts/result_tables.py   # print every table
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+Table = Callable[[Mapping[str, Any]], str]
+
+
+def percent(value: float | None) -> str:
+    """``0.845`` as ``84 %``; ``-`` for a missing value."""
+    return "-" if value is None else f"{100 * value:.0f} %"
+
+
+def number(value: float | None, digits: int) -> str:
+    """A float with ``digits`` decimals; ``-`` for a missing value."""
+    return "-" if value is None else f"{value:.{digits}f}"
+
+
+def rows(header: Sequence[str], body: Sequence[Sequence[str]]) -> str:
+    """A Markdown table."""
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(row) + " |" for row in body]
+    return "\n".join(lines) + "\n"
+
+
+def transfer(result: Mapping[str, Any]) -> str:
+    """Per hand and method, over all skills, per skill class and on the held-out persons."""
+    body = []
+    for key, s in result["summary"].items():
+        hand, method, group = key.split("|")
+        margin = s["margin_err_rel"]
+        body.append(
+            [
+                hand,
+                {"gt": "G(t)"}.get(method, method),
+                group,
+                str(s["runs"]),
+                percent(s["success_rate"]),
+                f"{number(s['rot_rms_deg'], 2)} / {number(s['rot_rms_deg_max'], 2)}",
+                number(s["pos_rms_mm"], 2),
+                percent(margin) if margin is None else f"{100 * margin:.1f} %",
+                str(s["dropped"]),
+            ]
+        )
+    header = [
+        "hand",
+        "method",
+        "skills",
+        "runs",
+        "success",
+        "rotation RMS [deg] mean / worst",
+        "position RMS [mm]",
+        "margin error",
+        "dropped",
+    ]
+    intro = (
+        f"{len(result['runs'])} runs: the glove sessions of {len(result['persons'])} simulated "
+        f"persons on the hands {', '.join(result['hands'])} by the methods "
+        f"{', '.join(result['methods'])}; `held-out` rows are the persons never used while "
+        "developing.\n\n"
+    )
+    return intro + rows(header, body)
+
+
+def recognition(result: Mapping[str, Any]) -> str:
+    """Each recogniser's scores, its accuracy by observed fraction, and on-line acquisition."""
+    methods = result["methods"]
+    names = {"dtw": "DTW (baseline)", "phase": "phase model"}
+    keys = [
+        k
+        for k, v in next(iter(methods.values())).items()
+        if k not in ("method", "sessions") and not isinstance(v, dict)
+    ]
+    scores = rows(
+        ["method", *keys],
+        [[names.get(n, n), *(number(m.get(k), 3) for k in keys)] for n, m in methods.items()],
+    )
+    fractions = list(next(iter(methods.values()))["accuracy_by_fraction"])
+    by_fraction = rows(
+        ["method", *(f"{100 * float(f):.0f} %" for f in fractions)],
+        [
+            [names.get(n, n), *(number(m["accuracy_by_fraction"][f], 2) for f in fractions)]
+            for n, m in methods.items()
+        ],
+    )
+    acquisition = result.get("acquisition", {})
+    demos = len(next(iter(acquisition.values()))["new_skill_accuracy"]) if acquisition else 0
+    acquired = rows(
+        ["method", "skill", *(f"n={n}" for n in range(1, demos + 1))],
+        [
+            [names.get(n, n), which, *(number(v, 2) for v in a[f"{which}_skill_accuracy"])]
+            for n, a in acquisition.items()
+            for which in ("new", "known")
+        ],
+    )
+    return (
+        f"Library: {result['library_sessions']} sessions; held out: "
+        f"{result['held_out_sessions']} sessions of persons never used while developing.\n\n"
+        + scores
+        + "\nAccuracy by observed fraction of the skill's motion:\n\n"
+        + by_fraction
+        + "\nOn-line acquisition: accuracy on the held-out sessions after n demonstrations of "
+        "the skill left out (mean over the skills), and on the known skills meanwhile:\n\n"
+        + acquired
+    )
+
+
+def assistance(phase: Mapping[str, Any], oracle: Mapping[str, Any]) -> str:
+    """Success unassisted and assisted, the intervention in brackets, per impairment."""
+    columns = {
+        "analytic + phase recogniser": phase["analytic+phase"],
+        "analytic + oracle intent": oracle["analytic"],
+        "residual PPO + oracle": oracle["residual"],
+    }
+    body = []
+    for impairment, first in phase["analytic+phase"].items():
+        row = [impairment, percent(first["success_unassisted"])]
+        row += [
+            f"{percent(c[impairment]['success_assisted'])} ({c[impairment]['intervention']:.3f})"
+            for c in columns.values()
+            if impairment in c
+        ]
+        body.append([*row, str(first["sessions"])])
+    table = rows(["impairment", "unassisted", *columns, "sessions"], body)
+    latency = phase.get("switch_latency", {}).get("analytic+phase")
+    note = ""
+    if latency:
+        note = (
+            f"\nIntent switches ({latency['n']}): the phase recogniser settles on the new skill "
+            f"in {latency['n'] - latency['never']}, after a median "
+            f"{number(latency['median_s'], 2)} s (max {number(latency['max_s'], 2)} s).\n"
+        )
+    intro = (
+        f"{len(phase['persons'])} held-out persons x {len(phase['skills'])} skills, each "
+        "impairment once per person and skill.\n\n"
+    )
+    return intro + table + note
+
+
+#: The groups of ``train/pen_skill_bc.py``'s split, as the table names them.
+GROUPS = {
+    "train": "training skills x persons (new seed)",
+    "heldout_skill": "held-out skills, training persons",
+    "heldout_person": "training skills, held-out persons",
+    "heldout_both": "held-out skills, held-out persons",
+}
+
+
+def pen_skill_bc(result: Mapping[str, Any]) -> str:
+    """Success of the expert, BC, BC + PPO and random per training set and group."""
+    body = []
+    for run in result["runs"]:
+        res = run["results"]
+        for group, per_policy in res["groups"].items():
+            cells = [per_policy.get(p) for p in ("expert", "bc", "bc_ppo", "random")]
+            bc = per_policy.get("bc") or {}
+            open_loop = res.get("open_loop", {}).get(group, {})
+            body.append(
+                [
+                    run["name"].replace("p1+p2", "2 persons"),
+                    f"{GROUPS.get(group, group)} ({(cells[0] or {}).get('episodes', '-')})",
+                    *(percent(c["success_rate"]) if c else "-" for c in cells),
+                    f"{number(bc.get('rms_position_error_mean_mm'), 2)} / "
+                    f"{number(bc.get('rms_rotation_error_mean_deg'), 2)}",
+                    number(open_loop.get("bc_action_rms_error"), 4),
+                    number(open_loop.get("max_abs_z"), 0),
+                ]
+            )
+    header = [
+        "training data",
+        "group (episodes)",
+        "expert",
+        "BC",
+        "BC + PPO",
+        "random",
+        "BC RMS pos. / axis err. [mm / deg]",
+        "BC open-loop action err.",
+        "max abs z",
+    ]
+    return rows(header, body)
+
+
+def completion(result: Mapping[str, Any]) -> str:
+    """Success with its 95 % Wilson interval per operator and skill."""
+    tables = result["tables"]
+    skills = list(next(iter(tables.values())))
+    body = []
+    for skill in skills:
+        row = [skill]
+        for per_skill in tables.values():
+            s = per_skill[skill]
+            row.append(
+                f"{percent(s['success_rate'])} [{100 * s['ci95_low']:.0f}, "
+                f"{100 * s['ci95_high']:.0f}] ({s['successes']}/{s['trials']})"
+            )
+        body.append(row)
+    header = ["skill", *(f"{name} operator" for name in tables)]
+    intro = (
+        f"{result['persons']} {result['set']} persons of population seed "
+        f"{result['population_seed']}, every skill once; success [95 % interval].\n\n"
+    )
+    return intro + rows(header, body)
+
+
+def tables(docs: Path) -> dict[str, str]:
+    """Every table by its file name, from the JSON files in ``docs``."""
+
+    def load(name: str) -> Mapping[str, Any]:
+        loaded: Mapping[str, Any] = json.loads((docs / name).read_text())
+        return loaded
+
+    return {
+        "transfer.md": transfer(load("transfer_results.json")),
+        "recognition.md": recognition(load("recognition_results.json")),
+        "assistance.md": assistance(
+            load("assist_table_phase.json"), load("assist_table_oracle.json")
+        ),
+        "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
+        "completion.md": completion(load("completion_table.json")),
+    }
+
+
+def write_tables(docs: Path, out: Path) -> None:
+    """Write every table into ``out`` (unchanged files are left alone)."""
+    out.mkdir(parents=True, exist_ok=True)
+    for name, text in tables(docs).items():
+        path = out / name
+        if not path.exists() or path.read_text() != text:
+            path.write_text(text)
+
+
+if __name__ == "__main__":
+    for table_name, table in tables(Path(__file__).resolve().parents[1]).items():
+        print(f"## {table_name}\n\n{table}")

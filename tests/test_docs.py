@@ -1,0 +1,157 @@
+"""The documentation's sources: the env pages follow their docstrings, every id has a page and
+a picture, the README stays short and its links resolve, and no page carries development
+history (that is the CHANGELOG's). The built site in a browser: ``test_docs_browser.py``."""
+
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+import pytest
+from PIL import Image
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+sys.path.insert(0, str(DOCS / "_scripts"))
+
+import env_pages  # noqa: E402
+import result_tables  # noqa: E402
+
+ENTRIES = env_pages.registered()
+README_LIMIT = 12_000  # characters
+#: Development history: work sessions and rounds, issue numbers, the development persons' ids.
+HISTORY = re.compile(
+    r"\bsessions? \d|\bsession-\d|\bround \d|\bissue #?\d|(?<![\w/.])#\d{1,3}\b"
+    r"|(?<![\w-])[pd][1-9](?![\w.-])|\bturn-\d",
+    re.IGNORECASE,
+)
+#: Pages written for the site (the generated ones are checked where they are generated).
+PAGES = sorted(p for p in DOCS.glob("*.md"))
+
+
+@pytest.mark.parametrize("entry", ENTRIES, ids=[e.env_id for e in ENTRIES])
+def test_every_env_id_has_a_current_page_and_a_small_picture(entry: env_pages.EnvEntry) -> None:
+    page = DOCS / "envs" / f"{entry.env_id}.md"
+    assert page.exists(), f"{page} is missing: run make docs"
+    assert page.read_text() == env_pages.page(entry), (
+        f"{page} differs from {entry.entry_point}'s docstring: run make docs and commit it"
+    )
+    picture = DOCS / "_static" / "envs" / f"{entry.env_id}.png"
+    with Image.open(picture) as image:
+        assert image.size == (320, 240)
+    assert picture.stat().st_size < 60_000
+    assert f"![{entry.env_id}](../_static/envs/{entry.env_id}.png)" in page.read_text()
+
+
+def test_the_env_index_lists_every_id() -> None:
+    index = (DOCS / "envs" / "index.md").read_text()
+    assert index == env_pages.index(ENTRIES)
+    for e in ENTRIES:
+        assert f"[{e.env_id}]({e.env_id}.md)" in index
+
+
+def test_a_docstring_role_becomes_a_qualified_myst_role() -> None:
+    from ias_gym.envs.glove_grasp import GloveGraspEnv
+
+    text = env_pages.myst_roles(":attr:`skill_start` and :class:`~ias_gym.x.Y`", GloveGraspEnv)
+    assert text == (
+        "{py:attr}`~ias_gym.envs.glove_grasp.GloveGraspEnv.skill_start` and "
+        "{py:class}`~ias_gym.x.Y`"
+    )
+
+
+def test_the_readme_is_short_and_links_every_env_page() -> None:
+    readme = (ROOT / "README.md").read_text()
+    assert len(readme) <= README_LIMIT, f"README.md has {len(readme)} characters"
+    for e in ENTRIES:
+        assert f"(docs/envs/{e.env_id}.md)" in readme, f"README does not link {e.env_id}"
+
+
+def test_every_relative_link_of_the_readme_resolves() -> None:
+    readme = (ROOT / "README.md").read_text()
+    targets = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", readme)
+    assert targets
+    missing = [t for t in targets if "://" not in t and not (ROOT / t).exists()]
+    assert not missing, missing
+
+
+@pytest.mark.parametrize("path", [ROOT / "README.md", *PAGES], ids=lambda p: p.name)
+def test_no_development_history_outside_the_changelog(path: Path) -> None:
+    found = [
+        f"{path.name}:{n}: {line.strip()[:100]}"
+        for n, line in enumerate(path.read_text().splitlines(), 1)
+        if HISTORY.search(line)
+    ]
+    assert not found, "development history belongs in CHANGELOG.md:\n" + "\n".join(found)
+
+
+def test_every_results_table_is_made_from_its_json() -> None:
+    tables = result_tables.tables(DOCS)
+    assert set(tables) == {
+        "transfer.md",
+        "recognition.md",
+        "assistance.md",
+        "pen_skill_bc.md",
+        "completion.md",
+    }
+    for name, table in tables.items():
+        assert table.count("\n|") >= 3, f"{name} has no rows"
+        include = f"_generated/{name}"
+        assert any(include in p.read_text() for p in PAGES), f"no page includes {include}"
+
+
+def test_a_results_table_follows_its_numbers() -> None:
+    result = {
+        "runs": [{}],
+        "persons": ["a"],
+        "hands": ["ias4f"],
+        "methods": ["gt"],
+        "summary": {
+            "ias4f|gt|all": {
+                "runs": 1,
+                "success_rate": 0.5,
+                "rot_rms_deg": 0.25,
+                "rot_rms_deg_max": 0.5,
+                "pos_rms_mm": 1.0,
+                "margin_err_rel": 0.123,
+                "dropped": 1,
+            }
+        },
+    }
+    assert "| ias4f | G(t) | all | 1 | 50 % | 0.25 / 0.50 | 1.00 | 12.3 % | 1 |" in (
+        result_tables.transfer(result)
+    )
+
+
+def readme_snippets() -> list[str]:
+    """The README's Python code blocks."""
+    return re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.DOTALL)
+
+
+def test_the_readme_has_its_two_snippets() -> None:
+    snippets = readme_snippets()
+    assert len(snippets) == 2
+    assert 'gym.make("IAS-PenSlide-v0")' in snippets[0] and "ExpertPolicy" in snippets[0]
+    assert "record_skills" in snippets[1] and "SkillDB" in snippets[1]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("index", [0, 1])
+def test_every_readme_snippet_runs(index: int, tmp_path: Path) -> None:
+    """Each snippet as a newcomer would run it: a fresh interpreter in an empty folder."""
+    import os
+    import subprocess
+
+    script = tmp_path / "snippet.py"
+    script.write_text(readme_snippets()[index])
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    done = subprocess.run(
+        [sys.executable, str(script)],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
