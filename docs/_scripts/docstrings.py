@@ -75,13 +75,19 @@ def named_returns(lines: list[str]) -> list[str]:
 
 
 def env_page(obj: Any) -> str | None:
-    """The registered id whose class is ``obj``, or ``None``."""
+    """The registered id whose class is ``obj``, or a subclass of it (an env registered
+    through a thin subclass, e.g. the one that injects the skill DB), or ``None``."""
+    import importlib
+
     from ias_gym import registration
 
     specs = {**registration.ENV_SPECS, **registration.HARDWARE_ENV_SPECS}
-    name = f"{getattr(obj, '__module__', '')}:{getattr(obj, '__qualname__', '')}"
-    ids = [env_id for env_id, (entry, _) in specs.items() if entry == name]
-    return ids[0] if ids else None
+    for env_id, (entry, _) in specs.items():
+        module, _, qualname = entry.partition(":")
+        cls = getattr(importlib.import_module(module), qualname, None)
+        if cls is obj or (isinstance(cls, type) and isinstance(obj, type) and issubclass(cls, obj)):
+            return env_id
+    return None
 
 
 def process(app: Any, what: str, name: str, obj: Any, options: Any, lines: list[str]) -> None:
