@@ -1,11 +1,11 @@
 """Object-level skills a (simulated) person performs with the pinched pen through the glove.
 
-Issue #13: after the reach-pinch-lift of :class:`~ias_gym.glove.device.ReachPinchLift` the
+After the reach-pinch-lift of :class:`~ias_gym.glove.device.ReachPinchLift` the
 scripted operator performs one of :data:`SKILLS` with the held pen, so that a session
 demonstrates a skill a robot hand holding the pen can repeat as an object motion (small
 rotations and translations of the held pen, which the robot scales into its workspace).
 
-Which joints move the pinched pen how (measured in ``IAS-GloveGrasp-v0``, person p1, a
+Which joints move the pinched pen how (measured in ``IAS-GloveGrasp-v0`` on one typical person, a
 sine of the joint's target after the lift, period 2 s; ranges of the pen's pose over the
 motion, paper frame: x the pen's axis, y up, yaw = the see-saw tilt of sec. 4.3):
 
@@ -93,7 +93,7 @@ TILT_TIME = 0.8
 PLACE_TIME = 1.0
 #: Share of the lift's wrist extension undone by ``lift_place`` (-): a little more than the
 #: lift, since the hand sags less on the way down; the pen ends within -1.3..+2.7 mm of
-#: its start (measured, persons p1, p4, p5, x9, anna; 1.0 left it up to 5.4 mm above).
+#: its start (measured on five persons; 1.0 left it up to 5.4 mm above).
 PLACE_SHARE = 1.1
 
 
