@@ -7,6 +7,7 @@ from __future__ import annotations
 import importlib.util
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -23,9 +24,11 @@ from ias_gym.learning.dagger import (  # noqa: E402
     FAMILIES,
     HELD_OUT_SEED_START,
     OBSERVATION_NOISE,
+    DaggerResult,
+    EpisodeDynamics,
     Randomisation,
-    collect_episode,
     cloning_epochs,
+    collect_episode,
     dagger,
     episode_dynamics,
     expert_dataset,
@@ -34,7 +37,7 @@ from ias_gym.robustness import DISTURBANCES  # noqa: E402
 
 ENV_ID = "IAS-PenRotate-v0"
 #: 30 steps of 10 ms; the tilt judged over the last 0.1 s (as in test_learning).
-ENV_KWARGS = {"duration": 0.3, "settle_time": 0.2}
+ENV_KWARGS: dict[str, Any] = {"duration": 0.3, "settle_time": 0.2}
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -44,7 +47,7 @@ def _one_thread() -> None:
 
 
 @pytest.fixture(scope="module")
-def run() -> object:
+def run() -> DaggerResult:
     """Two DAgger iterations of two episodes, the learner acting alone in the second."""
     torch.set_num_threads(1)
     return dagger(
@@ -61,12 +64,14 @@ def run() -> object:
     )
 
 
-def _replayed_labels(dynamics: object, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _replayed_labels(
+    dynamics: EpisodeDynamics, actions: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Step a fresh env with ``actions`` from the episode's reset, a fresh expert labelling
     each state: the observations and the expert's actions on them."""
-    env = gym.make(ENV_ID, **{**ENV_KWARGS, **dynamics.env_kwargs})  # type: ignore[attr-defined]
+    env = gym.make(ENV_ID, **{**ENV_KWARGS, **dynamics.env_kwargs})
     expert = ExpertPolicy(env)
-    obs, _ = env.reset(seed=dynamics.seed)  # type: ignore[attr-defined]
+    obs, _ = env.reset(seed=dynamics.seed)
     observations, labels = [], []
     for t, action in enumerate(actions):
         observations.append(obs)
@@ -76,17 +81,17 @@ def _replayed_labels(dynamics: object, actions: np.ndarray) -> tuple[np.ndarray,
     return np.asarray(observations), np.asarray(labels)
 
 
-def test_an_iteration_labels_exactly_the_states_the_learner_visited(run: object) -> None:
+def test_an_iteration_labels_exactly_the_states_the_learner_visited(run: DaggerResult) -> None:
     result = run
-    first, second = result.history  # type: ignore[attr-defined]
+    first, second = result.history
     assert second.beta == 0.0 and second.expert_fraction == 0.0
     assert first.dataset_size == first.labels_added
     assert second.dataset_size == first.dataset_size + second.labels_added
-    assert len(result.dataset) == second.dataset_size  # type: ignore[attr-defined]
-    learner = result.models[0]  # type: ignore[attr-defined]
+    assert len(result.dataset) == second.dataset_size
+    learner = result.models[0]
     rows = slice(first.dataset_size, None)
-    new_obs = result.dataset.observations[rows]  # type: ignore[attr-defined]
-    new_labels = result.dataset.actions[rows]  # type: ignore[attr-defined]
+    new_obs = result.dataset.observations[rows]
+    new_labels = result.dataset.actions[rows]
     offset = 0
     for k in range(second.episodes):
         dynamics = episode_dynamics(3, second.episodes + k)
@@ -95,6 +100,7 @@ def test_an_iteration_labels_exactly_the_states_the_learner_visited(run: object)
         steps = trajectory.length
         assert steps == len(episode.labels) > 0
         # the visited states: every observation the learner acted on, none other
+        assert trajectory.observations is not None
         np.testing.assert_array_equal(episode.observations, trajectory.observations[:-1])
         np.testing.assert_array_equal(new_obs[offset : offset + steps], episode.observations)
         np.testing.assert_array_equal(new_labels[offset : offset + steps], episode.labels)
@@ -114,6 +120,15 @@ def test_the_expert_alone_labels_its_own_actions() -> None:
     episode = collect_episode(ENV_ID, dynamics, None, 1.0, env_kwargs=ENV_KWARGS)
     assert episode.expert_fraction == 1.0
     np.testing.assert_array_equal(episode.trajectory.actions, episode.labels)
+
+
+def test_noise_on_the_expert_acts_but_never_reaches_the_labels() -> None:
+    dynamics = episode_dynamics(0, 0)
+    episode = collect_episode(ENV_ID, dynamics, None, 1.0, env_kwargs=ENV_KWARGS, expert_noise=0.01)
+    trajectory = episode.trajectory
+    assert np.all(np.abs(trajectory.actions - episode.labels) > 0)
+    _, labels = _replayed_labels(dynamics, trajectory.actions)
+    np.testing.assert_allclose(episode.labels, labels, rtol=1e-6, atol=1e-7)
 
 
 def test_expert_dataset_has_exactly_the_labels_asked() -> None:
@@ -181,7 +196,7 @@ def test_randomisation_is_reproducible_by_seed() -> None:
 
 
 def test_every_family_makes_an_env() -> None:
-    seen: dict[str, dict[str, object]] = {}
+    seen: dict[str, dict[str, Any]] = {}
     for k in range(200):
         d = episode_dynamics(5, k)
         seen.setdefault(d.family, d.env_kwargs)
@@ -191,17 +206,17 @@ def test_every_family_makes_an_env() -> None:
 
 
 def test_the_saved_policy_loads_with_the_safe_loader_and_acts(
-    run: object, tmp_path: Path
+    run: DaggerResult, tmp_path: Path
 ) -> None:
     path = tmp_path / "dagger.zip"
-    run.model.save(path)  # type: ignore[attr-defined]
+    run.model.save(path)
     env = gym.make(ENV_ID, **ENV_KWARGS)
     policy = load_policy(str(path), env)  # trust_pickle=False: no code from the file
     assert isinstance(policy, ModelPolicy)
     obs, _ = env.reset(seed=HELD_OUT_SEED_START)
     action, _ = policy.predict(obs, deterministic=True)
     assert action.shape == env.action_space.shape
-    expected = run.model.predict(obs.astype(np.float32), deterministic=True)[0]  # type: ignore[attr-defined]
+    expected = run.model.predict(obs.astype(np.float32), deterministic=True)[0]
     np.testing.assert_allclose(action, expected, rtol=1e-5, atol=1e-7)
     env.close()
 

@@ -60,6 +60,18 @@ def build_parser() -> argparse.ArgumentParser:
         "--results", default=None, metavar="PATH.json", help="results JSON (default: beside --out)"
     )
     parser.add_argument("--beta-decay", type=float, default=0.5, help="beta_i = decay ** i")
+    parser.add_argument(
+        "--initial-episodes",
+        type=int,
+        default=None,
+        help="expert episodes of iteration 0 (default: --episodes-per-iteration)",
+    )
+    parser.add_argument(
+        "--expert-noise",
+        type=float,
+        default=0.001,
+        help="noise on the expert's executed actions, labels clean (DART) [normalised torque]",
+    )
     parser.add_argument("--epochs", type=int, default=100, help="cloning epochs per iteration")
     parser.add_argument(
         "--max-gradient-steps",
@@ -200,6 +212,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.episodes_per_iteration,
         args.seed,
         beta_decay=args.beta_decay,
+        initial_episodes=args.initial_episodes,
+        expert_noise=args.expert_noise,
         randomisation=randomisation,
         epochs=args.epochs,
         max_gradient_steps=max_steps,
@@ -214,7 +228,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     bc_s = None
     if not args.no_baseline:
         start = time.perf_counter()
-        data, _ = expert_dataset(args.env, labels, args.seed, randomisation=randomisation)
+        data, _ = expert_dataset(
+            args.env,
+            labels,
+            args.seed,
+            randomisation=randomisation,
+            expert_noise=args.expert_noise,
+        )
         baseline = behaviour_clone(
             gym.make(args.env),
             data.observations,
@@ -248,6 +268,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "iterations": args.iterations,
         "episodes_per_iteration": args.episodes_per_iteration,
         "beta_decay": args.beta_decay,
+        "initial_episodes": args.initial_episodes or args.episodes_per_iteration,
+        "expert_noise": args.expert_noise,
         "epochs": args.epochs,
         "max_gradient_steps": max_steps,
         "expert_labels": labels,

@@ -8,7 +8,9 @@ retrains on everything gathered so far. :func:`dagger` runs the loop on SB3 poli
 (the PPO actor of :func:`~ias_gym.learning.cloning.behaviour_clone`, with the observation
 normalisation inside the saved model):
 
-- iteration 0: expert rollouts (``beta = 1``), behaviour cloning on them;
+- iteration 0: expert rollouts (``beta = 1``), behaviour cloning on them; where the
+  expert acts its executed action may carry noise, its label stays clean (noise
+  injection, DART: Laskey et al. 2017; ``expert_noise``), so the data show corrections;
 - iteration ``i >= 1``: rollouts of the mixture ``pi_i = beta_i expert + (1 - beta_i)
   learner`` (a coin per step, ``beta_i = beta_decay ** i``, Ross et al.'s "beta_i = p^(i-1)"
   shifted by the expert-only iteration); the expert labels every visited state; the labels
@@ -228,7 +230,10 @@ class ShadowExpert:
         env: the pen env the episode runs in (the expert reads its simulator).
         learner: the learner (SB3's ``predict``); ``None``: the expert always acts.
         beta: probability that the expert acts on a step [-].
-        seed: seeds the coins.
+        seed: seeds the coins and the noise.
+        expert_noise: sigma of Gaussian noise added to the expert's action when it is the
+            one executed (noise injection, DART: Laskey et al. 2017; the label stays clean)
+            [normalised torque].
 
     Attributes:
         observations: the observations labelled, one per step (what ``predict`` was given).
@@ -242,14 +247,18 @@ class ShadowExpert:
         learner: Policy | None,
         beta: float,
         seed: int = 0,
+        expert_noise: float = 0.0,
     ) -> None:
         if not 0.0 <= beta <= 1.0:
             raise InputError(f"beta must be in [0, 1], got {beta}")
+        if not (math.isfinite(expert_noise) and expert_noise >= 0):
+            raise InputError(f"expert_noise must be finite and >= 0, got {expert_noise}")
         if learner is None and beta < 1.0:
             raise InputError("without a learner the expert must always act (beta = 1)")
         self.expert = ExpertPolicy(env)
         self.learner = learner
         self.beta = float(beta)
+        self.expert_noise = float(expert_noise)
         self._rng = np.random.default_rng([seed, 0xC01])
         self.observations: list[NDArray[Any]] = []
         self.labels: list[FloatArray] = []
@@ -269,6 +278,9 @@ class ShadowExpert:
         expert_acts = self.learner is None or bool(self._rng.random() < self.beta)
         self.expert_acted.append(expert_acts)
         if expert_acts:
+            if self.expert_noise:
+                noise = self._rng.normal(0.0, self.expert_noise, np.shape(label))
+                return np.clip(label + noise, -1.0, 1.0).astype(np.float32), state
             return label, state
         assert self.learner is not None
         action, state = self.learner.predict(
@@ -329,6 +341,7 @@ def collect_episode(
     beta: float,
     *,
     env_kwargs: Mapping[str, Any] | None = None,
+    expert_noise: float = 0.0,
 ) -> LabelledEpisode:
     """Run one episode of the mixture under ``dynamics``, the expert labelling every state.
 
@@ -338,13 +351,14 @@ def collect_episode(
         learner: the learner (``None``: the expert acts alone, ``beta`` must be 1).
         beta: probability the expert acts on a step [-].
         env_kwargs: further env kwargs (the drawn ones win).
+        expert_noise: noise on the expert's executed actions (:class:`ShadowExpert`).
 
     Returns:
         The episode with its labels.
     """
     env = gym.make(env_id, **{**dict(env_kwargs or {}), **dynamics.env_kwargs})
     try:
-        shadow = ShadowExpert(env, learner, beta, dynamics.seed)
+        shadow = ShadowExpert(env, learner, beta, dynamics.seed, expert_noise)
         trajectory = rollout(env, shadow, dynamics.seed, action_dtype=np.float32, keep_infos=False)
     finally:
         env.close()
@@ -368,6 +382,7 @@ class IterationRecord:
         rollout_success_rate: fraction of its episodes that succeeded (mixture acting) [-].
         expert_fraction: fraction of its steps where the expert's action was executed [-].
         families: episodes per drawn family.
+        family_successes: successful episodes per drawn family.
         collect_s: wall time of the rollouts [s].
         train_s: wall time of the cloning [s].
     """
@@ -380,6 +395,7 @@ class IterationRecord:
     rollout_success_rate: float
     expert_fraction: float
     families: dict[str, int]
+    family_successes: dict[str, int]
     collect_s: float
     train_s: float
 
@@ -394,6 +410,7 @@ class IterationRecord:
             "rollout_success_rate": self.rollout_success_rate,
             "expert_fraction": self.expert_fraction,
             "families": dict(self.families),
+            "family_successes": dict(self.family_successes),
             "collect_s": self.collect_s,
             "train_s": self.train_s,
         }
@@ -450,6 +467,8 @@ def dagger(
     seed: int = 0,
     *,
     beta_decay: float = 0.5,
+    initial_episodes: int | None = None,
+    expert_noise: float = 0.0,
     randomisation: Randomisation = DEFAULT_RANDOMISATION,
     env_kwargs: Mapping[str, Any] | None = None,
     epochs: int = 100,
@@ -475,6 +494,10 @@ def dagger(
         episodes_per_iteration: episodes collected per iteration (>= 1).
         seed: the run's seed (>= 0).
         beta_decay: ``beta_i = beta_decay ** i`` for ``i >= 1`` (0: the learner alone) [-].
+        initial_episodes: expert episodes of iteration 0 (``None``:
+            ``episodes_per_iteration``).
+        expert_noise: sigma of the noise on the expert's executed actions, labels clean
+            (DART; :class:`ShadowExpert`) [normalised torque].
         randomisation: the ranges of the training dynamics (:data:`NOMINAL`: none).
         env_kwargs: further env kwargs of every episode (e.g. a shorter ``duration``).
         epochs: cloning passes over the dataset per iteration.
@@ -501,6 +524,9 @@ def dagger(
         raise InputError(f"episodes_per_iteration must be >= 1, got {episodes_per_iteration}")
     if seed < 0:
         raise InputError(f"seed must be >= 0, got {seed}")
+    first = episodes_per_iteration if initial_episodes is None else initial_episodes
+    if first < 1:
+        raise InputError(f"initial_episodes must be >= 1, got {initial_episodes}")
     if not 0.0 <= beta_decay <= 1.0:
         raise InputError(f"beta_decay must be in [0, 1], got {beta_decay}")
     probe = gym.make(env_id, **dict(env_kwargs or {}))
@@ -512,7 +538,7 @@ def dagger(
     history: list[IterationRecord] = []
     models: list[PPO] = []
     bar = tqdm(
-        total=iterations * episodes_per_iteration,
+        total=first + (iterations - 1) * episodes_per_iteration,
         desc=f"DAgger {env_id}",
         unit="episode",
         disable=not progress,
@@ -522,8 +548,9 @@ def dagger(
             beta = beta_schedule(iteration, beta_decay)
             start = time.perf_counter()
             episodes = []
-            for k in range(episodes_per_iteration):
-                index = iteration * episodes_per_iteration + k
+            count = first if iteration == 0 else episodes_per_iteration
+            for k in range(count):
+                index = k if iteration == 0 else first + (iteration - 1) * count + k
                 dynamics = episode_dynamics(seed, index, randomisation)
                 acting = None if learner is None or beta >= 1.0 else learner
                 episode = collect_episode(
@@ -532,6 +559,7 @@ def dagger(
                     acting,
                     1.0 if acting is None else beta,
                     env_kwargs=env_kwargs,
+                    expert_noise=expert_noise,
                 )
                 dataset.extend(episode.observations, episode.labels)
                 episodes.append(episode)
@@ -551,8 +579,11 @@ def dagger(
                 progress=False,
             )
             families: dict[str, int] = {}
+            family_successes: dict[str, int] = {}
             for e in episodes:
-                families[e.dynamics.family] = families.get(e.dynamics.family, 0) + 1
+                name = e.dynamics.family
+                families[name] = families.get(name, 0) + 1
+                family_successes[name] = family_successes.get(name, 0) + e.trajectory.is_success
             steps = sum(len(e.labels) for e in episodes)
             record = IterationRecord(
                 iteration=iteration,
@@ -565,6 +596,7 @@ def dagger(
                     sum(e.expert_fraction * len(e.labels) for e in episodes) / max(steps, 1)
                 ),
                 families=families,
+                family_successes=family_successes,
                 collect_s=collect_s,
                 train_s=time.perf_counter() - start,
             )
@@ -588,6 +620,7 @@ def expert_dataset(
     *,
     randomisation: Randomisation = DEFAULT_RANDOMISATION,
     env_kwargs: Mapping[str, Any] | None = None,
+    expert_noise: float = 0.0,
     progress: bool = True,
 ) -> tuple[Dataset, list[LabelledEpisode]]:
     """Expert rollouts under the training dynamics, cut at exactly ``labels`` pairs.
@@ -601,6 +634,7 @@ def expert_dataset(
         seed: the run's seed (>= 0).
         randomisation: the ranges of the dynamics.
         env_kwargs: further env kwargs of every episode.
+        expert_noise: noise on the expert's executed actions, labels clean (DART).
         progress: a progress bar over the pairs.
 
     Returns:
@@ -625,6 +659,7 @@ def expert_dataset(
                 None,
                 1.0,
                 env_kwargs=env_kwargs,
+                expert_noise=expert_noise,
             )
             take = min(len(episode.labels), labels - len(dataset))
             dataset.extend(episode.observations[:take], episode.labels[:take])
