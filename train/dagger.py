@@ -36,6 +36,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import sys
 import time
 from collections.abc import Sequence
@@ -78,6 +79,12 @@ def build_parser() -> argparse.ArgumentParser:
         type=int,
         default=6000,
         help="cap on the cloning's Adam steps per iteration (0: none)",
+    )
+    parser.add_argument(
+        "--warm-start",
+        action="store_true",
+        help="train one learner on over the iterations (else a new one each iteration); "
+        "the BC baseline then gets DAgger's total number of Adam steps",
     )
     parser.add_argument("--no-randomisation", action="store_true", help="nominal dynamics only")
     parser.add_argument("--no-baseline", action="store_true", help="skip the BC baseline")
@@ -217,6 +224,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         randomisation=randomisation,
         epochs=args.epochs,
         max_gradient_steps=max_steps,
+        warm_start=args.warm_start,
         on_iteration=on_iteration,
     )
     dagger_s = time.perf_counter() - start
@@ -226,6 +234,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     labels = len(result.dataset)
     bc_s = None
+    baseline_epochs: int | None = None
     if not args.no_baseline:
         start = time.perf_counter()
         data, _ = expert_dataset(
@@ -235,11 +244,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             randomisation=randomisation,
             expert_noise=args.expert_noise,
         )
+        if args.warm_start:  # as many Adam steps as DAgger made in all
+            total = sum(r.gradient_steps for r in result.history)
+            baseline_epochs = max(1, round(total / math.ceil(labels / 256)))
+        else:  # as many as DAgger's last cloning
+            baseline_epochs = cloning_epochs(labels, args.epochs, 256, max_steps)
         baseline = behaviour_clone(
             gym.make(args.env),
             data.observations,
             data.actions,
-            epochs=cloning_epochs(labels, args.epochs, 256, max_steps),
+            epochs=baseline_epochs,
             seed=args.seed,
             progress=False,
         )
@@ -272,6 +286,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "expert_noise": args.expert_noise,
         "epochs": args.epochs,
         "max_gradient_steps": max_steps,
+        "warm_start": args.warm_start,
+        "bc_epochs": baseline_epochs,
         "expert_labels": labels,
         "randomisation": dataclasses.asdict(randomisation),
         "history": [r.as_json() for r in result.history],

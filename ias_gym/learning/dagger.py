@@ -382,6 +382,7 @@ class IterationRecord:
         rollout_success_rate: fraction of its episodes that succeeded (mixture acting) [-].
         expert_fraction: fraction of its steps where the expert's action was executed [-].
         families: episodes per drawn family.
+        gradient_steps: the cloning's Adam steps this iteration.
         family_successes: successful episodes per drawn family.
         collect_s: wall time of the rollouts [s].
         train_s: wall time of the cloning [s].
@@ -395,6 +396,7 @@ class IterationRecord:
     rollout_success_rate: float
     expert_fraction: float
     families: dict[str, int]
+    gradient_steps: int
     family_successes: dict[str, int]
     collect_s: float
     train_s: float
@@ -411,6 +413,7 @@ class IterationRecord:
             "expert_fraction": self.expert_fraction,
             "families": dict(self.families),
             "family_successes": dict(self.family_successes),
+            "gradient_steps": self.gradient_steps,
             "collect_s": self.collect_s,
             "train_s": self.train_s,
         }
@@ -476,6 +479,7 @@ def dagger(
     batch_size: int = 256,
     lr: float = 1e-3,
     net_arch: Sequence[int] = DEFAULT_NET_ARCH,
+    warm_start: bool = False,
     keep_models: bool = False,
     progress: bool = True,
     on_iteration: Callable[[IterationRecord, PPO], None] | None = None,
@@ -506,7 +510,11 @@ def dagger(
         batch_size: cloning minibatch.
         lr: cloning learning rate (Adam, cosine-decayed).
         net_arch: hidden layers of the actor.
-        keep_models: keep the learner of every iteration in the result.
+        warm_start: continue fitting the previous iteration's learner on the aggregated
+            dataset (its observation normalisation, from iteration 0's data, kept) instead
+            of cloning a new one; the optimisation then accumulates over the iterations.
+        keep_models: keep the learner of every iteration in the result (not with
+            ``warm_start``, which trains one learner on).
         progress: a progress bar over the episodes.
         on_iteration: called after each iteration with its record and the new learner.
 
@@ -515,7 +523,8 @@ def dagger(
 
     Raises:
         InputError: ``env_id`` is not a pen task, ``iterations`` or
-            ``episodes_per_iteration`` < 1, ``seed`` < 0, ``beta_decay`` outside [0, 1].
+            ``episodes_per_iteration`` < 1, ``seed`` < 0, ``beta_decay`` outside [0, 1],
+            ``keep_models`` with ``warm_start``.
     """
     check_pen_task(env_id)
     if iterations < 1:
@@ -524,6 +533,8 @@ def dagger(
         raise InputError(f"episodes_per_iteration must be >= 1, got {episodes_per_iteration}")
     if seed < 0:
         raise InputError(f"seed must be >= 0, got {seed}")
+    if warm_start and keep_models:
+        raise InputError("keep_models needs warm_start=False (a warm start trains one learner on)")
     first = episodes_per_iteration if initial_episodes is None else initial_episodes
     if first < 1:
         raise InputError(f"initial_episodes must be >= 1, got {initial_episodes}")
@@ -567,16 +578,18 @@ def dagger(
                 bar.set_postfix(iteration=iteration, beta=f"{beta:.2g}", pairs=len(dataset))
             collect_s = time.perf_counter() - start
             start = time.perf_counter()
+            n_epochs = cloning_epochs(len(dataset), epochs, batch_size, max_gradient_steps)
             learner = behaviour_clone(
                 probe,
                 dataset.observations,
                 dataset.actions,
-                epochs=cloning_epochs(len(dataset), epochs, batch_size, max_gradient_steps),
+                epochs=n_epochs,
                 batch_size=batch_size,
                 lr=lr,
                 net_arch=net_arch,
-                seed=seed,
+                seed=seed + iteration if warm_start else seed,
                 progress=False,
+                model=learner if warm_start else None,
             )
             families: dict[str, int] = {}
             family_successes: dict[str, int] = {}
@@ -596,6 +609,7 @@ def dagger(
                     sum(e.expert_fraction * len(e.labels) for e in episodes) / max(steps, 1)
                 ),
                 families=families,
+                gradient_steps=n_epochs * math.ceil(len(dataset) / batch_size),
                 family_successes=family_successes,
                 collect_s=collect_s,
                 train_s=time.perf_counter() - start,
