@@ -87,6 +87,12 @@ def build_parser() -> argparse.ArgumentParser:
         "the BC baseline then gets DAgger's total number of Adam steps",
     )
     parser.add_argument("--no-randomisation", action="store_true", help="nominal dynamics only")
+    parser.add_argument(
+        "--families",
+        default=None,
+        help="comma-separated randomisation families to draw from (default: all of "
+        "ias_gym.learning.dagger.FAMILIES)",
+    )
     parser.add_argument("--no-baseline", action="store_true", help="skip the BC baseline")
     parser.add_argument(
         "--eval-episodes", type=int, default=50, help="held-out episodes per class (0: skip)"
@@ -163,6 +169,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         DEFAULT_RANDOMISATION,
         HELD_OUT_SEED_START,
         NOMINAL,
+        Randomisation,
         check_pen_task,
         cloning_epochs,
         dagger,
@@ -193,8 +200,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
 
+    try:
+        if args.no_randomisation:
+            randomisation = NOMINAL
+        elif args.families:
+            randomisation = Randomisation(families=tuple(args.families.split(",")))
+        else:
+            randomisation = DEFAULT_RANDOMISATION
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     torch.set_num_threads(args.threads)
-    randomisation = NOMINAL if args.no_randomisation else DEFAULT_RANDOMISATION
     max_steps = args.max_gradient_steps or None
     curve: list[dict[str, Any]] = []
 
