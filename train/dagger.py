@@ -136,7 +136,9 @@ def evaluate_rows(
     }
 
 
-def development_curve_point(env_id: str, model: Any, seed: int, episodes: int) -> dict[str, Any]:
+def development_curve_point(
+    env_id: str, model: Any, seed: int, episodes: int, randomisation: Any
+) -> dict[str, Any]:
     """The learner alone on ``episodes`` development episodes of the training distribution.
 
     Run ``seed`` + :data:`DEVELOPMENT_RUN` draws the dynamics (never a training run's) and
@@ -147,7 +149,7 @@ def development_curve_point(env_id: str, model: Any, seed: int, episodes: int) -
 
     outcomes = []
     for k in range(episodes):
-        dynamics = episode_dynamics(DEVELOPMENT_RUN + seed, k)
+        dynamics = episode_dynamics(DEVELOPMENT_RUN + seed, k, randomisation)
         episode = collect_episode(env_id, dynamics, model, 0.0)
         outcomes.append(episode.trajectory.is_success)
     return Rate.of(outcomes).to_dict()
@@ -222,7 +224,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             flush=True,
         )
         if args.curve_episodes:
-            point = development_curve_point(args.env, model, args.seed, args.curve_episodes)
+            point = development_curve_point(
+                args.env, model, args.seed, args.curve_episodes, randomisation
+            )
             curve.append(
                 {"iteration": record.iteration, "dataset_size": record.dataset_size, **point}
             )
