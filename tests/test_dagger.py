@@ -277,3 +277,25 @@ def test_the_script_refuses_bad_input_with_one_line(
     assert _script_main()(["--out", str(tmp_path / "p.zip"), *args]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and match in lines[0], lines
+
+
+def test_a_warm_start_trains_one_learner_on() -> None:
+    with pytest.raises(InputError, match="keep_models needs warm_start=False"):
+        dagger(ENV_ID, 1, 1, warm_start=True, keep_models=True, progress=False)
+    result = dagger(
+        ENV_ID,
+        iterations=2,
+        episodes_per_iteration=1,
+        seed=2,
+        env_kwargs=ENV_KWARGS,
+        epochs=2,
+        net_arch=(16,),
+        warm_start=True,
+        progress=False,
+    )
+    first = result.history[0].dataset_size
+    extractor: Any = result.model.policy.features_extractor
+    # the normalisation is iteration 0's, from the expert's states alone
+    expected = result.dataset.observations[:first].mean(axis=0)
+    np.testing.assert_allclose(extractor.mean.numpy(), expected, rtol=1e-4, atol=1e-6)
+    assert all(r.gradient_steps >= 1 for r in result.history)
