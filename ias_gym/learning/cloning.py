@@ -60,6 +60,7 @@ def behaviour_clone(
     seed: int = 0,
     progress: bool = True,
     ppo_kwargs: Mapping[str, Any] | None = None,
+    model: PPO | None = None,
 ) -> PPO:
     """Clone (observation, action) pairs into the actor of a new SB3 PPO model.
 
@@ -91,6 +92,9 @@ def behaviour_clone(
         progress: show a progress bar over epochs.
         ppo_kwargs: further keyword arguments of ``PPO`` (default
             :data:`~ias_gym.learning.finetune.FINE_TUNE_PPO`).
+        model: continue fitting this model's actor (warm start; its observation
+            normalisation, network and hyperparameters kept, ``net_arch``, ``std_floor``
+            and ``ppo_kwargs`` unused) instead of building a new model.
 
     Returns:
         The PPO model with the cloned actor (save it with ``model.save(path)``).
@@ -109,17 +113,18 @@ def behaviour_clone(
         raise ValueError(f"need one return per observation, got {len(returns)} for {len(obs)}")
     if epochs < 1 or batch_size < 1:
         raise ValueError(f"epochs and batch_size must be >= 1, got {epochs} and {batch_size}")
-    mean, std = observation_statistics(obs, std_floor)
-    kwargs = {**FINE_TUNE_PPO, "gamma": GAMMA, **dict(ppo_kwargs or {})}
-    model = PPO(
-        "MlpPolicy",
-        env,
-        policy_kwargs=policy_kwargs(mean, std, net_arch),
-        seed=seed,
-        device="cpu",
-        verbose=0,
-        **kwargs,
-    )
+    if model is None:
+        mean, std = observation_statistics(obs, std_floor)
+        kwargs = {**FINE_TUNE_PPO, "gamma": GAMMA, **dict(ppo_kwargs or {})}
+        model = PPO(
+            "MlpPolicy",
+            env,
+            policy_kwargs=policy_kwargs(mean, std, net_arch),
+            seed=seed,
+            device="cpu",
+            verbose=0,
+            **kwargs,
+        )
     policy = model.policy
     torch.manual_seed(seed)
     generator = torch.Generator().manual_seed(seed)
