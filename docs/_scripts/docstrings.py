@@ -85,8 +85,13 @@ def env_page(obj: Any) -> str | None:
     for env_id, (entry, _) in specs.items():
         module, _, qualname = entry.partition(":")
         cls = getattr(importlib.import_module(module), qualname, None)
-        if cls is obj or (isinstance(cls, type) and isinstance(obj, type) and issubclass(cls, obj)):
+        if cls is obj:
             return env_id
+        try:
+            if isinstance(cls, type) and isinstance(obj, type) and issubclass(cls, obj):
+                return env_id
+        except TypeError:  # obj is a protocol that cannot be checked: no env's base
+            continue
     return None
 
 
