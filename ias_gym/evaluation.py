@@ -32,7 +32,11 @@ from ias_gym.baselines.policies import (  # re-exported: the loader's home is th
     RandomPolicy,
     load_policy,
 )
-from ias_gym.errors import IasGymError, InputError
+from ias_gym.errors import (
+    IasGymError,
+    InputError,
+    UnknownEnvError,
+)
 from ias_gym.outputs import atomic_output, check_output_file
 from ias_gym.parallel import SERIAL, Backend, prepare_here, run_jobs, worker_resource
 from ias_gym.rollout import FrameRecorder, rollout
@@ -53,10 +57,6 @@ METRIC_UNITS: Mapping[str, tuple[str, str, float]] = {
     "pen_height": ("pen_height", "mm", 1e3),
     "pinch_force": ("pinch_force", "N", 1.0),
 }
-
-
-class UnknownEnvError(InputError, LookupError):
-    """An env id that gymnasium does not know (the message lists the ``IAS-*`` ids)."""
 
 
 #: Size of the perturbation of each qpos entry of a nearby start [m or rad]: another

@@ -16,11 +16,10 @@ from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from ias_gym.errors import InputError
-
-
-class OutputExistsError(InputError, FileExistsError):
-    """An output file exists and replacing it was not asked for (``--overwrite``)."""
+from ias_gym.errors import (
+    InputError,
+    OutputExistsError,
+)
 
 
 def _refuse_existing(paths: Sequence[Path]) -> None:

@@ -49,7 +49,7 @@ from typing import Any, Generic, TypeVar
 
 from tqdm import tqdm
 
-from ias_gym.errors import IasGymError, InputError
+from ias_gym.errors import IasGymError, InputError, RayMissingError, WorkerDiedError  # noqa: F401 - defined there, raised here
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -64,25 +64,6 @@ RAY_MISSING = "--ray needs the distributed extra: pip install 'ias-gym[distribut
 #: Environment variables that size the native thread pools of numpy's BLAS, OpenMP and
 #: torch: one thread per worker, set before a worker imports them.
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
-
-
-class RayMissingError(IasGymError):
-    """``--ray`` was asked for but Ray (the ``[distributed]`` extra) is not installed."""
-
-
-class WorkerDiedError(IasGymError):
-    """Jobs whose worker process died on every attempt.
-
-    Attributes:
-        items: the failed jobs' items (seeds), in order.
-    """
-
-    def __init__(self, message: str, items: Sequence[Any] = ()) -> None:
-        super().__init__(message)
-        self.items = list(items)
-
-    def __reduce__(self) -> tuple[Any, ...]:  # picklable with its items
-        return (type(self), (str(self), self.items))
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,9 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import DTypeLike, NDArray
 
-from ias_gym.errors import IasGymError
+from ias_gym.errors import (
+    RolloutError,
+)
 
 #: ``on_reset(env, observation, info)``: called once, after ``env.reset``.
 ResetHook = Callable[[gym.Env[Any, Any], Any, dict[str, Any]], None]
@@ -63,10 +65,6 @@ class Policy(Protocol):
             deterministic: act deterministically (SB3: the mode of the distribution).
         """
         ...
-
-
-class RolloutError(IasGymError, ValueError):
-    """A policy gave :func:`rollout` something the env cannot take (the message says what)."""
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.errors import InputError
+from ias_gym.errors import InputError, PolicyFileError, UntrustedPickleError  # noqa: F401 - defined there, raised here
 
 #: The SB3 algorithms a file may hold, in the order tried when the JSON does not say.
 ALGORITHMS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
@@ -82,14 +82,6 @@ TRUST_HINT = (
 
 _CLASS_REPR = re.compile(r"<class '([A-Za-z_][\w.]*)'>")
 _METHOD_REPR = re.compile(r"<function ([A-Za-z_][\w.]*)\.[A-Za-z_]\w* at 0x[0-9a-fA-F]+>")
-
-
-class PolicyFileError(InputError):
-    """A policy file cannot be used (not an SB3 model, corrupt, or for another env)."""
-
-
-class UntrustedPickleError(PolicyFileError):
-    """A field that acting needs is stored only as a pickle (see :data:`TRUST_HINT`)."""
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ import gymnasium as gym
 import numpy as np
 
 from ias_gym.baselines.batch import batch_size
-from ias_gym.errors import IasGymError, InputError
+from ias_gym.errors import IasGymError, InputError, MissingDependencyError, PolicyNotFoundError  # noqa: F401 - defined there, raised here
 from ias_gym.rollout import Policy  # re-exported: the protocol every episode loop calls
 from ias_gym.safe_sb3 import LoadedPolicy, load_sb3_policy
 
@@ -126,14 +126,6 @@ class ModelPolicy:
 #: The policy names :func:`load_policy` knows (anything else is a model file's path).
 EXPERT = "expert"
 RANDOM = "random"
-
-
-class PolicyNotFoundError(InputError, FileNotFoundError):
-    """A policy spec that is neither a known name nor an existing file."""
-
-
-class MissingDependencyError(IasGymError, ImportError):
-    """An optional dependency is not installed (the message says which extra to install)."""
 
 
 #: Policy spec of glove envs: zero action, the glove alone drives the hand.

@@ -48,16 +48,15 @@ from gymnasium.vector.utils import (
 )
 from numpy.typing import NDArray
 
-from ias_gym.errors import IasGymError, InputError
+from ias_gym.errors import (
+    InputError,
+    WorkerError,
+)
 
 EnvFn = Callable[[], gym.Env[Any, Any]]
 #: One env's step result in a worker's reply: (``{"final_obs", "final_info"}`` of an episode
 #: that ended this step in same-step mode, else None; the env's info).
 StepInfo = tuple[dict[str, Any] | None, dict[str, Any]]
-
-
-class WorkerError(IasGymError):
-    """A worker process of a :class:`BatchedWorkers` died, timed out or could not start."""
 
 
 class BatchedWorkers:

@@ -48,7 +48,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ias_gym.errors import IasGymError, InputError
+from ias_gym.errors import (
+    InputError,
+    ProfileError,
+)
 from ias_gym.glove.calibration import Calibration, CalibrationMetrics, GroupModel
 from ias_gym.glove.hand import JOINT_NAMES, N_SENSORS, SENSOR_NAMES
 from ias_gym.glove.ids import check_id
@@ -66,10 +69,6 @@ MAX_PARAMETER = 1e6
 MIN_SCALE = 1e-9
 
 _REMEDY = "re-run `ias-gym calibrate --person ID --out DIR` to write a new profile"
-
-
-class ProfileError(IasGymError, ValueError):
-    """A profile file that cannot be used; the message says why and what to do."""
 
 
 def utc_now() -> str:

@@ -20,16 +20,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ias_gym.errors import IasGymError
+from ias_gym.errors import (
+    GraspRankError,
+)
 
 FloatArray = NDArray[np.float64]
 
 #: Relative singular-value threshold below which W is treated as rank deficient.
 RANK_RTOL = 1e-9
-
-
-class GraspRankError(IasGymError, ValueError):
-    """Raised when W does not have full row rank 6 (the paper assumes rank W = 6)."""
 
 
 def _checked_wrench_matrix(W: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:

@@ -17,7 +17,9 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ias_gym.errors import IasGymError
+from ias_gym.errors import (
+    InfeasibleGraspError,
+)
 
 FloatArray = NDArray[np.float64]
 Cone = Literal["box", "exact", "polygon"]
@@ -33,10 +35,6 @@ Sliding = Mapping[int, ArrayLike]
 
 _UNIT_TOL = 1e-6  # allowed | ||s|| - 1 | of a sliding direction [-]
 _RANK_TOL = 1e-9  # relative singular value below which equalities are dependent [-]
-
-
-class InfeasibleGraspError(IasGymError, ValueError):
-    """No wrench intensities satisfy equilibrium, the normal-force bound and the cones."""
 
 
 @dataclass(frozen=True)

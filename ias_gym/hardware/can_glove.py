@@ -29,7 +29,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ias_gym.errors import IasGymError, InputError
+from ias_gym.errors import (
+    GloveTimeoutError,
+    InputError,
+)
 from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, GloveReading
 from ias_gym.glove.ids import check_id
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
@@ -65,10 +68,6 @@ __all__ = [
     "require_can",
     "to_message",
 ]
-
-
-class GloveTimeoutError(IasGymError, RuntimeError):
-    """No sensor sample arrived in time (glove off, wrong channel or bit rate?)."""
 
 
 class CanGlove(GloveDevice):

@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ias_gym.errors import IasGymError
+from ias_gym.errors import IasGymError, ProtocolError, UnknownIdError  # noqa: F401 - defined there, raised here
 from ias_gym.glove.device import ACTUATED_JOINTS
 from ias_gym.glove.hand import SENSOR_NAMES
 
@@ -60,14 +60,6 @@ FD_SENSOR_MESSAGES = (SENSORS_FD,)
 #: Bit rates [bit/s]: classic CAN (and the FD arbitration phase), the FD data phase.
 BITRATE = 1_000_000
 FD_DATA_BITRATE = 5_000_000
-
-
-class ProtocolError(IasGymError, ValueError):
-    """A frame that does not fit the protocol (unknown id, wrong length, value out of range)."""
-
-
-class UnknownIdError(ProtocolError):
-    """A frame whose id is not in the protocol: another node's traffic, not a fault."""
 
 
 def _require_cantools() -> Any:

@@ -18,7 +18,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ias_gym.errors import InputError
+from ias_gym.errors import (
+    ReplayError,
+)
 from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, GloveReading
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.hardware.can_glove import RECORD_SUFFIXES, require_can
@@ -34,11 +36,6 @@ from ias_gym.hardware.samples import FrameReceiver, Sample
 
 if TYPE_CHECKING:
     import can
-
-
-class ReplayError(InputError):
-    """The file is not a recorded glove session: missing, not a python-can log of a supported
-    format, empty or truncated, no host cycles, or a cycle without its sample."""
 
 
 class ReplayGlove(GloveDevice):

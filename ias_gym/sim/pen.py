@@ -13,7 +13,9 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ias_gym.errors import IasGymError
+from ias_gym.errors import (
+    NameNotFoundError,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -80,13 +82,6 @@ def matrix_to_rpy(rot: ArrayLike) -> FloatArray:
             np.arctan2(m[1, 0], m[0, 0]),
         ]
     )
-
-
-class NameNotFoundError(IasGymError, KeyError):
-    """A name that the model does not contain; the message lists the names it does."""
-
-    def __str__(self) -> str:
-        return str(self.args[0])
 
 
 def lookup(model: mujoco.MjModel, obj: mujoco.mjtObj, name: str) -> int:

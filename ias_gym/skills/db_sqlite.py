@@ -9,15 +9,7 @@ import urllib.parse
 from pathlib import Path
 from types import TracebackType
 
-from ias_gym.errors import IasGymError
-
-
-class SkillDBError(IasGymError):
-    """The skill database cannot be used: not a skill database, corrupt, newer, or locked."""
-
-
-class SkillNotFoundError(SkillDBError):
-    """No skill with the requested id."""
+from ias_gym.errors import IasGymError, SkillDBError, SkillNotFoundError  # noqa: F401 - defined there, raised here
 
 
 # ---------------------------------------------------------------------------- helpers

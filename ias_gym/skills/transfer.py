@@ -43,7 +43,10 @@ from numpy.typing import NDArray
 from scipy.signal import savgol_filter
 
 from ias_gym.envs.pen_skill_env import PenSkillConfig, PenSkillEnv, SkillReference
-from ias_gym.errors import InputError
+from ias_gym.errors import (
+    InputError,
+    SkillTransferError,
+)
 from ias_gym.grasp.grasp_margin import margin_series
 from ias_gym.rollout import rollout
 from ias_gym.sim import hands
@@ -67,10 +70,6 @@ MARGIN_RANGE = (1.0, 10.0)
 #: Savitzky-Golay filter of the resampled trajectory: window [samples] and polynomial order.
 SMOOTH_WINDOW = 11
 SMOOTH_ORDER = 3
-
-
-class SkillTransferError(InputError):
-    """A stored skill cannot be transferred (no contacts, too short, ...); says which."""
 
 
 @dataclass(frozen=True)
