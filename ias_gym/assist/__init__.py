@@ -1,4 +1,4 @@
-"""Assisting the glove's wearer (issue #14, paper Flow 3): intent recognition, on-line
+"""Assisting the glove's wearer (paper Flow 3): intent recognition, on-line
 acquisition, and completing the recognised skill from the skill library.
 
 - :mod:`~ias_gym.assist.stream`, :mod:`~ias_gym.assist.recognition`,

@@ -104,7 +104,7 @@ TREMOR_ORDER = 4
 #: The tremor filter acts once the RMS of the operator's tremor joints in the tremor band
 #: (a 2nd-order Butterworth band-pass, :data:`~ias_gym.assist.impairments.TREMOR_BAND`) over
 #: :data:`TREMOR_WINDOW` exceeds this [rad]. Measured over the first 0.5 s of 30 sessions
-#: (p1, p3, p5, p6, p8, six skills) after the env's low-pass: unimpaired <= 0.0017, a
+#: (five development persons, six skills) after the env's low-pass: unimpaired <= 0.0017, a
 #: 0.06 rad tremor >= 0.0091.
 TREMOR_DETECT = 0.004
 #: Window of the tremor detector [s].
@@ -117,7 +117,7 @@ OPENING_WINDOW = (
     SKILL_TIMINGS.hold - SKILL_TIMINGS.reach,
 )
 #: ... and the part of it up to this is a person's own pinch, not closed by the assistant
-#: [rad] (unimpaired persons p1-p8 lie within -0.037..+0.029 rad of the template).
+#: [rad] (unimpaired development persons lie within -0.037..+0.029 rad of the template).
 OPENING_DEADBAND = 0.03
 #: The same comparison at rest, before the close, finger by finger: a biased calibration
 #: shifts every reading, the rest pose's too, and opens both fingers along the pinch's
@@ -184,7 +184,7 @@ MAX_HEIGHT_OFFSET = 0.3
 HEIGHT_FROM = 0.5 * (SKILL_TIMINGS.hold + SKILL_TIMINGS.lift) - SKILL_TIMINGS.reach
 #: A pen as high as the template within this time of now is on time [s]: a person early or
 #: late by up to the success test's time shift is no height error (a lagged operator lifts
-#: 0.1 s late, and correcting that dropped the pen: p9, tilt_left, measured).
+#: 0.1 s late, and correcting that dropped the pen in a tilt, measured).
 HEIGHT_TIME_TOLERANCE = MAX_TIME_SHIFT
 _HEIGHT_SHIFTS = np.linspace(-HEIGHT_TIME_TOLERANCE, HEIGHT_TIME_TOLERANCE, 7)
 
@@ -292,7 +292,7 @@ def load_templates(db_path: str | Path | None = None) -> dict[str, SkillTemplate
 
 
 class OracleRecogniser:
-    """A recogniser that knows the intent (the recogniser protocol of issue #14).
+    """A recogniser that knows the intent (the protocol of :mod:`ias_gym.assist.recognition`).
 
     Args:
         intent: episode time [s] -> the intended skill (e.g. the env's ``intent``).
@@ -578,8 +578,8 @@ class AnalyticAssistant:
     def _opened_in_hold(self) -> bool:
         """The hold found the pinch opened beyond a bias seen at rest. A bias undone from the
         start leaves the person's own pinch, which the reactive closing after the lift leaves
-        alone as it does an unimpaired one (d2: its margin on the cones' boundary raised the
-        squeeze to its cap and dropped the pen, measured)."""
+        alone as it does an unimpaired one (for a development person, its margin on the cones'
+        boundary raised the squeeze to its cap and dropped the pen, measured)."""
         return self.opening > self.bias
 
     def _coordinate_offset(self, env: Any, t: float, theta: FloatArray) -> FloatArray:

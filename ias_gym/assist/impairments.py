@@ -1,4 +1,4 @@
-"""Impaired glove operators (issue #14): what goes wrong between a person's intent and the hand.
+"""Impaired glove operators: what goes wrong between a person's intent and the hand.
 
 Each impairment changes one link of the glove chain of ``IAS-GloveGrasp-v0`` (intent Θ(t) ->
 glove readings Ψ -> calibration Θ = f(Ψ) -> the hand's joint targets) and has one strength
@@ -159,8 +159,8 @@ def _rng(tag: str, person_id: str, seed: int) -> np.random.Generator:
 #: The tremor sets in over this time from the episode's start [s] (one period at 10 Hz; a
 #: minimum-jerk envelope). The episode starts with the hand at the operator's first pose
 #: next to the pen; a tremor at full amplitude from there put the thumb into the pen at the
-#: reset (p6, lift_hold, seed 0: the pen pushed 1.2 mm in the first 10 ms step, and off its
-#: support by 0.1 s), which is the reset's overlap, not the tremor.
+#: reset (measured on one person, lift_hold: the pen pushed 1.2 mm in the first 10 ms step,
+#: and off its support by 0.1 s), which is the reset's overlap, not the tremor.
 TREMOR_ONSET = 0.1
 
 

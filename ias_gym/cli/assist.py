@@ -1,4 +1,4 @@
-"""``ias-gym assist ...``: intent recognition and assistance of glove sessions (issue #14).
+"""``ias-gym assist ...``: intent recognition and assistance of glove sessions.
 
 ``assist recognise`` builds the recognisers on the glove sessions of a skill database,
 records sessions of held-out persons and reports accuracy over the observed fraction of the
@@ -32,7 +32,8 @@ RECOGNITION_KEYS = (
     "false_trigger_rate",
     "unknown_auroc",
 )
-#: The recogniser the assistant uses in ``assist evaluate`` (the better one of issue #14).
+#: The recogniser the assistant uses in ``assist evaluate`` (the better one on the
+#: recognition table).
 ASSIST_METHOD = "phase"
 
 

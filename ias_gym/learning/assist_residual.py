@@ -1,4 +1,4 @@
-"""A learned residual on top of the analytic assistant (issue #14), trained with SB3's PPO.
+"""A learned residual on top of the analytic assistant, trained with SB3's PPO.
 
 :class:`ResidualAssistEnv` puts the impaired operator in the loop: every reset it builds an
 ``IAS-GloveAssist-v0`` session of a random person, skill and impairment (from the lists it

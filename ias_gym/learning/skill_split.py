@@ -1,6 +1,6 @@
 """Train / held-out split of a human skill library by skill name and by person.
 
-Learning across skills (issue #13) asks two questions of a policy trained on executions of
+Learning across skills asks two questions of a policy trained on executions of
 some people's skills: does it execute the *same* skills when *other* people demonstrate
 them (held-out persons), and does it execute skills it never saw (held-out skills)?
 :func:`split_skills` puts each stored skill into exactly one of four groups by those two
