@@ -52,22 +52,25 @@ class RobustnessRow:
 
     Attributes:
         disturbance: the class's name (a key of :data:`DISTURBANCES`).
-        success_rate: fraction of successful episodes [-].
+        successes: how many episodes succeeded.
         episodes: how many episodes.
         env_kwargs: the env kwargs of the class.
-        successes: how many succeeded.
     """
 
     disturbance: str
-    success_rate: float
+    successes: int
     episodes: int
     env_kwargs: dict[str, Any]
-    successes: int = 0
 
     @property
     def rate(self) -> Rate:
         """The success rate with its 95 % Wilson interval."""
         return Rate(self.successes, self.episodes)
+
+    @property
+    def success_rate(self) -> float:
+        """Fraction of successful episodes [-]."""
+        return self.rate.value
 
     def as_json(self) -> dict[str, Any]:
         """The JSON object of ``ias-gym robustness --json`` (with the 95 % Wilson interval,
@@ -140,9 +143,13 @@ def run_robustness(
             )
         finally:
             env.close()
-        rate = float(sum(result.successes)) / len(result.successes)
         rows.append(
-            RobustnessRow(disturbance, rate, len(result.successes), DISTURBANCES[disturbance])
+            RobustnessRow(
+                disturbance,
+                sum(map(bool, result.successes)),
+                len(result.successes),
+                DISTURBANCES[disturbance],
+            )
         )
     return rows
 
@@ -224,15 +231,7 @@ def run_robustness_spec(
     rows = []
     for k, name in enumerate(names):
         successes = [o.is_success for o in outcomes[k * episodes : (k + 1) * episodes]]
-        rows.append(
-            RobustnessRow(
-                name,
-                sum(successes) / len(successes),
-                episodes,
-                DISTURBANCES[name],
-                successes=sum(successes),
-            )
-        )
+        rows.append(RobustnessRow(name, sum(successes), episodes, DISTURBANCES[name]))
     return rows
 
 

@@ -47,6 +47,8 @@ def test_run_robustness_counts_episodes() -> None:
     )
     assert rows[0].disturbance == "mass_x1.3" and rows[0].episodes == 1
     assert rows[0].success_rate == 1.0
+    # the interval is of the counted successes (1 of 1), on this path as on the spec one
+    assert rows[0].successes == 1 and rows[0].as_json()["ci95_low"] > 0.0
 
 
 @pytest.mark.closed_loop
