@@ -53,9 +53,12 @@ def drain(bus: can.BusABC) -> list[can.Message]:
 
 @pytest.mark.parametrize("fd", [False, True], ids=["classic", "fd"])
 def test_glove_reads_samples_and_the_emulator_applies_torques(channel: str, fd: bool) -> None:
+    # 200 ms watchdogs on both sides: this test is about decoding and applying the commands;
+    # with 20 ms ones a loaded CI machine tripped a watchdog between the last command and the
+    # assert (the watchdogs' timing has its own tests below and in tests/test_emulator.py).
     with (
-        GloveEmulator(channel=channel, rate_hz=500, fd=fd) as emu,
-        CanGlove(channel=channel, fd=fd) as glove,
+        GloveEmulator(channel=channel, rate_hz=500, fd=fd, watchdog_timeout=0.2) as emu,
+        CanGlove(channel=channel, fd=fd, watchdog_timeout=0.2) as glove,
     ):
         first = glove.read()
         assert first.psi.shape == (10,) and np.isfinite(first.psi).all()
@@ -66,12 +69,15 @@ def test_glove_reads_samples_and_the_emulator_applies_torques(channel: str, fd: 
             glove.write_feedback(command)
             time.sleep(0.002)
         time.sleep(0.01)
-        # Read the glove's state at once: its 20 ms watchdog runs on while the test asserts
-        # (the first use of np.testing imports it: ~80 ms).
+        # Read the glove's state at once: its watchdog runs on while the test asserts (the
+        # first use of np.testing imports it: ~80 ms).
         torque, enabled = emu.torque, emu.torque_enabled
         np.testing.assert_allclose(torque, command, atol=5e-4)
         assert enabled and emu.stats.commands == 20
-        assert max(emu.command_age) <= 3  # the echoed sample was at most 3 samples old
+        # The echoed sample counter is the newest sample's: a few samples old at most (the
+        # median; a scheduling stall can delay one command on a loaded machine), where a wrong
+        # echo would spread over all 256 counter values.
+        assert np.median(emu.command_age) <= 3
         status = glove.device_status
         assert status is not None and status["TorqueEnabled"] == 1
         glove.write_feedback([np.nan, 0.2, np.inf, 9.0, -9.0])
