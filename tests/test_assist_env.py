@@ -105,7 +105,7 @@ def test_spaces_and_the_upcoming_targets_are_the_next_steps() -> None:
         make(impairment="palsy")
     with pytest.raises(InputError, match="switch_time"):
         make(switch_to="tilt_right")
-    with pytest.raises(InputError, match="hand_size's strength must be a hand scale"):
+    with pytest.raises(InputError, match=r"hand_size: scale=3.0 is out of range \(0.8..1.25\)"):
         make(impairment="hand_size", strength=3.0)
 
 
@@ -642,7 +642,9 @@ def test_cli_evaluate_json_keys(capsys, monkeypatch) -> None:
     monkeypatch.setattr(cli_assist, "_recognition_metrics", metrics)
 
     argv = ["assist", "evaluate", "--db", str(shipped_skill_db()), "--persons", PERSON]
-    argv += ["--recogniser", "oracle"]
+    # the observation assistant has no oracle: the true intent is no observation
+    assert main([*argv, "--recogniser", "oracle", "--episodes", "1"]) == 2
+    argv += ["--assistant", "analytic", "--recogniser", "oracle"]
     code = main([*argv, "--impairment", "none", "--episodes", "1", "--json"])
     assert code == 0
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
@@ -659,6 +661,7 @@ def test_cli_evaluate_json_keys(capsys, monkeypatch) -> None:
     assert set(row) >= {"success_unassisted", "success_assisted", "intervention"}
     assert row["success_unassisted"] == 1.0  # the unimpaired operator against itself
     assert main([*argv, "--impairment", "palsy", "--episodes", "1"]) == 2
+    assert main([*argv, "--impairment", "tremor:hz=2", "--episodes", "1"]) == 2
 
 
 @pytest.mark.realtime

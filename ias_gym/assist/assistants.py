@@ -77,7 +77,7 @@ from numpy.typing import NDArray
 from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from ias_gym.assist.evaluation import LIFT_END, MAX_TIME_SHIFT
-from ias_gym.assist.impairments import TREMOR_BAND, TREMOR_JOINTS, pinch_direction
+from ias_gym.assist.impairments import TREMOR_JOINTS, pinch_direction
 from ias_gym.assist.stream import frames_from_env
 from ias_gym.envs.glove_grasp import OBSERVATION
 from ias_gym.errors import InputError
@@ -102,11 +102,13 @@ TREMOR_STOP = (7.0, 13.0)
 #: phase lag of 16 deg at the fast see-saw's 1.5 Hz.
 TREMOR_ORDER = 4
 #: The tremor filter acts once the RMS of the operator's tremor joints in the tremor band
-#: (a 2nd-order Butterworth band-pass, :data:`~ias_gym.assist.impairments.TREMOR_BAND`) over
+#: (a 2nd-order Butterworth band-pass, :data:`DETECT_BAND`) over
 #: :data:`TREMOR_WINDOW` exceeds this [rad]. Measured over the first 0.5 s of 30 sessions
 #: (five development persons, six skills) after the env's low-pass: unimpaired <= 0.0017, a
 #: 0.06 rad tremor >= 0.0091.
 TREMOR_DETECT = 0.004
+#: Band of the tremor detector's band-pass [Hz] (the tremors this assistant was made for).
+DETECT_BAND = (8.0, 12.0)
 #: Window of the tremor detector [s].
 TREMOR_WINDOW = 0.15
 #: The pinch's opening against the library's joint template is estimated over this window
@@ -469,7 +471,7 @@ class AnalyticAssistant:
         theta = self._operator_theta(env)[self._tremor_idx][None, None, :]
         self._stop = butter(TREMOR_ORDER, TREMOR_STOP, btype="bandstop", fs=fs, output="sos")
         self._stop_z = sosfilt_zi(self._stop)[:, :, None] * theta
-        self._band = butter(2, TREMOR_BAND, btype="bandpass", fs=fs, output="sos")
+        self._band = butter(2, DETECT_BAND, btype="bandpass", fs=fs, output="sos")
         self._band_z = sosfilt_zi(self._band)[:, :, None] * theta
         self._band_power: deque[float] = deque(maxlen=round(TREMOR_WINDOW / self._dt))
         self.tremor_detected = False

@@ -29,11 +29,13 @@ from ias_gym.assist.impairments import (
     Impairment,
     LaggedGlove,
     PeekGlove,
+    StopsOperator,
     TremorOperator,
     WeakGripOperator,
     biased_calibration,
     check_hand_scale,
     resized_person,
+    session_rng,
     stock_person,
 )
 from ias_gym.envs.glove_grasp import OBSERVATION_PARTS as GLOVE_PARTS
@@ -91,10 +93,11 @@ class GloveAssistEnv(GloveGraspEnv):
 
     ## Description
     ``IAS-GloveGrasp-v0`` performing ``skill`` (default ``lift_hold``), its operator impaired
-    by ``impairment`` (:mod:`ias_gym.assist.impairments`: ``none``, ``tremor``,
-    ``weak_grip``, ``lag``, ``biased_calibration``, ``hand_size``) of ``strength``
-    (default :data:`~ias_gym.assist.impairments.DEFAULT_STRENGTHS`). With zero action the
-    session is the impaired operator alone.
+    as the spec ``impairment`` says (:mod:`ias_gym.assist.impairment_spec`: ``none``, a
+    family ``tremor``, ``weak_grip``, ``lag``, ``biased_calibration``, ``hand_size`` or
+    ``stops`` with its parameters, e.g. ``"tremor:hz=5"``, families joined by ``+``, or
+    ``sampled``: a family and its parameters drawn from the person's id and the skill).
+    With zero action the session is the impaired operator alone.
 
     ## Action Space
     As IAS-GloveGrasp-v0: ``Box(-1, 1, (10,))``, offsets of the joint targets times
@@ -128,7 +131,8 @@ class GloveAssistEnv(GloveGraspEnv):
     As IAS-GloveGrasp-v0.
 
     ## Arguments
-    ``render_mode``; ``impairment`` [``"none"``]; ``strength`` [the impairment's default];
+    ``render_mode``; ``impairment`` [``"none"``]; ``strength`` [None: the spec's]: the size
+    of a family given by its bare name (``impairment_spec.STRENGTH_KEY``);
     ``switch_to`` [None]: a skill the operator switches to at ``switch_time`` [s, episode
     time]; ``hand_scale`` [None]: the person with their hand resized to this scale
     (:func:`~ias_gym.assist.impairments.resized_person`), the operator planning for that
@@ -141,7 +145,8 @@ class GloveAssistEnv(GloveGraspEnv):
       scale 0.8 judged against the person's own hand, before any release).
 
     Attributes:
-        impairment: the :class:`~ias_gym.assist.impairments.Impairment`.
+        impairment: the :class:`~ias_gym.assist.impairment_spec.Impairment` (``sampled``
+            resolved: the drawn one).
         operator_person: whose hand the operator's script plans for (``hand_size``: the
             stock hand; else the hand's owner).
     """
@@ -161,8 +166,8 @@ class GloveAssistEnv(GloveGraspEnv):
 
         Args:
             render_mode: ``None`` or ``"rgb_array"``.
-            impairment: the operator's impairment.
-            strength: its strength (unit per impairment; default its tuned default).
+            impairment: the operator's impairment spec.
+            strength: the size of a bare family name (None: the spec's).
             switch_to: a skill the operator switches to (None: no switch).
             switch_time: episode time of the switch [s] (needed with ``switch_to``).
             hand_scale: resize the person's hand to this scale [-], the operator's plan
@@ -170,33 +175,36 @@ class GloveAssistEnv(GloveGraspEnv):
             **config: fields of :class:`~ias_gym.envs.glove_grasp.GloveGraspConfig`.
 
         Raises:
-            InputError: an unknown impairment or skill, a strength out of range,
+            InputError: an unknown impairment family, key or skill, a value out of range,
                 ``switch_to`` without a non-negative ``switch_time``, or ``hand_scale`` out
                 of (0, 2] or given with ``hand_size``.
         """
-        self.impairment = Impairment.make(impairment, strength)
         config.setdefault("skill", "lift_hold")
+        imp = Impairment.make(impairment, strength)
+        person_id = str(config.get("person_id", "p1"))
+        self.impairment = imp.draw(session_rng("sampled", person_id, str(config["skill"])))
         if switch_to is not None:
             check_skill(switch_to, "switch_to")
             if switch_time is None or not switch_time >= 0:
                 raise InputError("switch_to needs switch_time >= 0 [s, episode time]")
         self.switch_to = switch_to
         self.switch_time = None if switch_to is None else float(switch_time)  # type: ignore[arg-type]
-        owner = PersonParams.sample(str(config.get("person_id", "p1")))
+        owner = PersonParams.sample(person_id)
         imp = self.impairment
+        size, bias = imp.family("hand_size"), imp.family("biased_calibration")
         if hand_scale is not None:
             check_hand_scale(hand_scale, "hand_scale")
-            if imp.name == "hand_size":
+            if size is not None:
                 raise InputError(
                     "hand_scale is a hand whose operator plans for it; hand_size's strength "
                     "is the scale of a hand running the stock plan: give one of the two"
                 )
             owner = resized_person(owner, float(hand_scale))
-        hand = resized_person(owner, imp.strength) if imp.name == "hand_size" else owner
-        self.operator_person = stock_person(owner) if imp.name == "hand_size" else owner
+        hand = owner if size is None else resized_person(owner, size.number("scale"))
+        self.operator_person = owner if size is None else stock_person(owner)
         calibration = default_calibration(hand)
-        if imp.name == "biased_calibration":
-            calibration = biased_calibration(calibration, imp.strength)
+        if bias is not None:
+            calibration = biased_calibration(calibration, bias.number("rad"), str(bias["fingers"]))
         super().__init__(render_mode, person=hand, calibration=calibration, **config)
         m = self.model
         radius = float(m.geom_size[m.geom("pen").id, 0])
@@ -218,13 +226,18 @@ class GloveAssistEnv(GloveGraspEnv):
     def _impaired_glove(self, seed: int) -> GloveDevice:
         imp = self.impairment
         script: ScriptedOperator = self.script
-        if imp.name == "weak_grip":
-            script = WeakGripOperator(script, imp.strength)
-        elif imp.name == "tremor":
-            script = TremorOperator(script, imp.strength, self.person.person_id, seed)
+        stops, weak = imp.family("stops"), imp.family("weak_grip")
+        tremor, lag = imp.family("tremor"), imp.family("lag")
+        if stops is not None and isinstance(script, SkillOperator):
+            script = StopsOperator(script, stops.number("at"))
+        if weak is not None:
+            script = WeakGripOperator(script, weak.number("rad"), str(weak["fingers"]))
+        if tremor is not None:
+            amplitude, hz = tremor.number("amplitude_rad"), tremor.number("hz")
+            script = TremorOperator(script, amplitude, self.person.person_id, seed, hz)
         glove: GloveDevice = SimulatedGlove(self.person, FromPreShape(script), seed)
-        if imp.name == "lag":
-            glove = LaggedGlove(glove, round(imp.strength / self.config.control_dt))
+        if lag is not None:
+            glove = LaggedGlove(glove, round(lag.number("s") / self.config.control_dt))
         return PeekGlove(glove)
 
     def intent(self, time_s: float) -> str:

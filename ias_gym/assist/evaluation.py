@@ -37,7 +37,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.assist.impairments import Impairment, reference_kwargs
+from ias_gym.assist.impairments import reference_kwargs
 from ias_gym.envs.glove_grasp import OBSERVATION
 from ias_gym.glove.hand import N_JOINTS
 from ias_gym.glove.skills import SKILL_TIMINGS
@@ -99,9 +99,9 @@ class AssistantPolicy:
         assistant: the assistant, or None.
     """
 
-    def __init__(self, env: gym.Env[Any, Any], assistant: Assistant | None) -> None:
+    def __init__(self, env: gym.Env[Any, Any], assistant: Any) -> None:
         self.env: Any = env.unwrapped
-        self.assistant = assistant
+        self.assistant: Any = assistant
         self.shape = env.action_space.shape or (N_JOINTS,)
         #: The recogniser's top skill at each step so far (empty without an assistant).
         self.top: list[str] = []
@@ -113,13 +113,17 @@ class AssistantPolicy:
         episode_start: Any = None,
         deterministic: bool = True,
     ) -> tuple[FloatArray, Any]:
-        """The assistant's action for the env's current state (``observation`` unused)."""
+        """The assistant's action: an assistant that reads observations
+        (``reads_observations``, :class:`~ias_gym.assist.policy.ObservationAssistant`) acts
+        on ``observation``, any other on the env's current state."""
         if self.assistant is None:
             return np.zeros(self.shape), state
+        on_obs = getattr(self.assistant, "reads_observations", False)
         if episode_start:
-            self.assistant.reset(self.env)
+            self.assistant.reset() if on_obs else self.assistant.reset(self.env)
             self.top = []
-        action = np.clip(np.asarray(self.assistant.act(self.env), dtype=np.float64), -1.0, 1.0)
+        raw = self.assistant.act(observation if on_obs else self.env)
+        action = np.clip(np.asarray(raw, dtype=np.float64), -1.0, 1.0)
         post = self.assistant.posterior()
         self.top.append(max(post, key=post.__getitem__) if post else "")
         return action, state
@@ -179,7 +183,7 @@ def _switch_latency(times: FloatArray, top: list[str], target: str, t_switch: fl
 
 def run_session(
     env: gym.Env[Any, Any],
-    assistant: Assistant | None,
+    assistant: Any,
     seed: int,
     options: dict[str, Any] | None = None,
 ) -> SessionResult:
@@ -187,7 +191,9 @@ def run_session(
 
     Args:
         env: the env (wrappers allowed).
-        assistant: gives the actions; None: zero actions (the operator alone).
+        assistant: gives the actions (an :class:`Assistant`, or one that reads
+            observations: :class:`~ias_gym.assist.policy.ObservationAssistant`); None: zero
+            actions (the operator alone).
         seed: the reset seed.
         options: reset options (e.g. a perturbed start, ``tests/closed_loop.py``).
 
@@ -404,7 +410,7 @@ def evaluate_assistance(
     Args:
         make_assistant: ``() -> Assistant``, a fresh assistant.
         persons: person ids.
-        impairments: impairment names (:data:`~ias_gym.assist.impairments.IMPAIRMENTS`).
+        impairments: impairment specs (:mod:`~ias_gym.assist.impairment_spec`).
         episodes: sessions per person and impairment.
         seed: the first reset seed.
         skills: the skills to cycle through (default all six glove skills).
@@ -421,27 +427,34 @@ def evaluate_assistance(
     references: dict[tuple[str, str, int, str], SessionResult | None] = {}
     out = {}
     for imp in impairments:
-        same = reference_kwargs(Impairment.make(imp, extra.get("strength")))
         ok_u, ok_a, interv = [], [], []
         records: list[dict[str, Any]] = []
         excluded = 0
         for person in persons:
             for i in range(episodes):
                 skill, s = skills[i % len(skills)], seed + i
+                env = gym.make(
+                    "IAS-GloveAssist-v0", person_id=person, skill=skill, impairment=imp, **extra
+                )
+                drawn = env.unwrapped.impairment  # type: ignore[attr-defined]
+                same = reference_kwargs(drawn)  # ``sampled``: the drawn family's
                 key = (person, skill, s, repr(same))
                 if key not in references:
                     references[key] = reference_session(person, skill, s, **same)
                 ref = references[key]
-                record: dict[str, Any] = {"person": person, "skill": skill, "seed": s}
+                record: dict[str, Any] = {
+                    "person": person,
+                    "skill": skill,
+                    "seed": s,
+                    "impairment": drawn.spec,
+                }
                 if ref is None:
+                    env.close()
                     excluded += 1
                     records.append({**record, "excluded": True})
                     if progress is not None:
                         progress()
                     continue
-                env = gym.make(
-                    "IAS-GloveAssist-v0", person_id=person, skill=skill, impairment=imp, **extra
-                )
                 unassisted = run_session(env, None, s)
                 assisted = run_session(env, make_assistant(), s)
                 env.close()

@@ -1,25 +1,27 @@
 """Impaired glove operators: what goes wrong between a person's intent and the hand.
 
-Each impairment changes one link of the glove chain of ``IAS-GloveGrasp-v0`` (intent Θ(t) ->
-glove readings Ψ -> calibration Θ = f(Ψ) -> the hand's joint targets) and has one strength
-(:data:`DEFAULT_STRENGTHS`, tuned so that each one makes the unassisted skill fail in at least
-half of the sessions: the measurements are in docs/assistance.md):
+Each impairment family changes one link of the glove chain of ``IAS-GloveGrasp-v0`` (intent
+Θ(t) -> glove readings Ψ -> calibration Θ = f(Ψ) -> the hand's joint targets); a spec
+(:mod:`ias_gym.assist.impairment_spec`: ``NAME[:KEY=VALUE,...]``, ``A+B``, ``sampled``)
+names the families and their parameters, with the ranges they come from:
 
-=======================  ===========================================================  ========
-name                     what                                                         strength
-=======================  ===========================================================  ========
-``tremor``               a pathological tremor of one frequency in 8-12 Hz on the     [rad]
-                         wrist and the pinching fingers (:class:`TremorOperator`)
-``weak_grip``            the operator closes index and thumb less than the pinch      [rad]
+=======================  ===========================================================
+family                   what
+=======================  ===========================================================
+``tremor``               a pathological tremor of ``hz`` on the wrist and the
+                         pinching fingers (:class:`TremorOperator`)
+``weak_grip``            the operator closes index, thumb or both less than the pinch
                          needs (:class:`WeakGripOperator`): too small a squeeze
-``lag``                  the glove's readings arrive late (:class:`LaggedGlove`)      [s]
-``biased_calibration``   the calibration ANN's output is offset on the pinching       [rad]
-                         joints, opening the pinch (:func:`biased_calibration`)
-``hand_size``            the operator runs the stock pinch (planned for a nominal     scale [-]
+``lag``                  the glove's readings arrive late (:class:`LaggedGlove`)
+``biased_calibration``   the calibration ANN's output is offset on the pinching
+                         joints of index, thumb or both (:func:`biased_calibration`)
+``hand_size``            the operator runs the stock pinch (planned for a nominal
                          hand) with a hand of this scale (:func:`resized_person`),
                          judged against the same hand's own plan
                          (:func:`reference_kwargs`)
-=======================  ===========================================================  ========
+``stops``                the operator performs the first share ``at`` of the skill's
+                         own motion and then holds still (:class:`StopsOperator`)
+=======================  ===========================================================
 
 Pure numpy on the glove layer's types (no MuJoCo): the env (:mod:`ias_gym.assist.env`) puts
 them together.
@@ -31,12 +33,18 @@ import dataclasses
 import hashlib
 import math
 from collections import deque
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym.assist.impairment_spec import (
+    FAMILIES,
+    NONE,
+    STRENGTH_KEY,
+    Impairment,
+    parse_impairment,
+)
 from ias_gym.errors import InputError
 from ias_gym.glove.calibration import Calibration
 from ias_gym.glove.device import GloveDevice, GloveReading, GloveWrapper, ReachPinchLiftTimings
@@ -49,26 +57,18 @@ from ias_gym.glove.hand import (
     joint_index,
 )
 from ias_gym.glove.operator import ScriptedOperator
+from ias_gym.glove.skills import SkillOperator
 
 FloatArray = NDArray[np.float64]
 
-#: The impairments, ``"none"`` first.
-IMPAIRMENTS: tuple[str, ...] = (
-    "none",
-    "tremor",
-    "weak_grip",
-    "lag",
-    "biased_calibration",
-    "hand_size",
-)
-#: Default strength of each impairment (units in the module docstring; tuned: docs/assistance.md).
+__all__ = ["Impairment", "parse_impairment"]
+
+#: The impairment families, ``"none"`` first.
+IMPAIRMENTS: tuple[str, ...] = (NONE, *FAMILIES)
+#: Each family's default size (its :data:`~ias_gym.assist.impairment_spec.STRENGTH_KEY`).
 DEFAULT_STRENGTHS: dict[str, float] = {
-    "none": 0.0,
-    "tremor": 0.06,
-    "weak_grip": 0.08,
-    "lag": 0.1,
-    "biased_calibration": 0.10,
-    "hand_size": 1.2,
+    NONE: 0.0,
+    **{name: float(keys[STRENGTH_KEY[name]].default) for name, keys in FAMILIES.items()},
 }
 #: Joints that tremor: the wrist and the pinching fingers (as the persons' own physiological
 #: tremor of :mod:`ias_gym.glove.skills`, but tens of times stronger).
@@ -83,50 +83,24 @@ TREMOR_JOINTS: tuple[str, ...] = (
 )
 #: Joints whose flexion closes the pinch on the pen, and how much of an opening each takes.
 PINCH_JOINTS: dict[str, float] = {"index_mcp": 1.0, "index_pip": 0.5, "thumb_flexion": 1.0}
-#: Band of a pathological (essential / parkinsonian action) tremor [Hz].
-TREMOR_BAND = (8.0, 12.0)
+#: Band of a pathological tremor [Hz] (parkinsonian 4-6 Hz, essential 4-12 Hz: the ``tremor``
+#: family's ``hz`` range).
+TREMOR_BAND = (4.0, 12.0)
+#: Each finger's pinch joints (``fingers=index|thumb``; ``both`` is all of them).
+FINGER_JOINTS: dict[str, tuple[str, ...]] = {
+    "index": ("index_mcp", "index_pip"),
+    "thumb": ("thumb_flexion",),
+}
 
 
-def pinch_direction() -> FloatArray:
-    """``(10,)`` the joint direction that closes the pinch (:data:`PINCH_JOINTS`) [-]."""
+def pinch_direction(fingers: str = "both") -> FloatArray:
+    """``(10,)`` the joint direction that closes the pinch (:data:`PINCH_JOINTS`) [-], of
+    ``fingers`` (``index``, ``thumb`` or ``both``)."""
     out = np.zeros(N_JOINTS)
     for name, share in PINCH_JOINTS.items():
-        out[joint_index(name)] = share
+        if fingers == "both" or name in FINGER_JOINTS[fingers]:
+            out[joint_index(name)] = share
     return out
-
-
-@dataclass(frozen=True)
-class Impairment:
-    """One impairment and its strength.
-
-    Attributes:
-        name: one of :data:`IMPAIRMENTS`.
-        strength: its size in the unit of the module docstring's table.
-    """
-
-    name: str
-    strength: float
-
-    @classmethod
-    def make(cls, name: str, strength: float | None = None) -> Impairment:
-        """The impairment ``name`` with ``strength`` (default :data:`DEFAULT_STRENGTHS`).
-
-        Raises:
-            InputError: an unknown name, or a strength out of its range (lag < 0, a scale
-                not in (0, 2], a negative amplitude).
-        """
-        if name not in IMPAIRMENTS:
-            raise InputError(
-                f"impairment {name!r} is not known; choose one of {', '.join(IMPAIRMENTS)}"
-            )
-        value = DEFAULT_STRENGTHS[name] if strength is None else float(strength)
-        if not math.isfinite(value):
-            raise InputError(f"impairment strength must be finite, got {value}")
-        if name == "hand_size":
-            check_hand_scale(value, "hand_size's strength")
-        elif value < 0:
-            raise InputError(f"{name}'s strength must be >= 0, got {value}")
-        return cls(name, value)
 
 
 def check_hand_scale(value: float, what: str) -> float:
@@ -145,15 +119,20 @@ def reference_kwargs(impairment: Impairment) -> dict[str, Any]:
     same, the pen's centre moves with its distance from the wrist), which no offset of the
     joint targets undoes (measured: docs/assistance.md).
     """
-    if impairment.name == "hand_size":
-        return {"hand_scale": impairment.strength}
-    return {}
+    size = impairment.family("hand_size")
+    return {} if size is None else {"hand_scale": size.number("scale")}
 
 
-def _rng(tag: str, person_id: str, seed: int) -> np.random.Generator:
-    # sha256, not hash(): Python salts str hashes per process.
+def session_rng(tag: str, person_id: str, seed: int | str) -> np.random.Generator:
+    """A random stream of ``tag`` for one person and seed (or name), the same on any machine
+    (sha256, not Python's salted ``hash()``)."""
     digest = hashlib.sha256(f"{tag}:{person_id}".encode()).digest()
-    return np.random.default_rng([int.from_bytes(digest[:8], "little"), seed])
+    extra = (
+        seed
+        if isinstance(seed, int)
+        else int.from_bytes(hashlib.sha256(seed.encode()).digest()[:8], "little")
+    )
+    return np.random.default_rng([int.from_bytes(digest[:8], "little"), extra])
 
 
 #: The tremor sets in over this time from the episode's start [s] (one period at 10 Hz; a
@@ -172,18 +151,25 @@ class TremorOperator:
     Args:
         operator: the script Θ(t) [rad], t [s].
         amplitude: ``A`` [rad].
-        person_id, seed: draw the frequency ``f`` ~ U(8.5, 11.5) Hz (inside
-            :data:`TREMOR_BAND`) and the phases, reproducibly.
+        person_id, seed: draw the phases, reproducibly (and ``f`` ~ U(8.5, 11.5) Hz when
+            ``hz`` is None).
+        hz: the tremor's frequency ``f`` [Hz].
     """
 
     def __init__(
-        self, operator: ScriptedOperator, amplitude: float, person_id: str, seed: int
+        self,
+        operator: ScriptedOperator,
+        amplitude: float,
+        person_id: str,
+        seed: int,
+        hz: float | None = None,
     ) -> None:
         self.operator = operator
         self.amplitude = float(amplitude)
-        rng = _rng("tremor", person_id, seed)
+        rng = session_rng("tremor", person_id, seed)
+        drawn = float(rng.uniform(8.5, 11.5))
         #: The tremor's frequency [Hz].
-        self.hz = float(rng.uniform(TREMOR_BAND[0] + 0.5, TREMOR_BAND[1] - 0.5))
+        self.hz = drawn if hz is None else float(hz)
         self._idx = np.array([joint_index(j) for j in TREMOR_JOINTS])
         self._phase = rng.uniform(0.0, 2.0 * math.pi, size=len(TREMOR_JOINTS))
 
@@ -218,12 +204,13 @@ class WeakGripOperator:
     Args:
         operator: the script Θ(t) [rad].
         opening: how much less the pinch closes [rad] on index MCP and thumb flexion.
+        fingers: whose pinch is weak: ``index``, ``thumb`` or ``both``.
     """
 
-    def __init__(self, operator: ScriptedOperator, opening: float) -> None:
+    def __init__(self, operator: ScriptedOperator, opening: float, fingers: str = "both") -> None:
         self.operator = operator
         self.opening = float(opening)
-        self._d = pinch_direction()
+        self._d = pinch_direction(fingers)
 
     @property
     def timings(self) -> ReachPinchLiftTimings:
@@ -235,6 +222,35 @@ class WeakGripOperator:
         t0, t1 = self.timings.reach, self.timings.close
         w = _min_jerk((t - t0) / (t1 - t0))
         return np.asarray(self.operator(t), dtype=np.float64) - w * self.opening * self._d
+
+
+class StopsOperator:
+    """A skill's script whose own motion stops: the operator performs the first share ``at``
+    of the skill's motion (:meth:`~ias_gym.glove.skills.SkillOperator.offsets`, from its
+    start for ``motion_time``) and then holds the pose it reached; the pinch-lift and the
+    person's own physiological tremor go on ("the operator only gives the goal").
+
+    Args:
+        operator: the skill's script.
+        at: the share of the skill's own motion performed [0, 1].
+    """
+
+    def __init__(self, operator: SkillOperator, at: float) -> None:
+        self.operator = operator
+        self.at = float(at)
+        #: Script time at which the operator stops [s].
+        self.stop_time = operator.skill_start + self.at * operator.motion_time
+
+    @property
+    def timings(self) -> ReachPinchLiftTimings:
+        """The wrapped script's phase times."""
+        return self.operator.timings
+
+    def __call__(self, t: float) -> FloatArray:
+        """Θ(t) [rad], the skill's offsets held from :attr:`stop_time` on."""
+        op = self.operator
+        offsets = op.offsets(min(t, self.stop_time))
+        return np.asarray(op.base(t) + offsets + op.tremor(t), dtype=np.float64)
 
 
 class LaggedGlove(GloveWrapper):
@@ -291,13 +307,16 @@ class PeekGlove(GloveWrapper):
         return out
 
 
-def calibration_bias(offset: float) -> FloatArray:
+def calibration_bias(offset: float, fingers: str = "both") -> FloatArray:
     """``(10,)`` the output offset [rad] of :func:`biased_calibration`: ``-offset`` on the
-    pinch's closing joints (:data:`PINCH_JOINTS`, index PIP half), 0 elsewhere."""
-    return -float(offset) * pinch_direction()
+    pinch's closing joints of ``fingers`` (:data:`PINCH_JOINTS`, index PIP half), 0
+    elsewhere."""
+    return -float(offset) * pinch_direction(fingers)
 
 
-def biased_calibration(calibration: Calibration, offset: float) -> Calibration:
+def biased_calibration(
+    calibration: Calibration, offset: float, fingers: str = "both"
+) -> Calibration:
     """The calibration with its output offset on the pinching joints: every group's
     ``y_mean`` (the ANN's output shift) moved by :func:`calibration_bias` ``(offset)``, so
     ``predict`` returns Θ + bias for every reading (an ANN that learned the pinch poses
@@ -306,11 +325,12 @@ def biased_calibration(calibration: Calibration, offset: float) -> Calibration:
     Args:
         calibration: the person's calibration.
         offset: [rad], > 0 opens the pinch.
+        fingers: whose joints: ``index``, ``thumb`` or ``both``.
 
     Returns:
         A new :class:`Calibration` (the input is unchanged).
     """
-    bias = calibration_bias(offset)
+    bias = calibration_bias(offset, fingers)
     groups = []
     for g in calibration.groups:
         shift = np.array([bias[joint_index(j)] for j in g.outputs])

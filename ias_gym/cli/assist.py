@@ -114,18 +114,14 @@ def _persons(text: str) -> list[str]:
     return [check_id(p, "--persons") for p in persons]
 
 
-def _impairments(text: str) -> list[str]:
-    from ias_gym.assist.impairments import IMPAIRMENTS
+def _impairments(specs: list[str] | None) -> list[str]:
+    """The ``--impairment`` specs, ``all`` expanded (default: ``none`` and every family)."""
+    from ias_gym.assist.impairment_spec import expand_specs
 
-    if text == "all":
-        return list(IMPAIRMENTS)
-    names = [n.strip() for n in text.split(",") if n.strip()]
-    for name in names:
-        if name not in IMPAIRMENTS:
-            raise InputError(
-                f"--impairment {name!r} is not known; choose from {', '.join(IMPAIRMENTS)} or all"
-            )
-    return names
+    try:
+        return expand_specs(specs or ["none", "all"])
+    except InputError as e:
+        raise InputError(f"--impairment: {e}") from None
 
 
 def _recognition_metrics(db: Path, persons: list[str], episodes: int, seed: int) -> dict[str, Any]:
@@ -163,6 +159,30 @@ def _recogniser_factory(method: str, db: Path | None) -> Any:
     return lambda: recogniser
 
 
+def _assistant_factory(kind: str, recogniser: str, db: Path) -> Any:
+    """``() -> assistant``: the observation assistant
+    (:func:`~ias_gym.assist.policy.make_assistant`, recogniser ``phase``, ``dtw`` or
+    ``none``) or the analytic one on the env's state."""
+    if kind == "observation":
+        from ias_gym.assist.env import OBSERVATION_PARTS
+        from ias_gym.assist.policy import RECOGNISERS, make_assistant
+        from ias_gym.envs.layout import observation_layout
+
+        if recogniser not in RECOGNISERS:
+            raise InputError(
+                f"--recogniser {recogniser!r}: the observation assistant takes one of "
+                f"{', '.join(RECOGNISERS)}"
+            )
+        layout = observation_layout(OBSERVATION_PARTS)
+        assistant = make_assistant(db, recogniser, layout=layout)
+        return lambda: assistant
+    from ias_gym.assist.assistants import AnalyticAssistant, load_templates
+
+    templates = load_templates(db)
+    make_recogniser = _recogniser_factory(recogniser, db)
+    return lambda: AnalyticAssistant(templates, make_recogniser())
+
+
 def _evaluate(args: argparse.Namespace) -> int:
     persons = _persons(args.persons)
     impairments = _impairments(args.impairment)
@@ -171,15 +191,13 @@ def _evaluate(args: argparse.Namespace) -> int:
         raise InputError(f"--db {db} does not exist; give a skill library (skills record)")
     from tqdm import tqdm
 
-    from ias_gym.assist.assistants import AnalyticAssistant, load_templates
     from ias_gym.assist.evaluation import evaluate_assistance
 
-    templates = load_templates(db)
-    make_recogniser = _recogniser_factory(args.recogniser, db)
+    make = _assistant_factory(args.assistant, args.recogniser, db)
     total = len(persons) * len(impairments) * args.episodes
     with tqdm(total=total, desc="sessions", disable=args.json, file=sys.stderr) as bar:
         scores = evaluate_assistance(
-            lambda: AnalyticAssistant(templates, make_recogniser()),
+            make,
             persons,
             impairments,
             args.episodes,
@@ -307,16 +325,27 @@ def add_assist_evaluate(commands: argparse._SubParsersAction[Any]) -> argparse.A
     p.add_argument("--persons", default="p7,p8,p9", metavar="ID,ID,...", help="person ids")
     p.add_argument(
         "--impairment",
-        default="all",
-        metavar="NAME|none|all",
-        help="impairment(s), comma-separated",
+        action="append",
+        metavar="SPEC",
+        help="an impairment, repeatable: NAME, NAME:KEY=VALUE[,KEY=VALUE], A+B, none, "
+        "sampled or all (every family); keys: tremor hz, amplitude_rad; weak_grip fingers="
+        "index|thumb|both, rad; lag s; biased_calibration rad (signed), fingers; hand_size "
+        "scale; stops at (default: none and all)",
     )
     episode_arguments(p, 6, "sessions per person", seed_help="first seed")
     p.add_argument(
+        "--assistant",
+        default="observation",
+        choices=("observation", "analytic"),
+        help="observation: the policy on observations that completes the recognised skill; "
+        "analytic: the older assistant that reads the env's state",
+    )
+    p.add_argument(
         "--recogniser",
         default=ASSIST_METHOD,
-        metavar="oracle|dtw|phase",
-        help="how the assistant knows the intent (oracle: the true skill)",
+        metavar="phase|dtw|none|oracle",
+        help="how the assistant knows the intent (none: no skill knowledge; oracle, analytic "
+        "only: the true skill)",
     )
     p.add_argument("--json", action="store_true", help="one JSON object on the last line")
     p.set_defaults(run=_evaluate)

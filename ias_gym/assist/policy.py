@@ -1,0 +1,516 @@
+"""The assistant as a policy on observations: it completes the skill it recognises (Flow 3).
+
+Paper, Flow 3: the system "identifies and anticipates the action the human operator wants
+to perform, and if the necessary skill has been stored in the skill data base before, it is
+applied": the operator only gives the goal. :func:`make_assistant` builds an
+:class:`ObservationAssistant` from a skill database; it has ``reset()`` and
+``act(observation) -> action`` and reads nothing but the observation (by the env's part
+names, :mod:`ias_gym.envs.layout`) and the database: no env object, configuration, person
+id or simulator state. On ``IAS-GloveAssist-v0`` the operator's joint targets are the
+observation's ``upcoming_theta``; on an env without them (``IAS-GloveHardware-v0``) they
+are the hand's ``joint_angles`` less the assistant's own last offset.
+
+Every step:
+
+1. **Recognition.** The observation becomes a
+   :class:`~ias_gym.assist.stream.SessionFrame` (:func:`frame_from_observation`) and the
+   recogniser (:mod:`ias_gym.assist.recognition`) updates its posterior ``p_k`` over the
+   library's skills and ``unknown``.
+2. **Completion from the recognised skill's stored model.** Each skill's template
+   (:class:`SkillMotion`: the mean of its demonstrations' joint trajectories, aligned at
+   their skill start, less the pose at the start) says how the skill moves the joints it
+   moves. For each skill the assistant fits the operator's own version of it to what the
+   operator has done since the skill's motion set in: amplitude ``a``, speed ``v`` and
+   start ``t0`` (least squares over a grid of ``v`` and ``t0``, ``a`` in closed form), so
+   that ``a m_k(v (t - t0))`` is this person's motion. When the operator's motion falls
+   short of the fitted model's (their speed over :attr:`AssistParams.stop_window_s` below
+   :attr:`AssistParams.stop_ratio` of the model's), the assistant latches that it has
+   stopped and drives the joints the rest of the way: offset ``= a m_k(v (t - t0)) -
+   (Θ - Θ_0)``, weighted by ``p_k`` (the ``unknown`` share adds nothing, so without skill
+   knowledge there is no completion).
+The thresholds are :class:`AssistParams`, fitted on development persons by
+``train/fit_assistant.py`` and stored in ``ias_gym/assets/assistant_params.json``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ias_gym.assist.evaluation import LIFT_END
+from ias_gym.assist.recognition import METHODS, make_recogniser
+from ias_gym.assist.stream import SessionFrame
+from ias_gym.envs.glove_grasp import OBSERVATION
+from ias_gym.errors import InputError
+from ias_gym.glove.hand import N_JOINTS
+from ias_gym.glove.skills import SKILLS
+from ias_gym.outputs import atomic_output
+from ias_gym.sim.pen import R_PAPER_TO_MJ, matrix_to_rpy, mj_to_paper
+from ias_gym.skills.db import SkillDB
+from ias_gym.skills.transfer import shipped_skill_db, skill_start_index
+
+FloatArray = NDArray[np.float64]
+
+#: Where the fitted parameters are stored (``train/fit_assistant.py`` writes it).
+PARAMS_PATH = Path(__file__).resolve().parents[1] / "assets" / "assistant_params.json"
+#: A skill's template moves a joint if its range over the motion, beyond the holding
+#: skill's, exceeds this [rad] (under a third of the smallest, the fast see-saw's 0.1 rad).
+MOVING_JOINT = 0.03
+#: The skill that holds the pen still after the lift: what the others share.
+HOLD_SKILL = "lift_hold"
+#: The grids the operator's speed and start are fitted on: speeds relative to the
+#: library's mean person [-] (the population's speed factors lie within 0.6-1.6) ...
+SPEED_GRID = np.linspace(0.6, 1.6, 21)
+#: ... and starts before the detected onset [s].
+START_GRID = np.arange(0.0, 0.32, 0.02)
+#: How far ahead the model's motion still to go is looked for [s] (the longest skill motion
+#: of the slowest person).
+FUTURE_S = 3.0
+#: Recognisers by name: the library's (:data:`~ias_gym.assist.recognition.METHODS`) and
+#: ``"none"``, which always says ``unknown`` (the "no skill knowledge" ablation).
+RECOGNISERS = (*METHODS, "none")
+
+
+@dataclass(frozen=True)
+class AssistParams:
+    """The assistant's fitted thresholds (``train/fit_assistant.py``).
+
+    Attributes:
+        onset_rad: the skill's motion has set in once a moving joint left its pose at the
+            lift's end by this much [rad].
+        stop_window_s: the window over which the operator's and the model's speeds are
+            compared [s].
+        stop_ratio: the operator has stopped when their speed over the window is below this
+            share of the fitted model's [-].
+        min_model_speed: ... and the model's is at least this [rad/s] (a model at a turning
+            point says nothing).
+        min_remaining_rad: ... and the model still moves at least this far from its pose now
+            [rad] (a person who ends a motion early is not stopped).
+        fitted_on: what the values were fitted on (persons' seed and count), for the record.
+    """
+
+    onset_rad: float = 0.01
+    stop_window_s: float = 0.2
+    stop_ratio: float = 0.2
+    min_model_speed: float = 0.05
+    min_remaining_rad: float = 0.05
+    fitted_on: str = "defaults"
+
+    @classmethod
+    def load(cls, path: str | Path = PARAMS_PATH) -> AssistParams:
+        """Read the parameters from a JSON file (plain data: nothing executes).
+
+        Raises:
+            InputError: the file is missing, not JSON, or has unknown or non-numeric keys.
+        """
+        p = Path(path)
+        try:
+            data = json.loads(p.read_text())
+        except FileNotFoundError:
+            raise InputError(
+                f"assistant parameters {p} do not exist (run train/fit_assistant.py)"
+            ) from None
+        except (OSError, ValueError) as e:
+            raise InputError(f"assistant parameters {p} are unreadable: {e}") from None
+        fields = {f.name for f in dataclasses.fields(cls)}
+        if not isinstance(data, dict) or not set(data) <= fields:
+            raise InputError(f"assistant parameters {p}: keys must be among {sorted(fields)}")
+        for key, value in data.items():
+            ok = isinstance(value, str) if key == "fitted_on" else _positive(value)
+            if not ok:
+                raise InputError(f"assistant parameters {p}: {key}={value!r} is not valid")
+        return cls(**data)
+
+    def save(self, path: str | Path = PARAMS_PATH, *, overwrite: bool = False) -> None:
+        """Write the parameters as JSON, atomically (an existing file only with
+        ``overwrite``)."""
+        with atomic_output(path, overwrite=overwrite) as tmp:
+            tmp.write_text(json.dumps(dataclasses.asdict(self), indent=2) + "\n")
+
+
+def _positive(value: object) -> bool:
+    return isinstance(value, int | float) and math.isfinite(value) and value > 0
+
+
+@dataclass(frozen=True)
+class SkillMotion:
+    """How one skill moves the joints, from its demonstrations.
+
+    Attributes:
+        name: the skill.
+        tau: ``(T,)`` time since the skill's start [s] (the library's mean person).
+        delta: ``(T, J)`` the mean joint angles less those at the start [rad], on ``joints``.
+        joints: the joints the skill moves (indices into ``JOINT_NAMES``).
+        amplitude_range: the smallest and largest amplitude of a demonstration relative to
+            the mean (least squares on ``joints``) [-]: how much persons differ.
+    """
+
+    name: str
+    tau: FloatArray
+    delta: FloatArray
+    joints: NDArray[np.int64]
+    amplitude_range: tuple[float, float] = (1.0, 1.0)
+
+    @property
+    def principal(self) -> int:
+        """The position in :attr:`joints` of the joint the skill moves most."""
+        return int(np.argmax(np.ptp(self.delta, axis=0)))
+
+    def at(self, tau: FloatArray) -> FloatArray:
+        """``(len(tau), J)`` the motion at times ``tau`` (0 before the start, held after)."""
+        return np.stack(
+            [np.interp(tau, self.tau, self.delta[:, j], left=0.0) for j in range(len(self.joints))],
+            axis=-1,
+        )
+
+
+def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
+    """Every glove skill's :class:`SkillMotion` in a library (default: the shipped one): the
+    mean of its demonstrations from their skill start, less the holding skill's
+    (:data:`HOLD_SKILL`); skills that move no joint beyond it are left out.
+
+    Raises:
+        InputError: the file does not exist.
+    """
+    path = Path(db_path) if db_path is not None else shipped_skill_db()
+    if not path.is_file():
+        raise InputError(f"skill library {path} does not exist (give an existing --db)")
+    groups: dict[str, list[tuple[FloatArray, FloatArray]]] = {}
+    with SkillDB(path, readonly=True) as db:
+        for skill_id in db.ids():
+            skill = db.get(skill_id)
+            if skill.person_id is None or skill.name not in SKILLS:
+                continue
+            k = skill_start_index(skill)
+            time = np.asarray(skill.model.time, dtype=np.float64)
+            obs = np.asarray(skill.demonstration.observations, dtype=np.float64)
+            theta = obs[: len(time), OBSERVATION["joint_angles"]]
+            groups.setdefault(skill.name, []).append((time[k:] - time[k], theta[k:] - theta[k]))
+    means: dict[str, tuple[FloatArray, FloatArray]] = {}
+    resampled: dict[str, FloatArray] = {}  # (D, T, 10) each demonstration on the mean's grid
+    for name, demos in groups.items():
+        end = min(float(t[-1]) for t, _ in demos)
+        tau = np.arange(0.0, end, 0.01)
+        each = np.array(
+            [np.stack([np.interp(tau, t, d[:, j]) for j in range(N_JOINTS)], 1) for t, d in demos]
+        )
+        means[name], resampled[name] = (tau, each.mean(axis=0)), each
+    # What every skill shares after its start (the grip settling, the lift's end) is the
+    # holding skill's motion; each skill's own motion is what it does beyond that.
+    shared = means.get(HOLD_SKILL)
+    out = {}
+    for name, (tau, mean) in means.items():
+        base = np.zeros_like(mean)
+        if shared is not None:
+            base = np.stack(
+                [np.interp(tau, shared[0], shared[1][:, j]) for j in range(N_JOINTS)], 1
+            )
+        joints = np.flatnonzero(np.ptp(mean - base, axis=0) > MOVING_JOINT)
+        if not joints.size:
+            continue
+        m = (mean - base)[:, joints]
+        amps = [float(((d - base)[:, joints] * m).sum() / (m * m).sum()) for d in resampled[name]]
+        out[name] = SkillMotion(name, tau, m, joints, (min(amps), max(amps)))
+    return out
+
+
+def frame_from_observation(
+    obs: FloatArray, layout: Mapping[str, slice], theta: FloatArray
+) -> SessionFrame:
+    """The recogniser's frame of an observation: its time, force display and the pen's pose
+    (turned into the paper frame), with the operator's joint targets ``theta`` (the glove's
+    raw readings are no part of the observation: NaN)."""
+    quat = obs[layout["pen_quat"]]
+    w, x, y, z = (float(v) for v in quat)
+    rot_mj = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    return SessionFrame(
+        time_s=float(obs[layout["time"]][0]),
+        readings=np.full(N_JOINTS, np.nan),
+        theta=np.array(theta, dtype=np.float64),
+        tau_display=np.array(obs[layout["feedback_torques"]], dtype=np.float64),
+        pen_position=mj_to_paper(obs[layout["pen_position"]]),
+        pen_rpy=matrix_to_rpy(R_PAPER_TO_MJ.T @ rot_mj @ R_PAPER_TO_MJ),
+    )
+
+
+class _NoRecogniser:
+    """Always ``unknown``: the assistant without skill knowledge."""
+
+    skills: tuple[str, ...] = ()
+
+    def reset(self) -> None:
+        """Nothing to forget."""
+
+    def update(self, frame: SessionFrame) -> dict[str, float]:
+        """Posterior 1 on ``unknown``."""
+        return {"unknown": 1.0}
+
+
+class _Completion:
+    """One skill's fit of the operator's motion and its completion (module docstring, 2)."""
+
+    def __init__(self, motion: SkillMotion, params: AssistParams, dt: float) -> None:
+        self.motion, self.params, self.dt = motion, params, dt
+        self.times: list[float] = []
+        self.values: list[FloatArray] = []  # operator's joints less their pose at LIFT_END
+        self.onset: float | None = None
+        self.fit: tuple[float, float, float] | None = None  # (a, v, t0)
+        self.stopped_at: float | None = None
+        self._clock = 0.0  # the completion's time on the fitted timeline [s]
+        #: The smallest operator-to-model speed ratio seen where a stop could be latched
+        #: (what ``train/fit_assistant.py`` fits ``stop_ratio`` on).
+        self.min_ratio = math.inf
+
+    def model(self, t: NDArray[Any]) -> FloatArray:
+        """``(len(t), J)`` the fitted motion at episode times ``t``."""
+        assert self.fit is not None
+        a, v, t0 = self.fit
+        return a * self.motion.at(v * (np.asarray(t) - t0))
+
+    def _refit(self, n: int) -> None:
+        """Fit ``(a, v, t0)`` to the first ``n`` samples (``a`` within the library's range)."""
+        assert self.onset is not None
+        t = np.asarray(self.times[:n])
+        y = np.asarray(self.values[:n])  # (N, J)
+        lo, hi = self.motion.amplitude_range
+        best = (math.inf, (1.0, 1.0, self.onset))
+        for t0 in self.onset - START_GRID:
+            tau = SPEED_GRID[:, None] * (t[None, :] - t0)  # (V, N)
+            m = self.motion.at(tau.ravel()).reshape(len(SPEED_GRID), len(t), -1)
+            mm = (m * m).sum(axis=(1, 2))
+            my = (m * y[None]).sum(axis=(1, 2))
+            a = np.clip(my / np.maximum(mm, 1e-12), lo, hi)
+            res = ((a[:, None, None] * m - y[None]) ** 2).sum(axis=(1, 2))
+            i = int(np.argmin(res))
+            if res[i] < best[0]:
+                best = (float(res[i]), (float(a[i]), float(SPEED_GRID[i]), float(t0)))
+        self.fit = best[1]
+
+    def update(self, t: float, value: FloatArray, refit: bool) -> FloatArray:
+        """Take the operator's joints (less their pose at the lift's end) at ``t``; return
+        the completion's offset on the skill's joints (zero until a stop is latched).
+
+        The stop test: the model fitted to what the operator did before the last
+        ``stop_window_s`` predicts the window; the operator moved less than ``stop_ratio``
+        of it."""
+        p = self.params
+        if self.stopped_at is None:
+            self.times.append(t)
+            self.values.append(value)
+            if self.onset is None and float(np.abs(value).max()) > p.onset_rad:
+                self.onset = t
+            w = round(p.stop_window_s / self.dt)
+            if self.onset is None or t - self.onset < 2 * p.stop_window_s:
+                return np.zeros(len(self.motion.joints))
+            if refit or self.fit is None:
+                self._refit(len(self.times) - w)
+            # on the skill's principal joint (its largest motion): the others carry what the
+            # demonstrating persons corrected on the way, which another person need not
+            j = self.motion.principal
+            ts = np.array([t - p.stop_window_s, t])
+            model_speed = abs(float(np.diff(self.model(ts)[:, j])[0])) / p.stop_window_s
+            op_speed = abs(float(value[j] - self.values[-1 - w][j])) / p.stop_window_s
+            ahead = self.model(t + np.arange(0.0, FUTURE_S, 0.05))[:, j]
+            remaining = float(np.abs(ahead[1:] - ahead[0]).max())
+            armed = model_speed >= p.min_model_speed and remaining >= p.min_remaining_rad
+            if armed:
+                self.min_ratio = min(self.min_ratio, op_speed / model_speed)
+            if armed and op_speed < p.stop_ratio * model_speed:
+                self.stopped_at = t
+                self._refit(len(self.times) - w)
+                # when the operator stopped: the model's pose nearest to theirs in the window
+                grid = t - p.stop_window_s + self.dt * np.arange(w + 1)
+                gap = np.abs(self.model(grid) - value).max(axis=1)
+                self._clock = float(grid[int(np.argmin(gap))]) - 2.0 * self.dt
+        if self.stopped_at is None:
+            return np.zeros(len(self.motion.joints))
+        # resume from where the operator stopped and catch up with the fitted timeline at
+        # twice its pace (no step in the targets)
+        self._clock = max(self._clock + 2.0 * self.dt, t - self.params.stop_window_s)
+        self._clock = min(self._clock, t)
+        out: FloatArray = np.zeros(len(self.motion.joints))
+        j = self.motion.principal
+        out[j] = self.model(np.array([self._clock], dtype=np.float64))[0, j] - value[j]
+        return out
+
+
+class ObservationAssistant:
+    """Completes the recognised skill, from observations alone (module docstring).
+
+    Args:
+        motions: the library's skill motions (:func:`load_motions`).
+        recogniser: the recogniser (the protocol of :mod:`ias_gym.assist.recognition`).
+        params: the fitted thresholds.
+        control_dt: the env's step [s].
+        action_scale: the env's joint offset of a full action [rad].
+        layout: the env's observation layout (``env.unwrapped.observation_layout``).
+        completion: switch the completion off (an ablation).
+    """
+
+    #: It acts on the observation, not on an env
+    #: (:class:`~ias_gym.assist.evaluation.AssistantPolicy`).
+    reads_observations = True
+
+    def __init__(
+        self,
+        motions: Mapping[str, SkillMotion],
+        recogniser: Any,
+        params: AssistParams,
+        *,
+        control_dt: float = 0.01,
+        action_scale: float = 0.2,
+        layout: Mapping[str, slice] | None = None,
+        completion: bool = True,
+    ) -> None:
+        self.motions = dict(motions)
+        self.recogniser = recogniser
+        self.params = params
+        self.dt = float(control_dt)
+        self.scale = float(action_scale)
+        self.layout = dict(layout) if layout is not None else None
+        self.completion = completion
+        self.reset()
+
+    def reset(self) -> None:
+        """Start a session: forget the last one's state."""
+        self.recogniser.reset()
+        self._post: dict[str, float] = {}
+        self._last_offset = np.zeros(N_JOINTS)
+        self._theta0: FloatArray | None = None  # the operator's pose at the lift's end
+        self._fits = {k: _Completion(m, self.params, self.dt) for k, m in self.motions.items()}
+        self._posts: list[dict[str, float]] = []
+        #: Each stopped skill's weight: its posterior a stop window before the stop.
+        self._authority: dict[str, float] = {}
+        self._steps = 0
+
+    def posterior(self) -> dict[str, float]:
+        """The recogniser's posterior after the last :meth:`act`."""
+        return dict(self._post)
+
+    @property
+    def min_ratios(self) -> dict[str, float]:
+        """``{skill: the smallest operator-to-model speed ratio at which a stop could have
+        been latched}`` in this session (inf: never armed)."""
+        return {k: c.min_ratio for k, c in self._fits.items()}
+
+    @property
+    def stopped(self) -> dict[str, float]:
+        """``{skill: episode time [s]}`` of the stops latched in this session."""
+        return {k: c.stopped_at for k, c in self._fits.items() if c.stopped_at is not None}
+
+    def _operator_theta(self, obs: FloatArray, layout: Mapping[str, slice]) -> FloatArray:
+        if "upcoming_theta" in layout:
+            return np.array(obs[layout["upcoming_theta"]], dtype=np.float64)
+        return np.asarray(obs[layout["joint_angles"]], dtype=np.float64) - self._last_offset
+
+    def act(self, obs: Any, layout: Mapping[str, slice] | None = None) -> FloatArray:
+        """The action ``(10,)`` in [-1, 1] for the observation (``layout``: its parts;
+        default the one given at construction).
+
+        Raises:
+            InputError: no layout, or one without the parts the assistant reads.
+        """
+        layout = layout if layout is not None else self.layout
+        if layout is None:
+            raise InputError("give the observation's layout (env.unwrapped.observation_layout)")
+        obs = np.asarray(obs, dtype=np.float64)
+        theta = self._operator_theta(obs, layout)
+        t = float(obs[layout["time"]][0]) + self.dt  # the step the action acts on
+        # the recogniser sees what the hand is commanded: the operator's targets with the
+        # assistant's last offset (a completed skill looks like the skill)
+        frame = frame_from_observation(obs, layout, theta + self._last_offset)
+        post = dict(self.recogniser.update(frame))
+        self._post = post
+        self._posts.append(post)
+        offset = np.zeros(N_JOINTS)
+        if self.completion and t >= LIFT_END:
+            if self._theta0 is None:
+                self._theta0 = theta.copy()
+            refit = self._steps % 5 == 0
+            lag = round(self.params.stop_window_s / self.dt)
+            for name, fit in self._fits.items():
+                value = (theta - self._theta0)[fit.motion.joints]
+                part = fit.update(t, value, refit)
+                if fit.stopped_at is not None and name not in self._authority:
+                    # the skill as recognised before the operator stopped: what they meant
+                    before = self._posts[max(len(self._posts) - 1 - lag, 0)]
+                    self._authority[name] = before.get(name, 0.0)
+                offset[fit.motion.joints] += self._authority.get(name, 0.0) * part
+        self._steps += 1
+        out: FloatArray = np.clip(offset / self.scale, -1.0, 1.0)
+        self._last_offset = out * self.scale
+        return out
+
+    def predict(
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[FloatArray, Any]:
+        """SB3's policy call (:func:`~ias_gym.rollout.rollout` runs it): resets at an
+        episode's start, then :meth:`act`."""
+        if episode_start:
+            self.reset()
+        return self.act(observation), state
+
+
+def make_assistant(
+    db_path: str | Path | None = None,
+    recogniser: str = "phase",
+    params: AssistParams | str | Path | None = None,
+    *,
+    control_dt: float = 0.01,
+    action_scale: float = 0.2,
+    layout: Mapping[str, slice] | None = None,
+    **switches: bool,
+) -> ObservationAssistant:
+    """An :class:`ObservationAssistant` on a skill library.
+
+    Args:
+        db_path: the skill database (default: the shipped library).
+        recogniser: ``"phase"``, ``"dtw"`` or ``"none"`` (no skill knowledge).
+        params: the thresholds, or a JSON file of them (default: the fitted ones).
+        control_dt, action_scale: the env's (``env.unwrapped.config``).
+        layout: the env's observation layout.
+        **switches: ``completion`` (an ablation).
+
+    Raises:
+        InputError: an unknown recogniser, a missing library or parameter file.
+    """
+    if recogniser not in RECOGNISERS:
+        raise InputError(
+            f"recogniser {recogniser!r} is not known; choose one of {', '.join(RECOGNISERS)}"
+        )
+    path = Path(db_path) if db_path is not None else shipped_skill_db()
+    motions = load_motions(path)
+    if recogniser == "none":
+        rec: Any = _NoRecogniser()
+    else:
+        with SkillDB(path, readonly=True) as db:
+            rec = make_recogniser(recogniser, db)
+    if params is None or isinstance(params, str | Path):
+        params = AssistParams.load(params if params is not None else PARAMS_PATH)
+    return ObservationAssistant(
+        motions,
+        rec,
+        params,
+        control_dt=control_dt,
+        action_scale=action_scale,
+        layout=layout,
+        **switches,
+    )

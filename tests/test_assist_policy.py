@@ -1,0 +1,108 @@
+"""The assistant as a policy on observations (ias_gym.assist.policy): it reads only the
+observation and the skill database, completes a stopped skill only when it knows the skill,
+leaves a session alone without skill knowledge, and refuses bad parameter files."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import ias_gym  # noqa: F401
+from ias_gym.assist.policy import AssistParams, load_motions, make_assistant
+from ias_gym.errors import InputError
+from ias_gym.glove.hand import joint_index
+
+PRON = joint_index("wrist_pronation")
+
+
+#: A stop detector that latches (the development value): these tests are about what the
+#: assistant does once a stop is latched, not about the fitted threshold's rates, which
+#: train/fit_assistant.py reports.
+LATCHING = AssistParams(stop_ratio=0.2)
+
+
+def _session(recogniser: str, impairment: str, skill: str = "tilt_left") -> tuple:
+    """(operator's targets, commanded targets, assistant) of one session, the assistant fed
+    nothing but observations (no env object)."""
+    env = gym.make("IAS-GloveAssist-v0", person_id="p1", skill=skill, impairment=impairment)
+    u = env.unwrapped
+    layout = dict(u.observation_layout)
+    scale = u.config.action_scale
+    assistant = make_assistant(
+        recogniser=recogniser, params=LATCHING, layout=layout, action_scale=scale
+    )
+    obs, _ = env.reset(seed=0)
+    operator, commanded = [], []
+    done = False
+    while not done:
+        action = assistant.act(obs.copy())
+        theta = obs[layout["upcoming_theta"]]
+        operator.append(theta.copy())
+        commanded.append(theta + scale * action)
+        obs, _, terminated, truncated, _ = env.step(action)
+        done = terminated or truncated
+    env.close()
+    return np.array(operator), np.array(commanded), assistant
+
+
+def test_the_library_motions_are_the_skills_own() -> None:
+    motions = load_motions()
+    assert "lift_hold" not in motions  # it moves nothing beyond the hold
+    for name in ("tilt_left", "tilt_right", "seesaw_slow"):
+        assert PRON in motions[name].joints
+    assert np.min(motions["tilt_left"].delta) < -0.1 < 0.1 < np.max(motions["tilt_right"].delta)
+
+
+def test_a_stopped_tilt_is_completed_with_skill_knowledge_and_not_without() -> None:
+    op, cmd, assistant = _session("phase", "stops:at=0.4")
+    assert "tilt_left" in assistant.stopped
+    turned_op = op[0, PRON] - op[-1, PRON]
+    turned_cmd = cmd[0, PRON] - cmd[-1, PRON]
+    # the hand is turned on, the same way the skill turns, well beyond the operator's stop
+    assert turned_cmd > turned_op + 0.04
+    op_n, cmd_n, blind = _session("none", "stops:at=0.4")
+    assert not blind.posterior().get("tilt_left")
+    np.testing.assert_allclose(cmd_n[:, PRON], op_n[:, PRON], atol=1e-9)
+
+
+def test_an_unimpaired_hold_is_left_alone() -> None:
+    op, cmd, _ = _session("phase", "none", skill="lift_hold")
+    np.testing.assert_allclose(cmd, op, atol=1e-9)
+
+
+def test_it_runs_on_an_observation_without_upcoming_targets() -> None:
+    env = gym.make("IAS-GloveGrasp-v0", person_id="p1", skill="tilt_left")
+    layout = dict(env.unwrapped.observation_layout)
+    assert "upcoming_theta" not in layout
+    assistant = make_assistant(recogniser="phase", layout=layout)
+    obs, _ = env.reset(seed=0)
+    for _ in range(50):
+        action = assistant.act(obs)
+        assert action.shape == (10,) and np.all(np.abs(action) <= 1.0)
+        obs, *_ = env.step(action.astype(np.float32))
+    env.close()
+
+
+def test_parameter_files_are_checked(tmp_path: Path) -> None:
+    good = tmp_path / "params.json"
+    AssistParams(stop_ratio=0.3).save(good)
+    assert AssistParams.load(good).stop_ratio == 0.3
+    with pytest.raises(FileExistsError):
+        AssistParams().save(good)
+    for text, match in (
+        ("{", "unreadable"),
+        (json.dumps({"stop_ratio": -1}), "not valid"),
+        (json.dumps({"exec": 1}), "keys"),
+    ):
+        bad = tmp_path / "bad.json"
+        bad.write_text(text)
+        with pytest.raises(InputError, match=match):
+            AssistParams.load(bad)
+    with pytest.raises(InputError, match="not exist"):
+        AssistParams.load(tmp_path / "missing.json")
+    with pytest.raises(InputError, match="recogniser"):
+        make_assistant(recogniser="psychic")
