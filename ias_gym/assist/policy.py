@@ -24,10 +24,14 @@ Every step:
    start ``t0`` (least squares over a grid of ``v`` and ``t0``, ``a`` in closed form), so
    that ``a m_k(v (t - t0))`` is this person's motion. When the operator's motion falls
    short of the fitted model's (their speed over :attr:`AssistParams.stop_window_s` below
-   :attr:`AssistParams.stop_ratio` of the model's), the assistant latches that it has
-   stopped and drives the joints the rest of the way: offset ``= a m_k(v (t - t0)) -
-   (Θ - Θ_0)``, weighted by ``p_k`` (the ``unknown`` share adds nothing, so without skill
-   knowledge there is no completion).
+   :attr:`AssistParams.stop_ratio` of the model's, on the skill's principal joint, with at
+   least :attr:`AssistParams.min_remaining_rad` of the model's motion still to go), the
+   assistant latches that the operator has stopped and drives the principal joint the rest
+   of the way, resuming from the stopped pose and catching up with the fitted timeline at
+   twice its pace: offset ``= a m_k(v (t - t0)) - (Θ - Θ_0)``, weighted by the skill's
+   posterior a stop window before the stop (the ``unknown`` share adds nothing, so without
+   skill knowledge there is no completion).
+
 The thresholds are :class:`AssistParams`, fitted on development persons by
 ``train/fit_assistant.py`` and stored in ``ias_gym/assets/assistant_params.json``.
 """
@@ -403,13 +407,13 @@ class ObservationAssistant:
 
     @property
     def min_ratios(self) -> dict[str, float]:
-        """``{skill: the smallest operator-to-model speed ratio at which a stop could have
-        been latched}`` in this session (inf: never armed)."""
+        """Each skill's smallest operator-to-model speed ratio in this session at which a
+        stop could have been latched (inf: never armed)."""
         return {k: c.min_ratio for k, c in self._fits.items()}
 
     @property
     def stopped(self) -> dict[str, float]:
-        """``{skill: episode time [s]}`` of the stops latched in this session."""
+        """Each skill's episode time [s] of the stop latched in this session."""
         return {k: c.stopped_at for k, c in self._fits.items() if c.stopped_at is not None}
 
     def _operator_theta(self, obs: FloatArray, layout: Mapping[str, slice]) -> FloatArray:
