@@ -12,9 +12,16 @@ import numpy as np
 import pytest
 
 import ias_gym  # noqa: F401
-from ias_gym.assist.policy import AssistParams, load_motions, make_assistant
+from ias_gym.assist.policy import (
+    AssistParams,
+    frame_from_observation,
+    load_motions,
+    make_assistant,
+)
+from ias_gym.assist.stream import frames_from_env
 from ias_gym.errors import InputError
 from ias_gym.glove.hand import joint_index
+from ias_gym.sim.pen import R_PAPER_TO_MJ, matrix_to_rpy, mj_to_paper
 
 PRON = joint_index("wrist_pronation")
 
@@ -47,6 +54,29 @@ def _session(recogniser: str, impairment: str, skill: str = "tilt_left") -> tupl
         done = terminated or truncated
     env.close()
     return np.array(operator), np.array(commanded), assistant
+
+
+def test_a_frame_from_the_observation_is_the_envs_own() -> None:
+    """The observation's pen pose (the body's world pose from the step's kinematics) turned
+    into the paper frame as the simulator's own pen pose is (``matrix_to_rpy`` of the
+    rotation in the paper frame), and the recogniser's frame of the env agrees on the
+    features it reads (pitch and yaw; roll, the pen's spin about its axis, is no feature)."""
+    env = gym.make("IAS-GloveAssist-v0", person_id="p1", skill="tilt_left")
+    u = env.unwrapped
+    obs, _ = env.reset(seed=0)
+    for k in range(250):
+        obs, *_ = env.step(np.zeros(10))
+        if k % 50 == 49:
+            mine = frame_from_observation(obs, u.observation_layout, np.zeros(10))
+            body = u._pen_body
+            rot = R_PAPER_TO_MJ.T @ u.data.xmat[body].reshape(3, 3) @ R_PAPER_TO_MJ
+            np.testing.assert_allclose(mine.pen_rpy, matrix_to_rpy(rot), atol=1e-12)
+            moved = mj_to_paper(u.data.xpos[body] - u._pen_start)
+            np.testing.assert_allclose(mine.pen_position, moved, atol=1e-12)
+            theirs = frames_from_env(env)
+            np.testing.assert_allclose(mine.pen_rpy[1:], theirs.pen_rpy[1:], atol=1e-3)
+            assert mine.time_s == pytest.approx(theirs.time_s)
+    env.close()
 
 
 def test_the_library_motions_are_the_skills_own() -> None:

@@ -58,8 +58,10 @@ def best_threshold(unimpaired: np.ndarray, stopped: np.ndarray) -> float:
     accuracy: unimpaired ratios above it, stopped ones below."""
     values = np.unique(np.concatenate([unimpaired, stopped]))
     values = values[np.isfinite(values)]
+    if not len(values):
+        raise SystemExit("no session ever armed the stop test: nothing to fit on")
     cuts = (values[:-1] + values[1:]) / 2 if len(values) > 1 else values
-    best, cut = -1.0, float(cuts[0]) if len(cuts) else 0.2
+    best, cut = -1.0, float(cuts[0])
     for c in cuts:
         score = np.mean(unimpaired >= c) + np.mean(stopped < c)
         if score > best:

@@ -234,7 +234,7 @@ class GloveAssistEnv(GloveGraspEnv):
             script = WeakGripOperator(script, weak.number("rad"), str(weak["fingers"]))
         if tremor is not None:
             amplitude, hz = tremor.number("amplitude_rad"), tremor.number("hz")
-            script = TremorOperator(script, amplitude, self.person.person_id, seed, hz)
+            script = TremorOperator(script, amplitude, hz, self.person.person_id, seed)
         glove: GloveDevice = SimulatedGlove(self.person, FromPreShape(script), seed)
         if lag is not None:
             glove = LaggedGlove(glove, round(lag.number("s") / self.config.control_dt))

@@ -251,7 +251,7 @@ def _family(text: str) -> Family:
         )
     keys = FAMILIES[name]
     given: dict[str, Value] = {}
-    for item in filter(None, (s.strip() for s in rest.split(","))) if rest else ():
+    for item in filter(None, (s.strip() for s in rest.split(","))):
         key, eq, value = item.partition("=")
         key = key.strip()
         if not eq or key not in keys:

@@ -151,25 +151,18 @@ class TremorOperator:
     Args:
         operator: the script Θ(t) [rad], t [s].
         amplitude: ``A`` [rad].
-        person_id, seed: draw the phases, reproducibly (and ``f`` ~ U(8.5, 11.5) Hz when
-            ``hz`` is None).
         hz: the tremor's frequency ``f`` [Hz].
+        person_id, seed: draw the phases ``phi_j``, reproducibly.
     """
 
     def __init__(
-        self,
-        operator: ScriptedOperator,
-        amplitude: float,
-        person_id: str,
-        seed: int,
-        hz: float | None = None,
+        self, operator: ScriptedOperator, amplitude: float, hz: float, person_id: str, seed: int
     ) -> None:
         self.operator = operator
         self.amplitude = float(amplitude)
-        rng = session_rng("tremor", person_id, seed)
-        drawn = float(rng.uniform(8.5, 11.5))
         #: The tremor's frequency [Hz].
-        self.hz = drawn if hz is None else float(hz)
+        self.hz = float(hz)
+        rng = session_rng("tremor", person_id, seed)
         self._idx = np.array([joint_index(j) for j in TREMOR_JOINTS])
         self._phase = rng.uniform(0.0, 2.0 * math.pi, size=len(TREMOR_JOINTS))
 

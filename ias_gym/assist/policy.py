@@ -46,6 +46,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
@@ -75,6 +76,9 @@ HOLD_SKILL = "lift_hold"
 SPEED_GRID = np.linspace(0.6, 1.6, 21)
 #: ... and starts before the detected onset [s].
 START_GRID = np.arange(0.0, 0.32, 0.02)
+#: The operator's motion is refitted every this many steps (between them the last fit
+#: predicts; a fit costs about a millisecond).
+REFIT_EVERY = 5
 #: How far ahead the model's motion still to go is looked for [s] (the longest skill motion
 #: of the slowest person).
 FUTURE_S = 3.0
@@ -161,7 +165,7 @@ class SkillMotion:
     tau: FloatArray
     delta: FloatArray
     joints: NDArray[np.int64]
-    amplitude_range: tuple[float, float] = (1.0, 1.0)
+    amplitude_range: tuple[float, float]
 
     @property
     def principal(self) -> int:
@@ -232,15 +236,9 @@ def frame_from_observation(
     """The recogniser's frame of an observation: its time, force display and the pen's pose
     (turned into the paper frame), with the operator's joint targets ``theta`` (the glove's
     raw readings are no part of the observation: NaN)."""
-    quat = obs[layout["pen_quat"]]
-    w, x, y, z = (float(v) for v in quat)
-    rot_mj = np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    flat = np.zeros(9)
+    mujoco.mju_quat2Mat(flat, np.asarray(obs[layout["pen_quat"]], dtype=np.float64))
+    rot_mj = flat.reshape(3, 3)
     return SessionFrame(
         time_s=float(obs[layout["time"]][0]),
         readings=np.full(N_JOINTS, np.nan),
@@ -444,7 +442,7 @@ class ObservationAssistant:
         if self.completion and t >= LIFT_END:
             if self._theta0 is None:
                 self._theta0 = theta.copy()
-            refit = self._steps % 5 == 0
+            refit = self._steps % REFIT_EVERY == 0
             lag = round(self.params.stop_window_s / self.dt)
             for name, fit in self._fits.items():
                 value = (theta - self._theta0)[fit.motion.joints]
@@ -458,19 +456,6 @@ class ObservationAssistant:
         out: FloatArray = np.clip(offset / self.scale, -1.0, 1.0)
         self._last_offset = out * self.scale
         return out
-
-    def predict(
-        self,
-        observation: Any,
-        state: Any = None,
-        episode_start: Any = None,
-        deterministic: bool = True,
-    ) -> tuple[FloatArray, Any]:
-        """SB3's policy call (:func:`~ias_gym.rollout.rollout` runs it): resets at an
-        episode's start, then :meth:`act`."""
-        if episode_start:
-            self.reset()
-        return self.act(observation), state
 
 
 def make_assistant(
