@@ -97,7 +97,9 @@ class Page:
     def __init__(self, ws_url: str) -> None:
         import websocket
 
-        self.ws = websocket.create_connection(ws_url, timeout=TIMEOUT)
+        # No Origin header: Chromium (from 111 on) refuses DevTools connections from an
+        # origin it was not told to allow, and a client without one is no web page.
+        self.ws = websocket.create_connection(ws_url, timeout=TIMEOUT, suppress_origin=True)
         self.next_id = 0
         self.events: list[dict[str, Any]] = []
 
