@@ -20,6 +20,7 @@ from ias_gym.assist.policy import (
 )
 from ias_gym.assist.stream import frames_from_env
 from ias_gym.errors import InputError
+from ias_gym.evaluation import perturbed_starts
 from ias_gym.glove.hand import joint_index
 from ias_gym.sim.pen import R_PAPER_TO_MJ, matrix_to_rpy, mj_to_paper
 
@@ -32,28 +33,32 @@ PRON = joint_index("wrist_pronation")
 LATCHING = AssistParams(stop_ratio=0.2)
 
 
-def _session(recogniser: str, impairment: str, skill: str = "tilt_left") -> tuple:
-    """(operator's targets, commanded targets, assistant) of one session, the assistant fed
-    nothing but observations (no env object)."""
+def _sessions(recogniser: str, impairment: str, skill: str = "tilt_left") -> list[tuple]:
+    """(operator's targets, commanded targets, assistant) of the session from reset seed 0
+    and from its nearby starts (:func:`~ias_gym.evaluation.perturbed_starts`), the
+    assistant fed nothing but observations (no env object)."""
     env = gym.make("IAS-GloveAssist-v0", person_id="p1", skill=skill, impairment=impairment)
     u = env.unwrapped
     layout = dict(u.observation_layout)
     scale = u.config.action_scale
-    assistant = make_assistant(
-        recogniser=recogniser, params=LATCHING, layout=layout, action_scale=scale
-    )
-    obs, _ = env.reset(seed=0)
-    operator, commanded = [], []
-    done = False
-    while not done:
-        action = assistant.act(obs.copy())
-        theta = obs[layout["upcoming_theta"]]
-        operator.append(theta.copy())
-        commanded.append(theta + scale * action)
-        obs, _, terminated, truncated, _ = env.step(action)
-        done = terminated or truncated
+    out = []
+    for options in list(perturbed_starts(env, 0)):
+        assistant = make_assistant(
+            recogniser=recogniser, params=LATCHING, layout=layout, action_scale=scale
+        )
+        obs, _ = env.reset(seed=0, options=options)
+        operator, commanded = [], []
+        done = False
+        while not done:
+            action = assistant.act(obs.copy())
+            theta = obs[layout["upcoming_theta"]]
+            operator.append(theta.copy())
+            commanded.append(theta + scale * action)
+            obs, _, terminated, truncated, _ = env.step(action)
+            done = terminated or truncated
+        out.append((np.array(operator), np.array(commanded), assistant))
     env.close()
-    return np.array(operator), np.array(commanded), assistant
+    return out
 
 
 def test_a_frame_from_the_observation_is_the_envs_own() -> None:
@@ -88,20 +93,20 @@ def test_the_library_motions_are_the_skills_own() -> None:
 
 
 def test_a_stopped_tilt_is_completed_with_skill_knowledge_and_not_without() -> None:
-    op, cmd, assistant = _session("phase", "stops:at=0.4")
-    assert "tilt_left" in assistant.stopped
-    turned_op = op[0, PRON] - op[-1, PRON]
-    turned_cmd = cmd[0, PRON] - cmd[-1, PRON]
-    # the hand is turned on, the same way the skill turns, well beyond the operator's stop
-    assert turned_cmd > turned_op + 0.04
-    op_n, cmd_n, blind = _session("none", "stops:at=0.4")
-    assert not blind.posterior().get("tilt_left")
-    np.testing.assert_allclose(cmd_n[:, PRON], op_n[:, PRON], atol=1e-9)
+    for op, cmd, assistant in _sessions("phase", "stops:at=0.4"):
+        assert "tilt_left" in assistant.stopped
+        turned_op = op[0, PRON] - op[-1, PRON]
+        turned_cmd = cmd[0, PRON] - cmd[-1, PRON]
+        # the hand is turned on, the way the skill turns, well beyond the operator's stop
+        assert turned_cmd > turned_op + 0.04
+    for op_n, cmd_n, blind in _sessions("none", "stops:at=0.4"):
+        assert not blind.posterior().get("tilt_left")
+        np.testing.assert_allclose(cmd_n[:, PRON], op_n[:, PRON], atol=1e-9)
 
 
 def test_an_unimpaired_hold_is_left_alone() -> None:
-    op, cmd, _ = _session("phase", "none", skill="lift_hold")
-    np.testing.assert_allclose(cmd, op, atol=1e-9)
+    for op, cmd, _ in _sessions("phase", "none", skill="lift_hold"):
+        np.testing.assert_allclose(cmd, op, atol=1e-9)
 
 
 def test_it_runs_on_an_observation_without_upcoming_targets() -> None:
