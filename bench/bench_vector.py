@@ -6,9 +6,10 @@ steps, so resets count) in Gymnasium's ``SyncVectorEnv`` and ``AsyncVectorEnv``,
 ``SubprocVecEnv`` and the batched vector env of ``ias_gym.envs.vector``; each as a ratio to
 one plain env (measured right before each row) and to linear scaling (``min(processes,
 cores)`` x one plain env): on a machine that other processes load, no row scales. Then each
-env's reset time [ms] and single-env rate, with Gymnasium-Robotics' ``AdroitHandPen-v1``
-(same 10 ms control period) measured in the same run (skipped with a message if
-``gymnasium-robotics`` is missing: ``pip install -e .[bench]``). Configurations are measured
+env's reset time [ms] and single-env rate, with ``IAS-PenRotate-Shadow-v0`` and
+Gymnasium-Robotics' ``AdroitHandPen-v1`` (the same Shadow hand model, the same 10 ms control
+period) measured in the same run and their ratio (both skipped with a message if
+``gymnasium-robotics`` is missing: ``pip install -e .[hands]``). Configurations are measured
 in turn, repeated, medians reported; torch runs one thread; processes start by fork.
 """
 
@@ -30,6 +31,8 @@ import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.envs.vector import make_batched_vec
 
 ADROIT = "AdroitHandPen-v1"
+#: The pen task on the Shadow hand (the model behind Adroit), timed beside it.
+SHADOW = "IAS-PenRotate-Shadow-v0"
 CONTEXT = "fork"
 
 
@@ -193,9 +196,12 @@ def main() -> None:
         import gymnasium_robotics
 
         gym.register_envs(gymnasium_robotics)
-        ids.append(ADROIT)
+        ids += [SHADOW, ADROIT]
     except ImportError:
-        print(f"({ADROIT} skipped: gymnasium-robotics is not installed; pip install -e .[bench])")
+        print(
+            f"({SHADOW} and {ADROIT} skipped: gymnasium-robotics is not installed; "
+            "pip install -e .[hands])"
+        )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         singles = {e: Single(e) for e in ids}
@@ -208,6 +214,9 @@ def main() -> None:
     for e in ids:
         print(f"| {e} | {np.median(resets[e]):.3f} | {np.median(randoms[e]):.0f} |")
         singles[e].close()
+    if ADROIT in ids:  # the same hand model and engine: the pen task's wrapping against theirs
+        ratio = np.median(randoms[SHADOW]) / np.median(randoms[ADROIT])
+        print(f"\n{SHADOW} / {ADROIT}, random steps/s: {ratio:.2f}x")
     single.close()
 
 

@@ -11,14 +11,17 @@ ENV_SPECS: dict[str, tuple[str, int]] = {
     "IAS-PenSlide-v0": ("ias_gym.envs.pen_slide:PenSlideEnv", 475),
     "IAS-PenRotate-v0": ("ias_gym.envs.pen_rotate:PenRotateEnv", 400),
     "IAS-PenRotate3F-v0": ("ias_gym.envs.pen_rotate:PenRotateEnv", 400),
+    "IAS-PenRotate-Shadow-v0": ("ias_gym.envs.pen_rotate:PenRotateEnv", 400),
     "IAS-GloveGrasp-v0": ("ias_gym.envs.glove_grasp:GloveGraspEnv", 400),
     "IAS-PenSkill-v0": ("ias_gym.skills.transfer:PenSkillDBEnv", 300),
     "IAS-GloveAssist-v0": ("ias_gym.assist.env:GloveAssistEnv", 400),
 }
 #: The keyword arguments an id passes to its entry point (its defaults; ``gym.make`` kwargs
-#: override them): the three-finger hand's ids are the same tasks on ``hand="ias3f"``.
+#: override them): the other hands' ids are the same tasks on ``hand="ias3f"``/``"shadow"``.
 ENV_KWARGS: dict[str, dict[str, Any]] = {
     "IAS-PenRotate3F-v0": {"hand": "ias3f"},
+    # the Shadow hand's measured tilt envelope (HandSpec.max_tilt) is 0.15 rad
+    "IAS-PenRotate-Shadow-v0": {"hand": "shadow", "amplitude": 0.15},
 }
 #: Envs that need a device (a glove on a CAN bus, or its emulator): same layout.
 HARDWARE_ENV_SPECS: dict[str, tuple[str, int]] = {

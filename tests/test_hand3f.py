@@ -33,8 +33,8 @@ def hand(request: pytest.FixtureRequest) -> tuple[HandSpec, PenHandPhysics]:
 
 
 # --- the model and its grasp ---------------------------------------------------------------
-def test_registry_names_both_hands_and_ias3f_differs_from_ias4f() -> None:
-    assert hand_names() == ["ias3f", "ias4f"]
+def test_registry_names_the_hands_and_ias3f_differs_from_ias4f() -> None:
+    assert hand_names() == ["ias3f", "ias4f", "shadow"]
     three, four = get_hand("ias3f"), get_hand("ias4f")
     assert (three.n_fingers, three.n_dofs) == (3, 9)
     assert (four.n_fingers, four.n_dofs) == (4, 12)

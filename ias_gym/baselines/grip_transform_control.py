@@ -215,7 +215,7 @@ class GripTransformController:
     def _damping(self, env: PenHandEnv) -> FloatArray:
         """The hand joints' damping coefficients [N m s/rad] (looked up once)."""
         if self._joint_damping is None:
-            self._joint_damping = env.model.dof_damping[env.physics.hand_dof_ids].copy()
+            self._joint_damping = env.physics.hand_damping()
         return self._joint_damping
 
     def action(
@@ -422,7 +422,7 @@ def batch_torques(
                 qvel,
                 tips,
                 tip_x,
-                env.data.qfrc_bias[p.hand_dof_ids] - env.data.qfrc_gravcomp[p.hand_dof_ids],
+                p.hand_forces(env.data.qfrc_bias - env.data.qfrc_gravcomp),
                 ctrl._damping(env),
                 p.pen_inertia(nominal=True),
                 ctrl._g(env),

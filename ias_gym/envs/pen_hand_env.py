@@ -134,7 +134,11 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         self.model = load_pen_hand_model(self.hand.scene)
         self.data = mujoco.MjData(self.model)
         self.physics = PenHandPhysics(
-            self.model, self.data, self.hand.fingers, finger_joints=self.hand.joints
+            self.model,
+            self.data,
+            self.hand.fingers,
+            finger_joints=self.hand.joints,
+            sides=self.hand.sides,
         )
         timestep = self.model.opt.timestep
         self.frame_skip = round(self.config.control_dt / timestep)

@@ -114,6 +114,8 @@ def place_grasp(
         step = _solve(lhs, jac_t @ residual[:, :, None])
         # (np.clip's values, without its call overhead; q_ix: a slice when consecutive)
         d.qpos[c.q_ix] = np.minimum(np.maximum(d.qpos[c.q_ix] + step.ravel(), c.lo), c.hi)
+        if c.coupled:  # a coupled joint follows its leader (a joint equality)
+            d.qpos[c.follow_q] = c.follow_ratio * d.qpos[c.leader_q]
     mujoco.mj_forward(m, d)
     return err
 
@@ -131,6 +133,8 @@ def _finger_jacobians(
     mujoco.mj_comPos(m, d)  # the Jacobians' cdof
     for jac, site in c.jac_rows:
         mujoco.mj_jacSite(m, d, jac, None, site)
+    for follower, leader, ratio in c.coupled:  # the leader's column moves the follower too
+        c.jac_buffer[:, :, leader] += ratio * c.jac_buffer[:, :, follower]
     jac_t = np.ascontiguousarray(c.jac_buffer[c.finger_rows, :, c.finger_dofs])
     return jac_t, jac_t @ jac_t.transpose(0, 2, 1) + c.damping
 
@@ -155,6 +159,12 @@ class _IKConstants:
         self.q_ix = slice(int(qadr[0]), int(qadr[0]) + len(qadr)) if consecutive else qadr
         self.lo, self.hi = m.jnt_range[self.joints].T.copy()
         self.damping = 1e-8 * np.eye(n)
+        # joints tied to a hand joint: (follower dof, leader dof, ratio), and their qpos
+        self.coupled = [(dof, int(dadr[i]), r) for dof, i, r in physics.coupled]
+        joint_of = m.dof_jntid
+        self.follow_q = np.array([m.jnt_qposadr[joint_of[f]] for f, _, _ in self.coupled], int)
+        self.leader_q = np.array([m.jnt_qposadr[joint_of[a]] for _, a, _ in self.coupled], int)
+        self.follow_ratio = np.array([r for _, _, r in self.coupled])
         # The hand at its keyframe posture: its tips, joint axes and anchors. Valid whenever
         # the hand's joints are there, as only they move the tips (checked: no other joint
         # or mocap body above a finger).

@@ -1,7 +1,7 @@
 """The robot hands that hold the pen: a registry of their layouts (:data:`HANDS`).
 
 A skill stored as the time behaviour of the grip transform G(t) should run on a hand whose
-structure differs from the demonstrator's (the paper's Flow 2). Two hands share the pen,
+structure differs from the demonstrator's (the paper's Flow 2). The hands share the pen,
 the scene's conventions and the sensor names (``fN_abd``/``mcp``/``pip``, ``fN_tip``,
 ``fN_tip_collision``, ``fN_touch``, ``fN_pen_contact``, ``fN_pen_force``); a
 :class:`HandSpec` names what differs: the scene, the fingers and their sides of the pen,
@@ -11,7 +11,10 @@ the nominal contacts, how far the tips reach and the largest tilt the expert han
   default everywhere;
 - ``"ias3f"``: a three-finger hand (``scene_pen3f.xml``): two short fingers above the pen at
   -3 and +3 cm pushing down and a long opposed "thumb" below its centre
-  (``ias_gym/assets/README.md``, docs/DESIGN.md "The second hand").
+  (``ias_gym/assets/README.md``, docs/DESIGN.md "The second hand");
+- ``"shadow"``: the Shadow Dexterous Hand of Gymnasium-Robotics, loaded from that installed
+  package (:mod:`ias_gym.sim.external_hands`, the ``hands`` extra): its first and little
+  finger above the pen at -3.5 and +4 cm, its thumb below the centre.
 
 Paper frame (x along the pen, y up, z lateral), SI units.
 """
@@ -30,8 +33,9 @@ class HandSpec:
     """The layout of one robot hand holding the pen (paper frame, SI units).
 
     Attributes:
-        name: the registry key (``"ias4f"``, ``"ias3f"``).
-        scene: the MJCF scene in ``ias_gym.assets`` (hand + pen + sensors + keyframe).
+        name: the registry key (``"ias4f"``, ``"ias3f"``, ``"shadow"``).
+        scene: the MJCF scene in ``ias_gym.assets`` (hand + pen + sensors + keyframe), or
+            the name of a builder in :data:`ias_gym.sim.external_hands.BUILDERS`.
         fingers: finger name prefixes in the MJCF, in the hand's order.
         joints: joint suffixes of every finger, proximal to distal.
         sides: per finger, the side of the pen it touches: +1 top (pushes down), -1 bottom.
@@ -109,6 +113,21 @@ HANDS: dict[str, HandSpec] = {
         # 5 / 5 seeds succeed at A = 0.4 rad for w = 2..12 rad/s, not at 0.45 rad, 12 rad/s.
         max_tilt=0.4,
         description="three fingers: two short ones above the pen, a long thumb below its centre",
+    ),
+    "shadow": HandSpec(
+        name="shadow",
+        scene="shadow",
+        fingers=("f1", "f2", "f3"),
+        joints=("abd", "mcp", "pip"),
+        sides=(1.0, -1.0, 1.0),
+        contact_x=(-0.035, 0.0, 0.04),
+        reach=0.008,
+        contact_range=((-0.047, -0.013), (-0.04, 0.008), (0.029, 0.05)),
+        # 8 / 8 seeds at A = 0.15 rad for w = 2, 7, 12 rad/s; at 12 rad/s 0.2 rad loses 1 of
+        # 6 (the contacts creep around the pen until the internal-force LP is infeasible).
+        max_tilt=0.15,
+        description="the Shadow hand (Gymnasium-Robotics' model): first and little finger "
+        "above the pen, the thumb below",
     ),
 }
 

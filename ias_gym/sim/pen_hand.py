@@ -40,6 +40,7 @@ from ias_gym.sim.contacts import (
     cross,
     masked_wrench_matrix,
 )
+from ias_gym.sim.external_hands import BUILDERS
 from ias_gym.sim.hands import DEFAULT_HAND, get_hand
 from ias_gym.sim.pen import (
     R_PAPER_TO_MJ,
@@ -94,8 +95,11 @@ def load_pen_hand_model(scene: str = SCENE_FILE) -> mujoco.MjModel:
     """Compile a scene of ``ias_gym.assets`` (default: the pen-hand scene).
 
     The scene includes ``ias_hand.xml`` and ``pen.xml`` by relative path, so it is compiled
-    from its real path on disk (``importlib.resources.as_file``).
+    from its real path on disk (``importlib.resources.as_file``). A name of
+    :data:`ias_gym.sim.external_hands.BUILDERS` (``"shadow"``) is built by its builder.
     """
+    if scene in BUILDERS:  # a hand another project built, from its installed package
+        return BUILDERS[scene]()
     resource = importlib.resources.files("ias_gym.assets") / scene
     with importlib.resources.as_file(resource) as path:
         return mujoco.MjModel.from_xml_path(str(path))
@@ -133,6 +137,8 @@ class PenHandPhysics(FreePenPhysics):
         pen: name of the pen's body, free joint and geom.
         finger_joints: joint suffixes per finger, proximal to distal (the same for every
             finger).
+        sides: per finger, the side of the pen it touches (+1 top, -1 bottom); ``None``: the
+            side its base is on (a hand whose bases all sit below the pen needs them).
 
     Attributes:
         n_fingers, n_hand_dofs: k fingers and their hinge dofs (3k for abd, mcp, pip).
@@ -140,6 +146,12 @@ class PenHandPhysics(FreePenPhysics):
             pen's centre (pushes down), -1 below.
         hand_qpos_ids, hand_dof_ids, hand_actuator_ids: ``(3k,)`` indices into ``qpos``,
             ``qvel``/``qfrc_*`` and ``ctrl``, in the order f1 abd, mcp, pip, f2 ...
+        coupled: ``(follower dof, hand joint index, ratio)`` per joint that no motor drives
+            but a joint equality ties to a hand joint (``follower = ratio * leader``, the
+            Shadow hand's distal joints). The hand's coordinates are the driven joints; M,
+            H and J are those of the coupled system (``S^T M S``, ``S^T H``, ``J S`` with
+            ``S`` the map from driven to all joint velocities), so the equality's own force
+            drops out of eq. (35).
         tip_site_ids, tip_geom_ids: ``(k,)`` fingertip sites and collision spheres.
         pen_body_id, pen_geom_id, pen_qpos_adr, pen_dof_adr, origin_mj: the pen's ids, its
             free joint's addresses and its nominal centre [m] (:class:`FreePenPhysics`).
@@ -155,6 +167,7 @@ class PenHandPhysics(FreePenPhysics):
         fingers: Sequence[str] = FINGERS,
         pen: str = "pen",
         finger_joints: Sequence[str] = FINGER_JOINTS,
+        sides: Sequence[float] | None = None,
     ) -> None:
         super().__init__(model, data, pen)
         self.fingers: tuple[str, ...] = tuple(fingers)
@@ -200,11 +213,27 @@ class PenHandPhysics(FreePenPhysics):
 
         # t2 = sign * (t1 x n): -1 for fingers above the pen axis (push down), +1 below, so
         # that t2 = +z (paper) for all fingers at the untilted pen (eq. 16).
-        scratch = mujoco.MjData(model)
-        mujoco.mj_kinematics(model, scratch)
-        base_z = scratch.xpos[model.jnt_bodyid[joints[:: len(joints) // k]], 2]
-        self._t2_sign = np.where(base_z > self.origin_mj[2], -1.0, 1.0)
+        if sides is None:
+            scratch = mujoco.MjData(model)
+            mujoco.mj_kinematics(model, scratch)
+            base_z = scratch.xpos[model.jnt_bodyid[joints[:: len(joints) // k]], 2]
+            self._t2_sign = np.where(base_z > self.origin_mj[2], -1.0, 1.0)
+        else:
+            if len(sides) != k:
+                raise ValueError(f"sides needs one entry per finger ({k}), got {len(sides)}")
+            self._t2_sign = -np.asarray(sides, dtype=float)
         self.finger_sides = -self._t2_sign
+        self.coupled = _coupled_joints(model, joints)
+        self._all_dofs = self.hand_dof_ids
+        self._coupling: FloatArray | None = None  # S, when some joint follows another
+        if self.coupled:
+            n = len(joints)
+            self._all_dofs = np.r_[self.hand_dof_ids, [dof for dof, _, _ in self.coupled]]
+            self._coupling = np.zeros((len(self._all_dofs), n))
+            self._coupling[:n] = np.eye(n)
+            for row, (_, leader, ratio) in enumerate(self.coupled, start=n):
+                self._coupling[row, leader] = ratio
+            self._dof_ix = np.ix_(self._all_dofs, self._all_dofs)
         # Geoms of the hand (same kinematic tree as the fingertips), for link-contact checks.
         hand_root = model.body_rootid[self._tip_bodies[0]]
         self._hand_geom = model.body_rootid[model.geom_bodyid] == hand_root
@@ -233,7 +262,9 @@ class PenHandPhysics(FreePenPhysics):
         """
         spec = get_hand(hand)
         model = load_pen_hand_model(spec.scene)
-        physics = cls(model, mujoco.MjData(model), spec.fingers, finger_joints=spec.joints)
+        physics = cls(
+            model, mujoco.MjData(model), spec.fingers, finger_joints=spec.joints, sides=spec.sides
+        )
         physics.reset(keyframe)
         return physics
 
@@ -272,7 +303,10 @@ class PenHandPhysics(FreePenPhysics):
         Block diagonal (one 3x3 block per finger); includes the joints' armature.
         """
         mujoco.mj_fullM(self.model, self.data, self._full_m)
-        return self._full_m[self._dof_ix]
+        if self._coupling is None:
+            return self._full_m[self._dof_ix]
+        out: FloatArray = self._coupling.T @ self._full_m[self._dof_ix] @ self._coupling
+        return out
 
     def hand_bias_forces(self) -> FloatArray:
         """H(theta, theta_dot) of eq. (35) [N m]: every joint force but motors and contacts.
@@ -284,7 +318,26 @@ class PenHandPhysics(FreePenPhysics):
         ``M theta_ddot + H = tau - J^T c`` holds exactly (away from joint limits).
         """
         d = self.data
-        return d.qfrc_bias[self.hand_dof_ids] - d.qfrc_passive[self.hand_dof_ids]
+        return self.hand_forces(d.qfrc_bias - d.qfrc_passive)
+
+    def hand_forces(self, qfrc: FloatArray) -> FloatArray:
+        """A joint-force vector of the whole model ``(nv,)`` on the hand's coordinates
+        [N m]: its hand entries, with a coupled joint's added to its leader's times the
+        ratio (``S^T qfrc``)."""
+        if self._coupling is None:
+            out: FloatArray = qfrc[self.hand_dof_ids]
+            return out
+        coupled: FloatArray = self._coupling.T @ qfrc[self._all_dofs]
+        return coupled
+
+    def hand_damping(self) -> FloatArray:
+        """The hand coordinates' viscous damping [N m s/rad], ``(n_hand_dofs,)`` (a coupled
+        joint's adds ``ratio**2`` times its own to its leader's: ``diag(S^T D S)``)."""
+        damping = self.model.dof_damping[self._all_dofs]
+        if self._coupling is None:
+            return damping.copy()
+        out: FloatArray = (self._coupling**2).T @ damping
+        return out
 
     def tip_positions(self) -> FloatArray:
         """Fingertip (sphere centre) positions [m], ``(k, 3)``, paper frame."""
@@ -408,7 +461,10 @@ class PenHandPhysics(FreePenPhysics):
         jacp = np.empty((self.n_fingers, 3, self.model.nv))
         for i in range(self.n_fingers):
             mujoco.mj_jac(self.model, self.data, jacp[i], None, points_mj[i], self._tip_bodies[i])
-        jac = frames_mj @ jacp[:, :, self.hand_dof_ids]
+        if self._coupling is None:
+            jac = frames_mj @ jacp[:, :, self.hand_dof_ids]
+        else:
+            jac = frames_mj @ (jacp[:, :, self._all_dofs] @ self._coupling)
         return jac.reshape(3 * self.n_fingers, self.n_hand_dofs)
 
     def n_link_contacts(self) -> int:
@@ -417,3 +473,29 @@ class PenHandPhysics(FreePenPhysics):
         other = np.where(geom[:, 0] == self.pen_geom_id, geom[:, 1], geom[:, 0])
         pen_pair = (geom[:, 0] == self.pen_geom_id) | (geom[:, 1] == self.pen_geom_id)
         return int(np.count_nonzero(pen_pair & self._hand_geom[other]))
+
+
+def _coupled_joints(model: mujoco.MjModel, joints: Sequence[int]) -> list[tuple[int, int, float]]:
+    """The joints tied to a hand joint by an active linear joint equality.
+
+    Returns ``(follower dof, index of the leader in joints, ratio)`` per joint equality
+    ``follower = ratio * leader`` whose leader is one of ``joints`` and whose follower is
+    not (MuJoCo's ``mjEQ_JOINT`` with ``polycoef = [0, ratio, 0, 0, 0]``).
+
+    Raises:
+        ValueError: such an equality is not linear through zero (not supported).
+    """
+    index = {int(j): i for i, j in enumerate(joints)}
+    out = []
+    for e in range(model.neq):
+        if model.eq_type[e] != mujoco.mjtEq.mjEQ_JOINT or not model.eq_active0[e]:
+            continue
+        follower, leader = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
+        if leader not in index or follower in index:
+            continue
+        coef = model.eq_data[e, :5]
+        if coef[0] != 0.0 or np.any(coef[2:] != 0.0):
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, follower)
+            raise ValueError(f"joint {name!r}: only a linear coupling through zero is supported")
+        out.append((int(model.jnt_dofadr[follower]), index[leader], float(coef[1])))
+    return out
