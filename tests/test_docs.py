@@ -94,6 +94,7 @@ def test_every_results_table_is_made_from_its_json() -> None:
         "assistance.md",
         "pen_skill_bc.md",
         "completion.md",
+        "robustness_shadow.md",
     }
     for name, table in tables.items():
         assert table.count("\n|") >= 3, f"{name} has no rows"
@@ -155,3 +156,24 @@ def test_every_readme_snippet_runs(index: int, tmp_path: Path) -> None:
         timeout=600,
     )
     assert done.returncode == 0, done.stderr[-2000:]
+
+
+def test_the_robustness_table_follows_its_numbers() -> None:
+    row = {"success_rate": 0.5, "ci95_low": 0.1, "ci95_high": 0.9, "successes": 1, "trials": 2}
+    result = {
+        "env": "E",
+        "policy": "expert",
+        "seed": 7,
+        "episodes": 2,
+        "set": "held-out",
+        "command": "ias-gym robustness ...",
+        "rows": [
+            {"disturbance": "nominal", **row, "success_rate": 1.0},
+            {"disturbance": "push", **row},
+            {"disturbance": "all", "success_rate": 0.75},
+        ],
+    }
+    table = result_tables.robustness(result)
+    assert "held-out seeds 7-8" in table
+    assert "| `push` | 50 % [10, 90] (1/2) |" in table
+    assert "| **minimum** | 50 % |" in table and "`all`" not in table

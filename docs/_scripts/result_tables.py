@@ -13,6 +13,7 @@ JSON in ``docs/``                      written by                          table
 ``assist_table_oracle.json``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
+``robustness_shadow.json``             ``ias-gym robustness --json``       ``robustness_shadow.md``
 =====================================  ==================================  =================
 
     python docs/_scripts/result_tables.py   # print every table
@@ -224,6 +225,28 @@ def completion(result: Mapping[str, Any]) -> str:
     return intro + rows(header, body)
 
 
+def robustness(result: Mapping[str, Any]) -> str:
+    """Success with its 95 % Wilson interval per disturbance class (``ias-gym robustness
+    --json``'s lines, kept with the command and the seed set)."""
+    body = [
+        [
+            f"`{r['disturbance']}`",
+            f"{percent(r['success_rate'])} [{100 * r['ci95_low']:.0f}, "
+            f"{100 * r['ci95_high']:.0f}] ({r['successes']}/{r['trials']})",
+        ]
+        for r in result["rows"]
+        if r["disturbance"] != "all"
+    ]
+    worst = min(r["success_rate"] for r in result["rows"] if r["disturbance"] != "all")
+    body.append(["**minimum**", percent(worst)])
+    intro = (
+        f"`{result['env']}`, policy `{result['policy']}`, {result['set']} seeds "
+        f"{result['seed']}-{result['seed'] + result['episodes'] - 1}, {result['episodes']} "
+        f"episodes per class: `{result['command']}`; success [95 % interval].\n\n"
+    )
+    return intro + rows(["disturbance", "success"], body)
+
+
 def tables(docs: Path) -> dict[str, str]:
     """Every table by its file name, from the JSON files in ``docs``."""
 
@@ -239,6 +262,7 @@ def tables(docs: Path) -> dict[str, str]:
         ),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "completion.md": completion(load("completion_table.json")),
+        "robustness_shadow.md": robustness(load("robustness_shadow.json")),
     }
 
 

@@ -46,7 +46,7 @@ class PenRotateConfig(PenHandConfig):
         if not 0 < self.amplitude <= max_tilt:
             raise ValueError(
                 f"amplitude={self.amplitude} rad is outside (0, {max_tilt}] for hand "
-                f"{self.hand!r}: the fingertips reach about +-1 cm at the contacts"
+                f"{self.hand!r}: the largest tilt the expert tracks on it (HandSpec.max_tilt)"
             )
         if not (self.frequency > 0 and self.max_rms_error > 0):
             raise ValueError("frequency [rad/s] and max_rms_error [-] must be > 0")
