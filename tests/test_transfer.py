@@ -177,6 +177,7 @@ def synthetic_skill(
     grasp_at: float = 0.3,
     duration: float = 2.5,
     touching: bool = True,
+    success: bool = True,
 ) -> Skill:
     """A pinch that grasps at ``grasp_at``, then lifts the pen by ``lift`` [m] and tilts it
     by ``tilt`` [rad] along smooth ramps; its margin is ``2 mu squeeze / 1 N`` throughout."""
@@ -224,7 +225,7 @@ def synthetic_skill(
         source="test",
         demonstration=demo,
         model=model,
-        is_success=True,
+        is_success=success,
         person_id="synthetic",
     )
     skill.validate()
@@ -362,6 +363,7 @@ def skill_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
     with SkillDB(path) as db:
         db.add(synthetic_skill(lift=0.02, tilt=0.15, duration=1.5))
         db.add(synthetic_skill(touching=False, duration=1.0))
+        db.add(synthetic_skill(lift=0.02, tilt=0.15, duration=1.5, success=False))
     return path
 
 
@@ -389,6 +391,7 @@ def test_cli_prints_one_json_object_per_hand_with_units(skill_db: Path) -> None:
         (["--id", "1", "--hand", "robonaut"], "unknown --hand 'robonaut'"),
         (["--id", "2"], "no sample where every finger touches"),
         (["--id", "1", "--method", "joint"], "unknown --method"),
+        (["--id", "3"], "skill 3 in"),
     ],
 )
 def test_cli_errors_are_one_line_with_exit_code_2(
@@ -398,6 +401,26 @@ def test_cli_errors_are_one_line_with_exit_code_2(
     assert out.returncode == 2
     assert message in out.stderr and len(out.stderr.strip().splitlines()) == 1
     assert "Traceback" not in out.stderr
+
+
+def test_a_failed_demonstration_is_refused_unless_allowed(skill_db: Path) -> None:
+    """A demonstration whose own episode failed is not a skill to transfer by default."""
+    refused = cli("--db", str(skill_db), "--id", "3", "--hand", "ias3f", "--duration", "0.5")
+    assert refused.returncode == 2 and "--allow-failed" in refused.stderr
+    allowed = cli(
+        "--db",
+        str(skill_db),
+        "--id",
+        "3",
+        "--hand",
+        "ias3f",
+        "--duration",
+        "0.5",
+        "--allow-failed",
+        "--json",
+    )
+    assert allowed.returncode == 0, allowed.stderr
+    assert json.loads(allowed.stdout)["hand"] == "ias3f"
 
 
 def test_cli_refuses_an_existing_video_before_any_work(skill_db: Path, tmp_path: Path) -> None:

@@ -5,7 +5,8 @@ workspace, and its grasp margin (:mod:`ias_gym.skills.transfer`) are executed by
 grip-transform expert (``--method gt``: Theorem 1) or the kinematic baseline
 (``--method kinematic``); prints the transfer metrics per hand, with ``--json`` one JSON
 object per hand and line (``hand``, ``method``, ``success``, ``rot_rms_deg``,
-``pos_rms_mm``, ``margin_err_rel``, ``scale``, ...). ``--list-hands`` lists the hands.
+``pos_rms_mm``, ``margin_err_rel``, ``scale``, ...). ``--list-hands`` lists the hands. A
+demonstration whose own episode failed is refused unless ``--allow-failed``.
 """
 
 from __future__ import annotations
@@ -81,6 +82,11 @@ def _transfer(args: argparse.Namespace) -> int:
             skill = db.get(args.id)
         except SkillNotFoundError as exc:
             raise InputError(str(exc)) from exc
+    if not skill.is_success and not args.allow_failed:
+        raise InputError(
+            f"skill {args.id} in {db_path} is a failed demonstration (its episode did not "
+            "succeed); transfer it anyway with --allow-failed"
+        )
     frames_all: list[Any] = []
     for hand in hands:
         reference = transfer_reference(skill, hand, duration=args.duration)
@@ -148,6 +154,11 @@ def add_transfer_command(commands: argparse._SubParsersAction[Any]) -> argparse.
     )
     transfer.add_argument(
         "--duration", type=_duration, default=3.0, metavar="SECONDS", help="episode length [s]"
+    )
+    transfer.add_argument(
+        "--allow-failed",
+        action="store_true",
+        help="transfer a demonstration whose own episode failed (refused by default)",
     )
     transfer.add_argument("--video", metavar="FILE", help="an MP4 of the executions")
     transfer.add_argument("--overwrite", action="store_true", help="replace an existing --video")
