@@ -65,8 +65,9 @@ def place_grasp(
         pen_rpy: pen roll, pitch, yaw [rad], paper frame (as :meth:`PenHandPhysics.pen_pose`).
         contact_x: ``(k,)`` signed contact positions along the pen's axis [m] (pen frame;
             the paper's ``[-phi1, -phi2, +phi3, +phi4]`` on the four-finger hand). Each tip
-            touches the side of the pen its base is on (``physics.finger_sides``); every
-            finger has three joints (abd, mcp, pip), as on both registered hands.
+            touches its side of the pen (``physics.finger_sides``); every finger has three
+            driven joints (abd, mcp, pip), as on every registered hand, and a joint coupled
+            to one of them (``physics.coupled``) follows it.
         penetration: how far each tip sphere overlaps the pen [m].
         iterations: Gauss-Newton iterations of the inverse kinematics.
         tolerance: stop when every tip is this close to its target [m].
@@ -76,7 +77,7 @@ def place_grasp(
     """
     m, d = physics.model, physics.data
     c = _ik_constants(physics)
-    qa = physics._pen_qadr
+    qa = physics.pen_qpos_adr
     rot = rpy_to_matrix(pen_rpy)  # pen frame -> paper frame
     centre = np.asarray(pen_position, dtype=float)
     d.qpos[qa : qa + 3] = physics.origin_mj + R_PAPER_TO_MJ @ centre
@@ -148,7 +149,7 @@ class _IKConstants:
         self.joints = m.dof_jntid[dadr].copy()
         if np.any(m.jnt_type[self.joints] != mujoco.mjtJoint.mjJNT_HINGE):
             raise ValueError("place_grasp's inverse kinematics needs hinge joints in the hand")
-        self.tip_sites = np.asarray(physics._tip_sites)
+        self.tip_sites = np.asarray(physics.tip_site_ids)
         k = len(self.tip_sites)
         n = len(qadr) // k
         self.finger_rows = np.arange(k)[:, None]
@@ -183,8 +184,8 @@ class _IKConstants:
         self.rest_qpos = scratch.qpos[qadr].copy()
         self.rest_tips = scratch.site_xpos[self.tip_sites].copy()
         self.rest_jac_t, self.rest_lhs = _finger_jacobians(self, m, scratch)
-        self.tip_radius = m.geom_size[physics._tip_geoms, 0].copy()
-        self.pen_radius = float(m.geom_size[physics._pen_geom, 0])
+        self.tip_radius = m.geom_size[physics.tip_geom_ids, 0].copy()
+        self.pen_radius = float(m.geom_size[physics.pen_geom_id, 0])
 
 
 _CONSTANTS: weakref.WeakKeyDictionary[PenHandPhysics, _IKConstants] = weakref.WeakKeyDictionary()

@@ -241,9 +241,6 @@ class PenHandPhysics(FreePenPhysics):
 
         self.n_fingers = k
         self.n_hand_dofs = len(joints)
-        # Older private names, still read by ias_gym.sim.grasp_pose; prefer the public ones.
-        self._tip_sites, self._tip_geoms = self.tip_site_ids, self.tip_geom_ids
-        self._pen_geom, self._pen_qadr = self.pen_geom_id, self.pen_qpos_adr
         self._full_m = np.zeros((model.nv, model.nv))
 
     # ------------------------------------------------------------------ construction
