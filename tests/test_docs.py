@@ -110,7 +110,7 @@ def test_a_results_table_follows_its_numbers() -> None:
         "methods": ["gt"],
         "summary": {
             "ias4f|gt|all": {
-                "runs": 1,
+                "runs": 2,
                 "success_rate": 0.5,
                 "rot_rms_deg": 0.25,
                 "rot_rms_deg_max": 0.5,
@@ -120,7 +120,7 @@ def test_a_results_table_follows_its_numbers() -> None:
             }
         },
     }
-    assert "| ias4f | G(t) | all | 1 | 50 % | 0.25 / 0.50 | 1.00 | 12.3 % | 1 |" in (
+    assert "| ias4f | G(t) | all | 2 | 50 % [9, 91] | 0.25 / 0.50 | 1.00 | 12.3 % | 1 |" in (
         result_tables.transfer(result)
     )
 

@@ -46,6 +46,14 @@ def rows(header: Sequence[str], body: Sequence[Sequence[str]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _with_interval(rate: float, trials: int) -> str:
+    """``rate`` of ``trials`` as ``84 % [75, 90]`` (95 % Wilson interval)."""
+    from ias_gym.rates import wilson_interval
+
+    low, high = wilson_interval(round(rate * trials), trials)
+    return f"{percent(rate)} [{100 * low:.0f}, {100 * high:.0f}]"
+
+
 def transfer(result: Mapping[str, Any]) -> str:
     """Per hand and method, over all skills, per skill class and on the held-out persons."""
     body = []
@@ -58,7 +66,7 @@ def transfer(result: Mapping[str, Any]) -> str:
                 {"gt": "G(t)"}.get(method, method),
                 group,
                 str(s["runs"]),
-                percent(s["success_rate"]),
+                _with_interval(s["success_rate"], s["runs"]),
                 f"{number(s['rot_rms_deg'], 2)} / {number(s['rot_rms_deg_max'], 2)}",
                 number(s["pos_rms_mm"], 2),
                 percent(margin) if margin is None else f"{100 * margin:.1f} %",
@@ -70,7 +78,7 @@ def transfer(result: Mapping[str, Any]) -> str:
         "method",
         "skills",
         "runs",
-        "success",
+        "success [95 % interval]",
         "rotation RMS [deg] mean / worst",
         "position RMS [mm]",
         "margin error",
