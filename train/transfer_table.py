@@ -1,7 +1,7 @@
 """The skill-transfer table: human glove skills executed by every robot hand, G(t) vs kinematic.
 
-    python train/transfer_table.py --build-db out/human_skills.db --persons p1,...,h3
-    python train/transfer_table.py --db out/human_skills.db --heldout h1,h2,h3 \\
+    python train/transfer_table.py --build-db out/pop30.db --population 30 --population-seed S
+    python train/transfer_table.py --db out/pop30.db --population 30 --population-seed S \\
         --out-json out/transfer.json --out-md out/transfer.md
     python train/transfer_table.py --figure docs/img/transfer.png
 
@@ -140,6 +140,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--persons", default="p1,p2,p3,p4,p5,p6,p7,p8,h1,h2,h3", help="persons (--build-db)"
     )
+    parser.add_argument(
+        "--population",
+        type=int,
+        metavar="N",
+        help="instead of --persons and --heldout: N persons drawn with --population-seed, "
+        "all of them held out",
+    )
+    parser.add_argument("--population-seed", type=int, default=0, help="seed of --population")
     parser.add_argument("--episodes", type=int, default=1, help="sessions per person and skill")
     parser.add_argument("--db", help="the skill database (default: the shipped human skills)")
     parser.add_argument("--hands", default="all", help="comma-separated hands, or all")
@@ -153,6 +161,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--figure", metavar="FILE.png", help="draw the transfer figure only")
     parser.add_argument("--figure-id", type=int, default=2, help="the figure's skill id")
     args = parser.parse_args(argv)
+    if args.population is not None:
+        from ias_gym.glove.population import population_ids
+
+        drawn = population_ids(args.population, args.population_seed)
+        args.persons = args.heldout = ",".join(drawn)
     if args.figure:
         from ias_gym.figures.transfer import transfer_figure
 
