@@ -97,7 +97,6 @@ def main() -> None:
     tips = [m.site(f"{f.name}_tip").id for f in SHADOW_FINGERS]
     tip_geoms = {m.geom(f"{f.name}_tip_collision").id for f in SHADOW_FINGERS}
     pen_geom = m.geom("pen").id
-    radius = m.geom_size[sorted(tip_geoms), 0]
     hand_geoms = [
         g
         for g in range(m.ngeom)

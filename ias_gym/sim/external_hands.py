@@ -65,14 +65,12 @@ class ShadowFinger:
 
     Attributes:
         name: our prefix (``f1``, ...).
-        source: the model's finger prefix (``FF``, ``TH``, ``LF``).
         joints: the model's joints driven as ``abd``, ``mcp``, ``pip``.
         dip: the model's distal joint coupled to ``pip`` (``None``: no coupling).
         distal: the model's distal body, whose capsule is the finger's contact geom.
     """
 
     name: str
-    source: str
     joints: tuple[str, str, str]
     dip: str | None
     distal: str
@@ -80,9 +78,9 @@ class ShadowFinger:
 
 #: The holding fingers, in the pen hand's order.
 SHADOW_FINGERS: tuple[ShadowFinger, ...] = (
-    ShadowFinger("f1", "FF", ("FFJ3", "FFJ2", "FFJ1"), "FFJ0", "ffdistal"),
-    ShadowFinger("f2", "TH", ("THJ4", "THJ3", "THJ0"), None, "thdistal"),
-    ShadowFinger("f3", "LF", ("LFJ3", "LFJ2", "LFJ1"), "LFJ0", "lfdistal"),
+    ShadowFinger("f1", ("FFJ3", "FFJ2", "FFJ1"), "FFJ0", "ffdistal"),
+    ShadowFinger("f2", ("THJ4", "THJ3", "THJ0"), None, "thdistal"),
+    ShadowFinger("f3", ("LFJ3", "LFJ2", "LFJ1"), "LFJ0", "lfdistal"),
 )
 #: The distal joint's angle per middle-joint angle: the model's coupling tendon
 #: ``T_FFJ1c`` holds ``0.00705 J0 - 0.00805 J1`` within +-1 mm, so J0 = 1.142 J1.
@@ -197,7 +195,8 @@ def shadow_spec(
         for finger, (abd, mcp, pip) in zip(SHADOW_FINGERS, grasp, strict=True):
             angles.update({f"{finger.name}_abd": abd, f"{finger.name}_mcp": mcp})
             angles[f"{finger.name}_pip"] = pip
-            angles[f"{finger.name}_dip"] = SHADOW_COUPLING * pip
+            if finger.dip is not None:
+                angles[f"{finger.name}_dip"] = SHADOW_COUPLING * pip
         pen = [0.0, 0.0, 0.2, 1.0, 0.0, 0.0, 0.0]
         # qpos in the order of the compiled model's joints (the spec's, depth first)
         qpos = [v for j in scene.joints for v in (pen if j.name == "pen" else [angles[j.name]])]
@@ -270,18 +269,14 @@ def _dress(scene: mujoco.MjSpec, ranges: dict[str, float]) -> None:
 
 
 def _contact_sensor(scene: mujoco.MjSpec, name: str, finger: str, *, detail: bool) -> None:
-    """A contact sensor of the finger's tip geom with the pen, as scene_pen.xml's."""
-    data = ("found", "force", "dist", "pos", "normal", "tangent") if detail else ("found", "force")
-    bits = {
-        "found": 1,
-        "force": 2,
-        "torque": 4,
-        "dist": 8,
-        "pos": 16,
-        "normal": 32,
-        "tangent": 64,
-    }
-    reduce = 1 if detail else 3  # mindist, netforce
+    """A contact sensor of the finger's tip geom with the pen, as scene_pen.xml's: the
+    deepest contact's found, force, dist, pos, normal, tangent (``detail``), or the net
+    force of all of them."""
+    fields = (
+        ("FOUND", "FORCE", "DIST", "POS", "NORMAL", "TANGENT") if detail else ("FOUND", "FORCE")
+    )
+    data = sum(1 << int(getattr(mujoco.mjtConDataField, f"mjCONDATA_{f}")) for f in fields)
+    reduce = 1 if detail else 3  # MJCF's reduce="mindist" / "netforce"
     scene.add_sensor(
         name=name,
         type=mujoco.mjtSensor.mjSENS_CONTACT,
@@ -289,7 +284,7 @@ def _contact_sensor(scene: mujoco.MjSpec, name: str, finger: str, *, detail: boo
         objname=f"{finger}_tip_collision",
         reftype=mujoco.mjtObj.mjOBJ_GEOM,
         refname="pen",
-        intprm=[sum(bits[d] for d in data), reduce, 1],
+        intprm=[data, reduce, 1],
     )
 
 
