@@ -10,9 +10,13 @@ skill class of the glove-skills library (today's pinch-and-lift where that libra
 missing) into a new database, written beside the target and moved there when complete
 (the shipped ``ias_gym/assets/human_skills.db`` is made this way). The table runs every
 successful glove skill of ``--db`` on every hand with every method (``run_transfer``:
-success, RMS rotation error [deg], RMS position error [mm], grasp-margin error [-]) and
-writes one JSON file (every run and the summaries) and a markdown table, both atomically;
-``--heldout`` names the persons never used while developing (reported separately).
+success and its terms held / tracked / margin kept, RMS rotation error [deg], RMS position
+error [mm], grasp-margin error [-]) under every class of ``--disturbances`` (the robustness
+suite's names) and writes one JSON file (every run and the summaries) and a markdown table,
+both atomically; ``--heldout`` names the persons never used while developing (reported
+separately). ``--weak`` adds, nominal only, the executions the success test must fail: the
+grip-transform expert holding the pen still (``weak_still``) or squeezing to a constant
+margin of 1.2 or 2.0 (``weak_margin_1.2``, ``weak_margin_2.0``).
 """
 
 from __future__ import annotations
@@ -30,6 +34,33 @@ from typing import Any
 
 import numpy as np
 from tqdm import tqdm
+
+#: The weak executions of ``--weak``: name -> how the executed reference is made.
+WEAK = ("weak_still", "weak_margin_1.2", "weak_margin_2.0")
+
+
+def method_gains(method: str) -> tuple[str, Any]:
+    """``"gt"`` or ``"kinematic"``, or ``"gt:ki=4000"`` (the expert with these
+    :class:`~ias_gym.baselines.grip_transform_control.ControllerGains` fields): the method
+    and its gains (``None``: the method's own)."""
+    import dataclasses
+
+    from ias_gym.baselines.grip_transform_control import ControllerGains
+
+    name, _, spec = method.partition(":")
+    if not spec:
+        return name, None
+    fields = {k: float(v) for k, v in (item.split("=") for item in spec.split(","))}
+    return name, dataclasses.replace(ControllerGains(), **fields)
+
+
+def weak_reference(reference: Any, kind: str) -> Any:
+    """The reference a weak execution acts on (it is judged against ``reference``)."""
+    from ias_gym.skills.tolerance import constant_margin_reference, still_reference
+
+    if kind == "weak_still":
+        return still_reference(reference)
+    return constant_margin_reference(reference, float(kind.rsplit("_", 1)[1]))
 
 
 def skill_classes() -> list[str | None]:
@@ -98,6 +129,9 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     return {
         "runs": len(rows),
         "success_rate": float(np.mean([r["success"] for r in rows])) if rows else math.nan,
+        "held": int(sum(r["held"] for r in rows)),
+        "tracked": int(sum(r["tracked"] for r in rows)),
+        "margin_kept": int(sum(r["margin_kept"] for r in rows)),
         "rot_rms_deg": mean("rot_rms_deg"),
         "rot_rms_deg_max": worst("rot_rms_deg"),
         "pos_rms_mm": mean("pos_rms_mm"),
@@ -113,14 +147,16 @@ def fmt(value: float | None, spec: str) -> str:
 def markdown(summary: dict[str, Any], heldout: Sequence[str]) -> str:
     """The table: per hand, method and skill class, then all classes, then held-out people."""
     lines = [
-        "| hand | method | skills | runs | success | rot RMS [deg] mean / max | "
-        "pos RMS [mm] | margin error | dropped |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| hand | method | disturbance | skills | runs | success | held / tracked / margin "
+        "kept | rot RMS [deg] mean / max | pos RMS [mm] | margin error | dropped |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for key, s in summary.items():
-        hand, method, group = key.split("|")
+        hand, method, disturbance, group = key.split("|")
         lines.append(
-            f"| {hand} | {method} | {group} | {s['runs']} | {100 * s['success_rate']:.0f} % | "
+            f"| {hand} | {method} | {disturbance} | {group} | {s['runs']} | "
+            f"{100 * s['success_rate']:.0f} % | {s['held']} / {s['tracked']} / "
+            f"{s['margin_kept']} | "
             f"{fmt(s['rot_rms_deg'], '.2f')} / {fmt(s['rot_rms_deg_max'], '.2f')} | "
             f"{fmt(s['pos_rms_mm'], '.2f')} | "
             f"{fmt(None if s['margin_err_rel'] is None else 100 * s['margin_err_rel'], '.1f')} % | "
@@ -152,6 +188,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--db", help="the skill database (default: the shipped human skills)")
     parser.add_argument("--hands", default="all", help="comma-separated hands, or all")
     parser.add_argument("--methods", default="gt,kinematic", help="comma-separated methods")
+    parser.add_argument(
+        "--disturbances", default="nominal", help="comma-separated robustness classes"
+    )
+    parser.add_argument("--weak", action="store_true", help="add the weak executions (nominal)")
+    parser.add_argument(
+        "--merge",
+        nargs="+",
+        metavar="FILE.json",
+        help="instead of running: one table of the runs of these --out-json files (e.g. "
+        "two processes' shares of the hands)",
+    )
     parser.add_argument("--heldout", default="h1,h2,h3", help="persons never used in development")
     parser.add_argument("--seed", type=int, default=0, help="reset seed of every run")
     parser.add_argument("--duration", type=float, default=3.0, help="episode length [s]")
@@ -173,7 +220,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"wrote {args.figure}")
         return 0
 
-    from ias_gym.outputs import atomic_output, check_output_file
+    from ias_gym.outputs import check_output_file
 
     if args.build_db:
         build_db(Path(args.build_db), args.persons.split(","), args.episodes, args.overwrite)
@@ -182,6 +229,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     outputs = [Path(p) for p in (args.out_json, args.out_md) if p]
     for path in outputs:
         check_output_file(path, overwrite=args.overwrite)
+    from ias_gym.robustness import check_classes
+
+    disturbances = check_classes(args.disturbances.split(","))
+    if args.merge:
+        parts = [json.loads(Path(p).read_text()) for p in args.merge]
+        rows = [r for part in parts for r in part["runs"]]
+        keys = ("hands", "methods", "disturbances")
+        merged = {k: list(dict.fromkeys(x for part in parts for x in part[k])) for k in keys}
+        return write_table(args, rows, parts[0]["db"], parts[0]["heldout"], **merged)
 
     from ias_gym.skills.db import SkillDB
     from ias_gym.skills.transfer import (
@@ -198,34 +254,70 @@ def main(argv: Sequence[str] | None = None) -> int:
     with SkillDB(db_path, readonly=True) as db:
         summaries = [s for s in db.list_skills(success=True) if s.person_id]
         skills = [(s, db.get(s.id)) for s in summaries]
+    from ias_gym.robustness import DISTURBANCES
+
     rows: list[dict[str, Any]] = []
-    jobs = [(s, k, h, m) for s, k in skills for h in hands for m in methods]
-    for summary, skill, hand, method in tqdm(jobs, desc="transfer", unit="run"):
+    jobs = [
+        (s, k, h, m, d) for s, k in skills for h in hands for m in methods for d in disturbances
+    ]
+    if args.weak:
+        jobs += [(s, k, h, w, "nominal") for s, k in skills for h in hands for w in WEAK]
+    for summary, skill, hand, method, disturbance in tqdm(jobs, desc="transfer", unit="run"):
         reference = transfer_reference(skill, hand, duration=args.duration)
-        run, _ = run_transfer(reference, hand, method, seed=args.seed, duration=args.duration)
+        weak = method in WEAK
+        name, gains = ("gt", None) if weak else method_gains(method)
+        run, _ = run_transfer(
+            reference,
+            hand,
+            name,
+            gains=gains,
+            seed=args.seed,
+            duration=args.duration,
+            executed=weak_reference(reference, method) if weak else None,
+            **DISTURBANCES[disturbance],
+        )
         row = run.to_json()
         row.update(
+            method=method,
+            disturbance=disturbance,
             skill_class=skill_class(summary),
             heldout=summary.person_id in heldout,
             duration_s=args.duration,
         )
         rows.append(row)
+    all_methods = methods + (list(WEAK) if args.weak else [])
+    return write_table(args, rows, str(db_path), heldout, hands, all_methods, disturbances)
+
+
+def write_table(
+    args: argparse.Namespace,
+    rows: list[dict[str, Any]],
+    db: str,
+    heldout: list[str],
+    hands: list[str],
+    methods: list[str],
+    disturbances: list[str],
+) -> int:
+    """Summarise the runs, print the table and write the outputs."""
+    from ias_gym.outputs import atomic_output
 
     groups: dict[str, list[dict[str, Any]]] = {}
     for row in rows:
         for group in (row["skill_class"], "all", "held-out" if row["heldout"] else None):
             if group is not None:
-                groups.setdefault(f"{row['hand']}|{row['method']}|{group}", []).append(row)
+                key = f"{row['hand']}|{row['method']}|{row['disturbance']}|{group}"
+                groups.setdefault(key, []).append(row)
     summary = {key: summarise(group) for key, group in sorted(groups.items())}
     table = markdown(summary, heldout)
     print(table)
     persons = sorted({r["person"] for r in rows})
     result = {
-        "db": str(db_path),
+        "db": db,
         "persons": persons,
         "heldout": heldout,
         "hands": hands,
         "methods": methods,
+        "disturbances": disturbances,
         "summary": summary,
         "runs": rows,
     }

@@ -78,6 +78,13 @@ class ControllerGains:
 
     kp: float = 400.0  # object position stiffness Kp [1/s^2] (eq. 43)
     kv: float = 40.0  # object position damping Kv [1/s]
+    # Integral of the object position error [1/s^3]: the weight the law feeds forward is the
+    # nominal pen's (a controller does not know a disturbed mass), and Kp alone leaves
+    # |dm| g / Kp of sag (7 mm at 30 %); the integral takes it out (Routh: < Kp Kv).
+    ki: float = 0.0
+    # The integral's share of a_d is bounded by this [m/s^2] (anti-windup: half of g, a pen
+    # between 0.5 and 1.5 times its nominal weight).
+    integral_limit: float = 4.9
     kp_rot: float = 400.0  # object orientation stiffness [1/s^2]
     kv_rot: float = 40.0  # object orientation damping [1/s]
     delta: float = 50.0  # internal-force error rate delta of eq. (44) [1/s]
@@ -138,6 +145,7 @@ class GripTransformController:
         self._extra: FloatArray | None = None  # servo forces commanded last step [N]
         self._prev_W: FloatArray | None = None
         self._prev_J: FloatArray | None = None
+        self._integral = np.zeros(3)  # integral of the position error [m s]
         self._N: FloatArray | None = None
         self._joint_damping: FloatArray | None = None
         self._gravity: FloatArray | None = None  # the model's, paper frame [m/s^2]
@@ -455,6 +463,12 @@ def _control_step(
     J = x.J
 
     a_d = law.object_acceleration(state, ref, kp=g.kp, kv=g.kv, kp_rot=g.kp_rot, kv_rot=g.kv_rot)
+    if g.ki > 0:
+        bound = g.integral_limit / g.ki
+        error = ref.position - state.position
+        for i, ctrl in enumerate(controllers):
+            ctrl._integral = np.clip(ctrl._integral + error[i] * x.dt[i, 0], -bound, bound)
+        a_d[:, :3] += g.ki * np.stack([ctrl._integral for ctrl in controllers])
     if accel_offsets is not None:
         a_d = a_d + accel_offsets
     wrench = law.object_wrench(x.mass, x.inertia, state.omega, a_d, x.gravity)

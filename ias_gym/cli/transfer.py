@@ -3,7 +3,8 @@
 The skill's object trajectory relative to its grasp frame, scaled into each hand's
 workspace, and its grasp margin (:mod:`ias_gym.skills.transfer`) are executed by the
 grip-transform expert (``--method gt``: Theorem 1) or the kinematic baseline
-(``--method kinematic``); prints the transfer metrics per hand, with ``--json`` one JSON
+(``--method kinematic``), nominal or under a class of the robustness suite
+(``--disturbance``); prints the transfer metrics per hand, with ``--json`` one JSON
 object per hand and line (``hand``, ``method``, ``success``, ``rot_rms_deg``,
 ``pos_rms_mm``, ``margin_err_rel``, ``scale``, ...). ``--list-hands`` lists the hands. A
 demonstration whose own episode failed is refused unless ``--allow-failed``.
@@ -61,6 +62,13 @@ def _transfer(args: argparse.Namespace) -> int:
 
     if args.method not in METHODS:
         raise InputError(f"unknown --method {args.method!r}; methods: {list(METHODS)}")
+    from ias_gym.robustness import DISTURBANCES
+
+    if args.disturbance not in DISTURBANCES:
+        raise InputError(
+            f"unknown --disturbance {args.disturbance!r}; classes: {', '.join(DISTURBANCES)}"
+        )
+    disturbance = DISTURBANCES[args.disturbance]
     hands = hand_names() if args.hand == "all" else [args.hand]
     unknown = [h for h in hands if h not in hand_names()]
     if unknown:
@@ -97,13 +105,16 @@ def _transfer(args: argparse.Namespace) -> int:
             seed=args.seed,
             render=video is not None,
             duration=args.duration,
+            **disturbance,
         )
         frames_all += frames
         if args.json:
-            print(json.dumps(run.to_json()))
+            print(json.dumps({**run.to_json(), "disturbance": args.disturbance}))
         else:
+            failed = [k for k in ("held", "tracked", "margin_kept") if not getattr(run, k)]
+            verdict = "success" if run.success else f"FAILED (not {', '.join(failed) or 'held'})"
             print(
-                f"{hand} {args.method}: {'success' if run.success else 'FAILED'}, rotation RMS "
+                f"{hand} {args.method}: {verdict}, rotation RMS "
                 f"{run.rot_rms_deg:.2f} deg, position RMS {run.pos_rms_mm:.2f} mm, margin "
                 f"error {100 * run.margin_err_rel:.1f} %, scale {run.scale:.3f} "
                 f"(rotation {run.scale_rotation:.3f}), held {run.held_s:.2f} s"
@@ -132,10 +143,13 @@ def add_transfer_command(commands: argparse._SubParsersAction[Any]) -> argparse.
         description="Turn a stored skill (e.g. a glove session) into a reference for each "
         "robot hand - the object's motion relative to its grasp frame, scaled into the "
         "hand's workspace, and the person's grasp margin - and execute it with the "
-        "grip-transform expert (gt, Theorem 1) or the kinematic baseline. Prints the "
+        "grip-transform expert (gt, Theorem 1) or the kinematic baseline, nominal or under "
+        "a disturbance class. Success: the pen held, the motion tracked and the margin "
+        "kept within the tolerances of the person's own repeatability. Prints the "
         "transfer metrics per hand; with --json one JSON object per hand and line (hand, "
-        "method, success, rot_rms_deg, pos_rms_mm, margin_err_rel, scale, scale_rot, "
-        "held_s, skill_id, person, skill).",
+        "method, disturbance, success, held, tracked, margin_kept, rot_rms_deg, "
+        "pos_rms_mm, margin_err_rel, tolerance, scale, scale_rot, held_s, skill_id, "
+        "person, skill).",
     )
     transfer.add_argument(
         "--db",
@@ -154,6 +168,13 @@ def add_transfer_command(commands: argparse._SubParsersAction[Any]) -> argparse.
     )
     transfer.add_argument(
         "--duration", type=_duration, default=3.0, metavar="SECONDS", help="episode length [s]"
+    )
+    transfer.add_argument(
+        "--disturbance",
+        default="nominal",
+        metavar="CLASS",
+        help="a class of the robustness suite (`ias-gym robustness`), e.g. friction_x0.7, "
+        "mass_x1.3, push_0.3N_50ms",
     )
     transfer.add_argument(
         "--allow-failed",

@@ -457,15 +457,21 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         terms["effort"] = -self.config.effort_weight * float(a @ a) / len(a)
         return terms
 
-    def _info(self, terms: dict[str, float]) -> dict[str, Any]:
-        success = bool(
+    def held(self) -> bool:
+        """Whether the pen was held for the whole episode (the part of success every pen
+        task shares): the time limit reached, never dropped, the simulation stable, the
+        centre within ``max_position_error`` of nominal, no tip off for longer than
+        ``max_contact_gap``."""
+        return bool(
             self._steps >= self.max_steps
             and not self._dropped
             and not self._unstable
             and self._max_position_error < self.config.max_position_error
             and self._max_gap.max() <= self.config.max_contact_gap + 1e-9
-            and self._task_success()
         )
+
+    def _info(self, terms: dict[str, float]) -> dict[str, Any]:
+        success = self.held() and self._task_success()
         info = {
             "is_success": success,
             "time": self.time,

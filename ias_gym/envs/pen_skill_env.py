@@ -38,6 +38,9 @@ TRACK_ROTATION_SCALE = math.radians(3.0)
 MARGIN_SCALE = 0.3
 #: The measured margin in the observation is clipped to this [-] (inf: no squeeze needed).
 MARGIN_CLIP = 10.0
+#: Success tolerances of a reference that carries none and a config that sets none: RMS
+#: position [m], RMS axis angle [rad], mean relative margin error [-] (inf: not checked).
+DEFAULT_TOLERANCE = {"position": 0.003, "rotation": 0.05, "margin": math.inf}
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -57,6 +60,10 @@ class SkillReference:
         name: the skill's name; person: who demonstrated it ("" if unknown).
         scale: translation scale into the hand's workspace [-].
         scale_rotation: rotation scale [-].
+        tolerance_rotation, tolerance_position, tolerance_margin: how far an execution may
+            stay from this reference and succeed: RMS axis angle [rad], RMS centre
+            distance [m], mean relative margin error [-] (``None``: the env's defaults;
+            :mod:`ias_gym.skills.tolerance` sets them from the person's repeatability).
     """
 
     dt: float
@@ -72,9 +79,16 @@ class SkillReference:
     person: str = ""
     scale: float = 1.0
     scale_rotation: float = 1.0
+    tolerance_rotation: float | None = None
+    tolerance_position: float | None = None
+    tolerance_margin: float | None = None
 
     def __post_init__(self) -> None:
         T = len(self.position)
+        for name in ("tolerance_rotation", "tolerance_position", "tolerance_margin"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise InputError(f"skill reference {name} must be None or > 0, got {value}")
         if T < 2 or not (math.isfinite(self.dt) and self.dt > 0):
             raise InputError(f"a skill reference needs >= 2 samples and dt > 0, got {T}, {self.dt}")
         for name in ("position", "velocity", "acceleration", "axis", "omega", "alpha"):
@@ -130,8 +144,11 @@ class PenSkillConfig(PenHandConfig):
     max_position_error: float = 0.015  # success: pen centre within this of nominal [m]
     drop_distance: float = 0.025  # pen centre this far from nominal = dropped [m]
     settle_time: float = 0.2  # the tracking errors ignore the first 0.2 s [s]
-    max_rms_position_error: float = 0.003  # success: RMS position tracking error [m]
-    max_rms_rotation_error: float = 0.05  # success: RMS axis angle error [rad]
+    # success: RMS position [m] and axis angle [rad] errors, mean relative margin error [-];
+    # None: the skill reference's own tolerance, else the DEFAULT_TOLERANCE
+    max_rms_position_error: float | None = None
+    max_rms_rotation_error: float | None = None
+    max_margin_error: float | None = None
     track_weight: float = 1.0  # [-]
     margin_weight: float = 0.5  # [-]
 
@@ -139,8 +156,10 @@ class PenSkillConfig(PenHandConfig):
         super().__post_init__()
         if not 0 <= self.settle_time < self.duration:
             raise ValueError(f"settle_time must be in [0, duration), got {self.settle_time}")
-        if not (self.max_rms_position_error > 0 and self.max_rms_rotation_error > 0):
-            raise ValueError("max_rms_position_error [m] and max_rms_rotation_error [rad] > 0")
+        for name in ("max_rms_position_error", "max_rms_rotation_error", "max_margin_error"):
+            value = getattr(self, name)
+            if value is not None and not value > 0:  # NaN fails too
+                raise ValueError(f"{name} must be None or > 0, got {value}")
 
 
 class PenSkillEnv(PenHandEnv):
@@ -450,10 +469,35 @@ class PenSkillEnv(PenHandEnv):
             margin = math.exp(-((ratio / MARGIN_SCALE) ** 2))
         return {"track": cfg.track_weight * track, "margin": cfg.margin_weight * margin}
 
-    def _task_success(self) -> bool:
+    def tolerance(self) -> dict[str, float]:
+        """This episode's success tolerances: ``position`` [m], ``rotation`` [rad] and
+        ``margin`` [-], each the config's if set, else the skill's, else the default."""
+        cfg, skill = self.config, self.skill
+        chosen = {
+            "position": (cfg.max_rms_position_error, skill.tolerance_position),
+            "rotation": (cfg.max_rms_rotation_error, skill.tolerance_rotation),
+            "margin": (cfg.max_margin_error, skill.tolerance_margin),
+        }
+        return {
+            key: next((v for v in values if v is not None), DEFAULT_TOLERANCE[key])
+            for key, values in chosen.items()
+        }
+
+    def success_terms(self) -> dict[str, bool]:
+        """Whether the run so far ``tracked`` the motion (RMS position and axis errors within
+        the tolerance) and kept the margin (``margin_kept``: its mean relative error within
+        the tolerance; a run with no margin sample keeps it only if it is not checked)."""
         pos, rot = self.rms_errors()
-        cfg = self.config
-        return bool(pos < cfg.max_rms_position_error and rot < cfg.max_rms_rotation_error)
+        tol = self.tolerance()
+        error = self.margin_error()
+        kept = math.isinf(tol["margin"]) or (math.isfinite(error) and error < tol["margin"])
+        return {
+            "tracked": bool(pos < tol["position"] and rot < tol["rotation"]),
+            "margin_kept": bool(kept),
+        }
+
+    def _task_success(self) -> bool:
+        return all(self.success_terms().values())
 
     def episode_metrics(self, info: dict[str, Any]) -> dict[str, float]:
         """Error metrics of a finished episode from its last ``info`` (SI units)."""
@@ -487,6 +531,7 @@ class PenSkillEnv(PenHandEnv):
             "margin": self._margin if math.isfinite(self._margin) else 0.0,
             "margin_reference": self.grasp_margin_reference(),
             "margin_error": margin_error if math.isfinite(margin_error) else -1.0,
+            **self.success_terms(),
             "contact_forces": c.reshape(-1, 3),
             "internal_forces": c_h,
         }

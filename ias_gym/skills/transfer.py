@@ -21,7 +21,9 @@ can reuse is not the glove's joint angles but
   (:mod:`ias_gym.grasp.grasp_margin`): the person's squeeze over the least squeeze that keeps
   the contacts in their cones. The target hand solves its own internal forces for its own
   contacts and scales them to the same margin (the controller's hook,
-  ``grasp_margin_reference``).
+  ``grasp_margin_reference``);
+- and the **tolerances** of its success test: as close as another demonstration of the
+  same person comes (:mod:`ias_gym.skills.tolerance`), scaled like the reference.
 
 :class:`PenSkillDBEnv` is the registered ``IAS-PenSkill-v0``: it reads the skills from a
 database (default: the human skills shipped with the package) and builds their references
@@ -54,6 +56,7 @@ from ias_gym.sim.pen import rpy_to_matrix
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.glove_session import motion_window
 from ias_gym.skills.skill import Skill
+from ias_gym.skills.tolerance import Tolerance, skill_tolerance
 
 FloatArray = NDArray[np.float64]
 
@@ -173,6 +176,7 @@ def transfer_reference(
     duration: float | None = None,
     mu: float = GLOVE_PEN_MU,
     workspace: HandWorkspace | None = None,
+    tolerances: dict[str, Tolerance] | None = None,
 ) -> SkillReference:
     """The reference a hand executes for a stored skill (module docstring).
 
@@ -183,6 +187,8 @@ def transfer_reference(
         duration: cut the reference after this long [s] (default: the whole skill).
         mu: the demonstration's friction coefficient [-] (for its grasp margin).
         workspace: overrides the hand's workspace.
+        tolerances: the success tolerances by skill class (default: the shipped ones,
+            :func:`ias_gym.skills.tolerance.load_tolerances`).
 
     Returns:
         The :class:`SkillReference` on the grid ``0, dt, 2 dt, ...`` after the skill's start.
@@ -240,6 +246,7 @@ def transfer_reference(
     values = np.clip(margin[defined], *MARGIN_RANGE)
     nearest = np.clip(np.searchsorted(times, grid), 0, len(times) - 1)
     margin_ref = values[nearest]
+    tolerance = skill_tolerance(skill.name, tolerances).scaled(scale, scale_rot)
     return SkillReference(
         dt=control_dt,
         position=position,
@@ -254,6 +261,9 @@ def transfer_reference(
         person=skill.person_id or "",
         scale=scale,
         scale_rotation=scale_rot,
+        tolerance_rotation=tolerance.rotation,
+        tolerance_position=tolerance.position,
+        tolerance_margin=tolerance.margin,
     )
 
 
@@ -416,13 +426,17 @@ class TransferRun:
     Attributes:
         hand, method: which hand, which method (``gt`` or ``kinematic``).
         skill_id: the skill's id in its database; person, name: its provenance.
-        success: the env's ``is_success`` (held and tracked within tolerance).
+        success: the env's ``is_success``: ``held``, ``tracked`` and ``margin_kept``.
+        held: the pen held for the whole episode; tracked: RMS rotation and position
+            errors within the reference's tolerances; margin_kept: the margin error within
+            its tolerance.
         held_s: how long the pen was held [s] (the episode's length unless dropped; the
             RMS errors are over that time).
         rot_rms_deg: RMS angle between the pen's axis and the reference's [deg].
         pos_rms_mm: RMS distance of the pen's centre from the reference's [mm].
         margin_err_rel: mean ``|m - m_ref| / m_ref`` of the grasp margin [-].
         scale, scale_rotation: the reference's translation and rotation scales [-].
+        tolerance: the success test's ``rot_rms_deg``, ``pos_rms_mm``, ``margin_err_rel``.
         time: ``(T,)`` [s]; position, reference_position: ``(T, 3)`` [m]; axis,
         reference_axis: ``(T, 3)``; margin, margin_reference: ``(T,)`` [-];
         internal_forces: ``(T, n)`` measured ``c_h`` [N]; contact_forces: ``(T, k, 3)`` [N].
@@ -434,12 +448,16 @@ class TransferRun:
     person: str
     name: str
     success: bool
+    held: bool
+    tracked: bool
+    margin_kept: bool
     held_s: float
     rot_rms_deg: float
     pos_rms_mm: float
     margin_err_rel: float
     scale: float
     scale_rotation: float
+    tolerance: dict[str, float]
     time: FloatArray
     position: FloatArray
     reference_position: FloatArray
@@ -463,13 +481,33 @@ class TransferRun:
             "person": self.person,
             "skill": self.name,
             "success": self.success,
+            "held": self.held,
+            "tracked": self.tracked,
+            "margin_kept": self.margin_kept,
             "held_s": self.held_s,
             "rot_rms_deg": number(self.rot_rms_deg),
             "pos_rms_mm": number(self.pos_rms_mm),
             "margin_err_rel": number(self.margin_err_rel),
             "scale": self.scale,
             "scale_rot": self.scale_rotation,
+            "tolerance": {k: number(v) for k, v in self.tolerance.items()},
         }
+
+
+class _Executing:
+    """A policy that acts on another reference than the one its env judges it by (the
+    weak executions that check the success test: a still pen, a constant margin)."""
+
+    def __init__(self, policy: Any, env: PenSkillEnv, executed: SkillReference) -> None:
+        self.policy, self.env, self.executed = policy, env, executed
+
+    def predict(self, observation: Any, *args: Any, **kwargs: Any) -> Any:
+        judged = self.env.references
+        self.env.references = (self.executed,)
+        try:
+            return self.policy.predict(observation, *args, **kwargs)
+        finally:
+            self.env.references = judged
 
 
 def run_transfer(
@@ -478,6 +516,9 @@ def run_transfer(
     method: str = "gt",
     seed: int = 0,
     render: bool = False,
+    executed: SkillReference | None = None,
+    gains: Any = None,
+    reset_options: dict[str, Any] | None = None,
     **config: Any,
 ) -> tuple[TransferRun, list[NDArray[Any]]]:
     """Execute a transferred skill on a hand and measure it.
@@ -489,6 +530,15 @@ def run_transfer(
             ``"kinematic"`` (:class:`~ias_gym.baselines.kinematic.KinematicPolicy`).
         seed: the reset seed.
         render: also return ``rgb_array`` frames (every other step: 50 fps).
+        executed: the policy acts on this reference instead (same length of episode),
+            while the run is still judged against ``reference``: a deliberately weak
+            execution (e.g. the pen held still) that the success test must fail.
+        gains: the method's gains: the expert's
+            :class:`~ias_gym.baselines.grip_transform_control.ControllerGains` or the
+            kinematic baseline's :class:`~ias_gym.baselines.kinematic.KinematicGains`
+            (default: its own).
+        reset_options: further options of the reset (e.g. an exact start, ``qpos`` and
+            ``qvel``); the skill is always the reference.
         **config: further :class:`PenSkillConfig` fields.
 
     Returns:
@@ -507,7 +557,9 @@ def run_transfer(
         render_mode="rgb_array" if render else None, references=[reference], hand=hand, **config
     )
     try:
-        policy: Any = ExpertPolicy(env) if method == "gt" else KinematicPolicy(env)
+        policy: Any = ExpertPolicy(env, gains) if method == "gt" else KinematicPolicy(env, gains)
+        if executed is not None:
+            policy = _Executing(policy, env, executed)
         rows: dict[str, list[Any]] = {
             k: [] for k in ("t", "p", "pr", "a", "ar", "m", "mr", "ch", "cf")
         }
@@ -534,12 +586,14 @@ def run_transfer(
             env,
             policy,
             seed,
-            reset_options={"skill": 0},
+            reset_options={**(reset_options or {}), "skill": 0},
             keep_observations=False,
             keep_infos=False,
             on_reset=sample,
             on_step=sample,
         )
+        held = env.held()
+        tolerance = env.tolerance()
     finally:
         env.close()
     info = trajectory.final_info
@@ -550,12 +604,20 @@ def run_transfer(
         person=reference.person,
         name=reference.name,
         success=bool(info["is_success"]),
+        held=held,
+        tracked=bool(info["tracked"]),
+        margin_kept=bool(info["margin_kept"]),
         held_s=float(rows["t"][-1]),
         rot_rms_deg=math.degrees(info["rms_rotation_error"]),
         pos_rms_mm=1000.0 * info["rms_position_error"],
         margin_err_rel=env.margin_error(),
         scale=reference.scale,
         scale_rotation=reference.scale_rotation,
+        tolerance={
+            "rot_rms_deg": math.degrees(tolerance["rotation"]),
+            "pos_rms_mm": 1000.0 * tolerance["position"],
+            "margin_err_rel": tolerance["margin"],
+        },
         time=np.array(rows["t"]),
         position=np.array(rows["p"]),
         reference_position=np.array(rows["pr"]),

@@ -1,0 +1,87 @@
+"""Tune the kinematic transfer baseline's squeeze on development persons' glove skills.
+
+    python train/tune_kinematic.py --db out/repeats.db --persons 8 \\
+        --squeezes 0.3,0.5,0.75,1,1.5,2.5 --hands all --out-json out/kinematic_tuning.json
+
+The kinematic baseline (:class:`ias_gym.baselines.kinematic.KinematicPolicy`) has no grasp
+model; its one free choice is the fixed normal force per tip. Each squeeze runs the first
+successful session of every skill class of the first ``--persons`` persons of ``--db``
+(development persons: never those of a held-out table) on every hand, and the script
+prints per hand and squeeze the success rate of the transfer test and its three terms
+(held, tracked, margin kept) with 95 % intervals. ``KinematicGains.squeeze`` is set from
+this table by hand: the squeeze with the most successes on every hand, ties broken by the
+lower margin error (the table goes into the CHANGELOG).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from tqdm import tqdm
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the sweep and print the table."""
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    parser.add_argument("--db", required=True, help="development persons' glove sessions")
+    parser.add_argument("--persons", type=int, default=8, help="how many of its persons")
+    parser.add_argument("--squeezes", default="0.3,0.5,0.75,1,1.5,2.5", help="[N], comma list")
+    parser.add_argument("--hands", default="all", help="comma-separated hands, or all")
+    parser.add_argument("--out-json", help="every run, one JSON object per line")
+    args = parser.parse_args(argv)
+
+    from ias_gym.baselines.kinematic import KinematicGains
+    from ias_gym.outputs import atomic_output, check_output_file
+    from ias_gym.rates import Rate
+    from ias_gym.skills.db import SkillDB
+    from ias_gym.skills.transfer import hand_names, run_transfer, transfer_reference
+
+    out = None
+    if args.out_json:
+        out = check_output_file(args.out_json, suffixes=(".json", ".jsonl"), what="--out-json")
+    hands = hand_names() if args.hands == "all" else args.hands.split(",")
+    squeezes = [float(x) for x in args.squeezes.split(",")]
+    with SkillDB(Path(args.db), readonly=True) as db:
+        summaries = [s for s in db.list_skills(success=True) if s.person_id]
+        persons = sorted({s.person_id for s in summaries})[: args.persons]
+        chosen: dict[tuple[str, str], int] = {}
+        for s in summaries:
+            key = (str(s.person_id), str(s.name))
+            if s.person_id in persons and key not in chosen:
+                chosen[key] = int(s.id)
+        skills = [db.get(i) for i in chosen.values()]
+    rows = []
+    jobs = [(h, q, sk) for h in hands for q in squeezes for sk in skills]
+    for hand, squeeze, skill in tqdm(jobs, desc="kinematic runs", unit="run"):
+        gains = dataclasses.replace(KinematicGains(), squeeze=squeeze)
+        run, _ = run_transfer(transfer_reference(skill, hand), hand, "kinematic", gains=gains)
+        rows.append({**run.to_json(), "squeeze_N": squeeze})
+    print(f"{len(skills)} skills of {len(persons)} persons")
+    print("hand    squeeze  success            held  tracked  margin kept  margin err")
+    for hand in hands:
+        for squeeze in squeezes:
+            group = [r for r in rows if r["hand"] == hand and r["squeeze_N"] == squeeze]
+            rate = Rate(sum(r["success"] for r in group), len(group))
+            terms = [sum(r[k] for r in group) for k in ("held", "tracked", "margin_kept")]
+            errors = [r["margin_err_rel"] for r in group if r["margin_err_rel"] is not None]
+            print(
+                f"{hand:<7} {squeeze:7.2f}  {rate.value:4.0%} "
+                f"[{rate.interval[0]:.0%}, {rate.interval[1]:.0%}]  {terms[0]:4d}  {terms[1]:7d}  "
+                f"{terms[2]:11d}  {sum(errors) / max(len(errors), 1):10.2f}"
+            )
+    if out is not None:
+        with atomic_output(out) as path:
+            path.write_text("".join(json.dumps(r) + "\n" for r in rows), encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
