@@ -108,21 +108,29 @@ def test_a_results_table_follows_its_numbers() -> None:
         "persons": ["a"],
         "hands": ["ias4f"],
         "methods": ["gt"],
+        "disturbances": ["nominal"],
         "summary": {
-            "ias4f|gt|all": {
+            f"ias4f|gt|nominal|{group}": {
                 "runs": 2,
                 "success_rate": 0.5,
+                "held": 2,
+                "tracked": 1,
+                "margin_kept": 2,
                 "rot_rms_deg": 0.25,
                 "rot_rms_deg_max": 0.5,
                 "pos_rms_mm": 1.0,
                 "margin_err_rel": 0.123,
                 "dropped": 1,
             }
+            for group in ("all", "tilt_left")
         },
     }
-    assert "| ias4f | G(t) | all | 2 | 50 % [9, 91] | 0.25 / 0.50 | 1.00 | 12.3 % | 1 |" in (
-        result_tables.transfer(result)
+    table = result_tables.transfer(result)
+    assert (
+        "| ias4f | G(t) | nominal | 2 | 50 % [9, 91] | 2 / 1 / 2 | 0.25 / 0.50 | 1.00 | 12.3 % |"
+        in (table)
     )
+    assert "tilt_left" not in table  # the page shows all skills; the JSON has each class
 
 
 def readme_snippets() -> list[str]:

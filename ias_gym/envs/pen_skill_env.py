@@ -230,9 +230,16 @@ class PenSkillEnv(PenHandEnv):
 
     ## Episode End
     ``info["is_success"]`` (at the last step): the pen was held (never dropped, no tip off
-    for more than 20 ms, centre within ``max_position_error`` of nominal) and tracked: RMS
-    position error after ``settle_time`` < ``max_rms_position_error`` and RMS axis angle
-    error < ``max_rms_rotation_error``. ``info`` also carries ``rms_position_error`` [m],
+    for more than 20 ms, centre within ``max_position_error`` of nominal), ``tracked`` (RMS
+    position error after ``settle_time`` below the position tolerance and RMS axis angle
+    error below the rotation tolerance) and ``margin_kept`` (the mean relative margin
+    error below the margin tolerance); ``info["tracked"]`` and ``info["margin_kept"]``
+    tell which term failed. The tolerances (``env.unwrapped.tolerance()``) are the
+    config's where it sets them, else the skill reference's own: for a stored skill, as
+    close as another demonstration of the same person comes (fitted on repetitions of
+    population persons, scaled like the reference: :mod:`ias_gym.skills.tolerance`),
+    else 3 mm and 0.05 rad with the margin not checked. ``info`` also carries
+    ``rms_position_error`` [m],
     ``rms_rotation_error`` [rad], ``margin`` (0 while a finger is off) and
     ``margin_reference`` [-], ``margin_error`` (mean relative error so far, -1 before the
     first sample), ``contact_forces`` [N] (k x 3: normal, t1, t2 of each fingertip) and
@@ -257,15 +264,17 @@ class PenSkillEnv(PenHandEnv):
       ``margin_weight`` [0.5]: reward weights [-].
     - ``render_width`` [480 px], ``render_height`` [360 px], ``camera`` [``"front"``].
     - ``duration`` [3.0 s]: the episode; ``settle_time`` [0.2 s];
-      ``max_rms_position_error`` [0.003 m] and ``max_rms_rotation_error`` [0.05 rad]: the
-      tracking tolerances of success.
+      ``max_rms_position_error`` [m], ``max_rms_rotation_error`` [rad] and
+      ``max_margin_error`` [-] [``None``: the skill's own tolerances]: the tolerances of
+      success.
     - Disturbances as in the other pen tasks: ``friction_scale``, ``mass_scale``,
       ``push_force``, ``push_duration``, ``force_noise``, ``joint_angle_noise``,
       ``joint_velocity_noise``, ``action_noise``, ``action_delay``,
       ``internal_force_step``.
 
     ## Version History
-    - v0: initial release.
+    - v0: initial release; success also asks for the margin kept, within tolerances of the
+      persons' repeatability (before: 3 mm and 0.05 rad for every skill, no margin).
     """
 
     config_class: ClassVar[type[PenHandConfig]] = PenSkillConfig

@@ -368,8 +368,9 @@ class PenSkillDBEnv(PenSkillEnv):
     database's skills with the env's ``np_random``.
 
     ## Episode End
-    As :class:`~ias_gym.envs.pen_skill_env.PenSkillEnv`: success = held and tracked within
-    ``max_rms_position_error`` and ``max_rms_rotation_error``.
+    As :class:`~ias_gym.envs.pen_skill_env.PenSkillEnv`: success = held, tracked and the
+    margin kept, within the tolerances of each skill (the persons' own repeatability,
+    :mod:`ias_gym.skills.tolerance`) unless the config sets them.
 
     ## Arguments
     ``skill_db`` [the shipped human skills]: a skill database path; ``skill_ids`` [all
@@ -379,10 +380,11 @@ class PenSkillDBEnv(PenSkillEnv):
     ``duration``, ``min_grasp_force``, ``pen_position_noise``, ``contact_noise``,
     ``penetration``, ``drop_distance``, ``max_contact_gap``, ``max_position_error``,
     ``settle_time``, ``max_rms_position_error``, ``max_rms_rotation_error``,
-    ``effort_weight``, ``contact_weight``, ``track_weight``, ``margin_weight``,
-    ``render_width``, ``render_height``, ``camera``, ``friction_scale``, ``mass_scale``,
-    ``push_force``, ``push_duration``, ``force_noise``, ``joint_angle_noise``,
-    ``joint_velocity_noise``, ``action_noise``, ``action_delay``, ``internal_force_step``.
+    ``max_margin_error``, ``effort_weight``, ``contact_weight``, ``track_weight``,
+    ``margin_weight``, ``render_width``, ``render_height``, ``camera``,
+    ``friction_scale``, ``mass_scale``, ``push_force``, ``push_duration``,
+    ``force_noise``, ``joint_angle_noise``, ``joint_velocity_noise``, ``action_noise``,
+    ``action_delay``, ``internal_force_step``.
 
     ## Version History
     - v0: initial release.
