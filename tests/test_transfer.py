@@ -403,6 +403,22 @@ def test_cli_errors_are_one_line_with_exit_code_2(
     assert "Traceback" not in out.stderr
 
 
+def test_cli_runs_under_a_disturbance_class_and_names_the_terms() -> None:
+    out = cli("--id", "1", "--hand", "ias4f", "--disturbance", "mass_x1.3", "--json")
+    assert out.returncode == 0, out.stderr
+    row = json.loads(out.stdout)
+    assert row["disturbance"] == "mass_x1.3"
+    assert {"held", "tracked", "margin_kept"} <= set(row)
+    assert row["success"] == (row["held"] and row["tracked"] and row["margin_kept"])
+    assert set(row["tolerance"]) == {"rot_rms_deg", "pos_rms_mm", "margin_err_rel"}
+
+
+def test_cli_refuses_an_unknown_disturbance_in_one_line() -> None:
+    out = cli("--id", "1", "--disturbance", "gravity_x2")
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
+    assert "unknown --disturbance 'gravity_x2'" in out.stderr and "friction_x0.7" in out.stderr
+
+
 def test_a_failed_demonstration_is_refused_unless_allowed(skill_db: Path) -> None:
     """A demonstration whose own episode failed is not a skill to transfer by default."""
     refused = cli("--db", str(skill_db), "--id", "3", "--hand", "ias3f", "--duration", "0.5")

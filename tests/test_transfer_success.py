@@ -11,10 +11,7 @@ kinematic baseline with a firm fixed squeeze) fail, each for the reason it is we
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -174,32 +171,6 @@ def test_a_margin_far_from_the_persons_and_a_firm_squeeze_fail_the_margin() -> N
     kinematic, _ = run_transfer(ref, method="kinematic", gains=firm)
     assert kinematic.held and not kinematic.margin_kept, kinematic.to_json()
     assert kinematic.margin_err_rel > 1.0 and not kinematic.success
-
-
-# ------------------------------------------------------------------ the CLI
-def cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "ias_gym.cli", "skills", "transfer", *args],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-
-
-def test_cli_runs_under_a_disturbance_class_and_names_the_terms() -> None:
-    out = cli("--id", "1", "--hand", "ias4f", "--disturbance", "mass_x1.3", "--json")
-    assert out.returncode == 0, out.stderr
-    row = json.loads(out.stdout)
-    assert row["disturbance"] == "mass_x1.3"
-    assert {"held", "tracked", "margin_kept"} <= set(row)
-    assert row["success"] == (row["held"] and row["tracked"] and row["margin_kept"])
-    assert set(row["tolerance"]) == {"rot_rms_deg", "pos_rms_mm", "margin_err_rel"}
-
-
-def test_cli_refuses_an_unknown_disturbance_in_one_line() -> None:
-    out = cli("--id", "1", "--disturbance", "gravity_x2")
-    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
-    assert "unknown --disturbance 'gravity_x2'" in out.stderr and "friction_x0.7" in out.stderr
 
 
 def test_tolerance_scaling_keeps_the_margin() -> None:

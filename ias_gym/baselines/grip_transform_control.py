@@ -79,8 +79,9 @@ class ControllerGains:
     kp: float = 400.0  # object position stiffness Kp [1/s^2] (eq. 43)
     kv: float = 40.0  # object position damping Kv [1/s]
     # Integral of the object position error [1/s^3]: the weight the law feeds forward is the
-    # nominal pen's (a controller does not know a disturbed mass), and Kp alone leaves
-    # |dm| g / Kp of sag (7 mm at 30 %); the integral takes it out (Routh: < Kp Kv).
+    # nominal pen's (a controller does not know a disturbed mass), and Kp alone leaves up to
+    # |dm| g / Kp of sag (7.4 mm at 30 %; 4.8 mm measured, the finger servos carry some);
+    # the integral takes it out (Routh: ki < Kp Kv).
     ki: float = 0.0
     # The integral's share of a_d is bounded by this [m/s^2] (anti-windup: half of g, a pen
     # between 0.5 and 1.5 times its nominal weight).

@@ -112,7 +112,7 @@ def _transfer(args: argparse.Namespace) -> int:
             print(json.dumps({**run.to_json(), "disturbance": args.disturbance}))
         else:
             failed = [k for k in ("held", "tracked", "margin_kept") if not getattr(run, k)]
-            verdict = "success" if run.success else f"FAILED (not {', '.join(failed) or 'held'})"
+            verdict = "success" if run.success else f"FAILED (not {', '.join(failed)})"
             print(
                 f"{hand} {args.method}: {verdict}, rotation RMS "
                 f"{run.rot_rms_deg:.2f} deg, position RMS {run.pos_rms_mm:.2f} mm, margin "
