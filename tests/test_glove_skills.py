@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 import json
 import math
 import os
@@ -20,12 +19,14 @@ from ias_gym.errors import InputError
 from ias_gym.glove import skills as glove_skills
 from ias_gym.glove.device import ReachPinchLift, ReachPinchLiftTimings, SimulatedGlove
 from ias_gym.glove.hand import PersonParams
-from ias_gym.glove.operator import FromPreShape, pen_operator, skill_operator
+from ias_gym.glove.operator import FromPreShape, pen_operator
 from ias_gym.glove.skills import (
     SKILL_DESCRIPTIONS,
     SKILLS,
     SkillStyle,
     check_skill,
+    skill_motion_time,
+    skill_object_target,
     skill_start_time,
 )
 from ias_gym.grasp.contacts import wrench_matrix
@@ -91,17 +92,38 @@ def runs() -> dict[tuple[str, str], dict[str, np.ndarray]]:
     return out
 
 
-def _features(run: dict[str, np.ndarray], skill: str, person: str) -> np.ndarray:
-    """The pen's motion over the skill's own window (its start + motion + 0.3 s), on 40
-    points of normalised time, relative to the skill's start: x and height [mm], the
-    see-saw angle (yaw) [deg]."""
-    base = skill_operator(PersonParams.sample(person), scene_pen_radius(), skill)
+def _added_motion(
+    runs: dict[tuple[str, str], dict[str, np.ndarray]],
+    person: str,
+    skill: str,
+    meaning: str | None = None,
+    lag: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """What ``skill`` adds to holding the pen from its start over the longer motion time of
+    ``skill`` and ``meaning`` (:func:`skill_motion_time`) and 0.2 s: ``(performed, meant)``,
+    each ``(T, 2)``: the pen's height [mm] and see-saw tilt (yaw) [deg] in the person's run
+    of ``skill`` minus those in their ``lift_hold`` (the same episode up to the start, so
+    the pinch-lift's own motion cancels), and the same difference of what ``meaning``
+    (default: ``skill``) and ``lift_hold`` mean for the person (:func:`skill_object_target`
+    with their style), ``lag`` [s] later."""
+    style = SkillStyle.sample(person)
+    time = runs[person, "lift_hold"]["time"]
     start = skill_start_time(skill, person)
-    grid = start + np.linspace(0.0, max(base.motion_time, 1.0) + 0.3, 40)
-    pose = run["pose"]
-    f = np.column_stack([np.interp(grid, run["time"], pose[:, j]) for j in (0, 1, 5)])
-    f -= f[0]
-    return f * np.array([1e3, 1e3, math.degrees(1.0)])
+    motion = max(skill_motion_time(s, style.speed) for s in (skill, meaning or skill))
+    end = start + motion + 0.2
+    window = (time >= start) & (time <= end)
+    pose = runs[person, skill]["pose"] - runs[person, "lift_hold"]["pose"]
+    meant = np.array(
+        [
+            np.subtract(
+                skill_object_target(meaning or skill, float(t) - lag, style),
+                skill_object_target("lift_hold", float(t) - lag, style),
+            )
+            for t in time[window]
+        ]
+    )
+    scale = np.array([1e3, math.degrees(1.0)])
+    return pose[window][:, [1, 5]] * scale, meant * scale
 
 
 def test_skills_are_named_described_and_checked() -> None:
@@ -222,36 +244,50 @@ def test_a_new_person_gives_the_same_episode_twice(
     assert np.abs(again["pose"] - other).max() > 1e-3
 
 
+def _unexplained(
+    runs: dict[tuple[str, str], dict[str, np.ndarray]], person: str, skill: str, meaning: str
+) -> float:
+    """How much of what ``skill`` adds to holding the pen (:func:`_added_motion`) the
+    motion ``meaning`` means leaves unexplained: ``|performed - g meant| / |performed|``,
+    the least over a reaction lag of 0-0.2 s and a gain ``g`` in [0.5, 1.5] (least squares,
+    clipped). 0: the performed motion is the meant one; 1: nothing of it."""
+    best = np.inf
+    for lag in np.arange(0.0, 0.21, 0.02):
+        done, want = (a.ravel() for a in _added_motion(runs, person, skill, meaning, lag))
+        gain = float(np.clip(done @ want / (want @ want), 0.5, 1.5))
+        best = min(best, float(np.linalg.norm(done - gain * want) / np.linalg.norm(done)))
+    return best
+
+
 @pytest.mark.closed_loop
-def test_skills_are_distinct_object_motions(
+def test_each_skill_moves_the_pen_as_it_means(
     runs: dict[tuple[str, str], dict[str, np.ndarray]],
 ) -> None:
-    """The pen's motion of a skill by one person is closer to the same skill by the other
-    than to any other skill by either (RMS over the skill's window, mm and deg), and two
-    skills differ far more than one skill by two persons on average (4 x). The persons of
-    the population move at their own speed and amplitude, so a fast see-saw by two of them
-    can lie within 1.3 x of its nearest other skill (measured with a calibration trained
-    under seed 1: 2.4 against 3.0)."""
+    """What a skill adds to holding the pen is explained better by what that skill means
+    for the person (:func:`skill_object_target` with their style) than by what any other
+    skill means (:func:`_unexplained`: up to a reaction lag and a gain, since the pads'
+    compliance and the person's corrections attenuate a fast see-saw to 0.6-0.8 x the
+    wrist's intent and sink the pen by 2-3 mm). A skill swapped, mirrored or left out fails
+    it. Both motions are compared over the longer of the two skills' motion times: after
+    its motion a pen may turn on about the pads' pinch axis, which is the see-saw axis and
+    held only by the pads' torsional friction (up to 10 deg after a fast see-saw with
+    another trained calibration); that is left to the held test. ``lift_hold`` adds nothing
+    by definition; its pen's tilt stays within half of the smallest amplitude any other
+    skill means for the person."""
 
-    def rms(a: np.ndarray, b: np.ndarray) -> float:
-        return float(np.sqrt(np.mean((a - b) ** 2)))
-
-    f = {(p, s): _features(runs[p, s], s, p) for p in PERSONS for s in SKILLS}
-    pairs = list(itertools.combinations(PERSONS, 2))
-    within, between = [], []
-    for skill in SKILLS:
-        own = [rms(f[a, skill], f[b, skill]) for a, b in pairs]
-        others = [
-            rms(f[p, skill], f[q, other])
-            for other in SKILLS
-            if other != skill
-            for p in PERSONS
-            for q in PERSONS
-        ]
-        assert max(own) < min(others), (skill, max(own), min(others))
-        within += own
-        between += others
-    assert np.mean(between) > 4.0 * np.mean(within)
+    moving = [s for s in SKILLS if s != "lift_hold"]
+    for person in PERSONS:
+        for skill in moving:
+            own = _unexplained(runs, person, skill, skill)
+            others = {o: _unexplained(runs, person, skill, o) for o in moving if o != skill}
+            nearest = min(others, key=others.__getitem__)
+            assert own < others[nearest], (person, skill, own, nearest, others)
+        hold = runs[person, "lift_hold"]
+        tilt = hold["pose"][hold["time"] >= skill_start_time("lift_hold", person), 5]
+        smallest = min(
+            np.ptp(_added_motion(runs, person, s)[1][:, 1]) for s in moving if s != "lift_place"
+        )
+        assert math.degrees(np.ptp(tilt)) < 0.5 * smallest, person
 
 
 @pytest.mark.closed_loop
