@@ -1,4 +1,4 @@
-"""Glove skills (issue #13): skills after the pinch-lift, any person id, soft-finger pads."""
+"""Glove skills: skills after the pinch-lift, any person id, soft-finger pads."""
 
 from __future__ import annotations
 
