@@ -78,14 +78,18 @@ class ControllerGains:
 
     kp: float = 400.0  # object position stiffness Kp [1/s^2] (eq. 43)
     kv: float = 40.0  # object position damping Kv [1/s]
-    # Integral of the object position error [1/s^3]: the weight the law feeds forward is the
-    # nominal pen's (a controller does not know a disturbed mass), and Kp alone leaves up to
-    # |dm| g / Kp of sag (7.4 mm at 30 %; 4.8 mm measured, the finger servos carry some);
-    # the integral takes it out (Routh: ki < Kp Kv).
+    # Integral of the object position error [1/s^3]: fed the nominal pen's weight (no mass
+    # estimate), Kp alone leaves up to |dm| g / Kp of sag (7.4 mm at 30 %; 4.8 mm measured,
+    # the finger servos carry some); the integral takes it out (Routh: ki < Kp Kv), but not
+    # the margin error the wrong weight gives (docs/controller.md).
     ki: float = 0.0
     # The integral's share of a_d is bounded by this [m/s^2] (anti-windup: half of g, a pen
     # between 0.5 and 1.5 times its nominal weight).
     integral_limit: float = 4.9
+    # Time constant [s] of the pen's mass estimated from the measured tip forces (their net
+    # force against gravity, low-pass filtered, while every finger touches; quasi-static:
+    # the skills' accelerations are about 1 % of g); 0: the law uses the nominal mass.
+    mass_time_constant: float = 0.1
     kp_rot: float = 400.0  # object orientation stiffness [1/s^2]
     kv_rot: float = 40.0  # object orientation damping [1/s]
     delta: float = 50.0  # internal-force error rate delta of eq. (44) [1/s]
@@ -147,6 +151,7 @@ class GripTransformController:
         self._prev_W: FloatArray | None = None
         self._prev_J: FloatArray | None = None
         self._integral = np.zeros(3)  # integral of the position error [m s]
+        self._mass: float | None = None  # the estimated pen mass [kg] (None: not yet)
         self._N: FloatArray | None = None
         self._joint_damping: FloatArray | None = None
         self._gravity: FloatArray | None = None  # the model's, paper frame [m/s^2]
@@ -443,6 +448,34 @@ def batch_torques(
     return _control_step(controllers, x, refs, slides, offsets, accel_offsets, margins)
 
 
+#: The mass estimate stays within this range of the nominal mass [-] (a misread force
+#: while a finger lands must not ask for a grip the hand cannot give).
+MASS_ESTIMATE_RANGE = (0.5, 2.0)
+
+
+def _estimated_masses(
+    controllers: Sequence[GripTransformController], x: _Gathered, W: FloatArray, tau: float
+) -> FloatArray:
+    """Each controller's estimate of the pen's mass [kg], updated from this step's measured
+    tip forces: the net contact force ``W c`` holds the pen against gravity, so its
+    component along ``-g`` over ``|g|^2`` is the mass (quasi-static), low-pass filtered with
+    time constant ``tau`` [s] and kept within :data:`MASS_ESTIMATE_RANGE` of the nominal
+    mass. Until every finger touches, the nominal mass."""
+    out = np.array(x.mass, dtype=float)
+    for i, ctrl in enumerate(controllers):
+        if ctrl._mass is None:
+            ctrl._mass = float(x.mass[i])
+        if bool(x.active[i].all()):
+            force = (W[i] @ x.c_measured[i])[:3]
+            gravity = x.gravity[i]
+            low, high = (r * float(x.mass[i]) for r in MASS_ESTIMATE_RANGE)
+            reading = float(np.clip(-(force @ gravity) / (gravity @ gravity), low, high))
+            alpha = float(x.dt[i, 0]) / (tau + float(x.dt[i, 0]))
+            ctrl._mass += alpha * (reading - ctrl._mass)
+        out[i] = ctrl._mass
+    return out
+
+
 def _control_step(
     controllers: Sequence[GripTransformController],
     x: _Gathered,
@@ -472,7 +505,11 @@ def _control_step(
         a_d[:, :3] += g.ki * np.stack([ctrl._integral for ctrl in controllers])
     if accel_offsets is not None:
         a_d = a_d + accel_offsets
-    wrench = law.object_wrench(x.mass, x.inertia, state.omega, a_d, x.gravity)
+    mass, inertia = x.mass, x.inertia
+    if g.mass_time_constant > 0:
+        mass = _estimated_masses(controllers, x, W, g.mass_time_constant)
+        inertia = x.inertia * (mass / x.mass)[:, None, None]
+    wrench = law.object_wrench(mass, inertia, state.omega, a_d, x.gravity)
     c_ref = np.empty_like(x.c_measured)
     feasible = [True] * len(controllers)
     for i, ctrl in enumerate(controllers):
