@@ -505,11 +505,11 @@ def _control_step(
         a_d[:, :3] += g.ki * np.stack([ctrl._integral for ctrl in controllers])
     if accel_offsets is not None:
         a_d = a_d + accel_offsets
-    mass, inertia = x.mass, x.inertia
+    mass, pen_inertia = x.mass, x.inertia
     if g.mass_time_constant > 0:
         mass = _estimated_masses(controllers, x, W, g.mass_time_constant)
-        inertia = x.inertia * (mass / x.mass)[:, None, None]
-    wrench = law.object_wrench(mass, inertia, state.omega, a_d, x.gravity)
+        pen_inertia = x.inertia * (mass / x.mass)[:, None, None]
+    wrench = law.object_wrench(mass, pen_inertia, state.omega, a_d, x.gravity)
     c_ref = np.empty_like(x.c_measured)
     feasible = [True] * len(controllers)
     for i, ctrl in enumerate(controllers):
