@@ -609,7 +609,7 @@ def run_transfer(
         held=held,
         tracked=bool(info["tracked"]),
         margin_kept=bool(info["margin_kept"]),
-        held_s=float(rows["t"][-1]),
+        held_s=round(float(rows["t"][-1]), 6),  # MuJoCo's clock sums its steps: 2.9999999999998
         rot_rms_deg=math.degrees(info["rms_rotation_error"]),
         pos_rms_mm=1000.0 * info["rms_position_error"],
         margin_err_rel=env.margin_error(),
