@@ -72,6 +72,34 @@ def test_the_person_aims_for_their_margin_above_the_slip_force() -> None:
         ClosedLoopOperator(op.plan, op.person, object_weight=0.0, friction=0.25)
 
 
+@pytest.mark.parametrize("felt_share", [0.5, 3.0])
+def test_the_person_loosens_toward_their_goal_but_never_squeezes_deeper_than_planned(
+    felt_share: float,
+) -> None:
+    """Felt below the goal, the pinch stays the plan's (a deeper index flexion pushes the
+    pen off the thumb); felt far above it, it loosens, down to half the plan's."""
+    op = _operator(typical_person())
+    dt = 0.01
+    t0 = op.timings.close - op.start + 0.05  # episode time just after the close
+    plan0 = np.asarray(op.plan(t0 + op.start))
+    tau = np.array([0.05, 0.03, 0.01, -0.04, -0.02])
+    tau *= felt_share * op.grip_goal / op.felt_force(tau, plan0)
+    index = [3, 4]  # index MCP and PIP: what the squeeze moves
+    deeper = []
+    for k in range(200):
+        t = t0 + k * dt
+        op.feel(t, tau)
+        theta = op(t)
+        plan = np.asarray(op.plan(t + op.start))
+        deeper.append(float(np.dot(theta[index] - plan[index], op._squeeze_dir[index])))
+    assert max(deeper) <= 1e-12
+    if felt_share > 1:
+        assert min(deeper) < -1e-4  # loosened
+        assert op._squeeze == pytest.approx(0.5 * op._planned_force)
+    else:
+        assert op._squeeze == op._planned_force
+
+
 def test_the_env_takes_a_known_operator_only() -> None:
     with pytest.raises(InputError, match="closed_loop"):
         gym.make("IAS-GloveGrasp-v0", operator="puppet")
