@@ -35,8 +35,10 @@ from ias_gym.assist.evaluation import (
     run_session,
     session_success,
 )
-from ias_gym.assist.impairment_spec import FAMILIES
-from ias_gym.assist.impairments import (
+from ias_gym.errors import InputError
+from ias_gym.glove.hand import PersonParams, joint_index
+from ias_gym.glove.impairment_spec import FAMILIES
+from ias_gym.glove.impairments import (
     DEFAULT_STRENGTHS,
     TREMOR_BAND,
     Impairment,
@@ -44,8 +46,6 @@ from ias_gym.assist.impairments import (
     pinch_direction,
     reference_kwargs,
 )
-from ias_gym.errors import InputError
-from ias_gym.glove.hand import PersonParams, joint_index
 from ias_gym.glove.population import PARAMETERS, population_ids
 from ias_gym.glove.profile_cache import default_calibration
 from ias_gym.glove.skills import skill_start_time

@@ -8,12 +8,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from ias_gym.assist.impairments import LaggedGlove
 from ias_gym.envs.glove_grasp import GloveGraspEnv
 from ias_gym.errors import InputError
 from ias_gym.glove.closed_loop import ClosedLoopOperator, _Delayed, pen_tilt
 from ias_gym.glove.device import SimulatedGlove, WorldView
 from ias_gym.glove.hand import PersonParams
+from ias_gym.glove.impairments import LaggedGlove
 from ias_gym.glove.operator import FromPreShape, skill_operator
 from ias_gym.glove.skills import LIFT_GOAL, SKILLS, SkillStyle, skill_object_target
 from tests.closed_loop import perturbed_starts, typical_person

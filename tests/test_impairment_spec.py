@@ -1,4 +1,4 @@
-"""Impairment specs (ias_gym.assist.impairment_spec) and the families the assist env applies:
+"""Impairment specs (ias_gym.glove.impairment_spec) and the families the assist env applies:
 parsing, ranges, the errors a user can make, ``sampled``, and what each new family changes
 in the operator's joint targets."""
 
@@ -9,16 +9,16 @@ import numpy as np
 import pytest
 
 import ias_gym  # noqa: F401
-from ias_gym.assist.impairment_spec import (
+from ias_gym.errors import InputError
+from ias_gym.glove.hand import joint_index
+from ias_gym.glove.impairment_spec import (
     FAMILIES,
     Impairment,
     expand_specs,
     family_table,
     parse_impairment,
 )
-from ias_gym.assist.impairments import pinch_direction, reference_kwargs
-from ias_gym.errors import InputError
-from ias_gym.glove.hand import joint_index
+from ias_gym.glove.impairments import pinch_direction, reference_kwargs
 
 
 def test_a_bare_name_takes_every_default_and_keys_override_them() -> None:

@@ -17,12 +17,12 @@ import gymnasium as gym
 from tqdm import tqdm
 
 import ias_gym  # noqa: F401  (registers the envs)
-from ias_gym.assist.env import OBSERVATION_PARTS
 from ias_gym.assist.evaluation import reference_session, run_session, session_success
-from ias_gym.assist.impairment_spec import expand_specs
-from ias_gym.assist.impairments import reference_kwargs
 from ias_gym.assist.policy import load_motions, make_assistant
+from ias_gym.envs.glove_assist import OBSERVATION_PARTS
 from ias_gym.envs.layout import observation_layout
+from ias_gym.glove.impairment_spec import expand_specs
+from ias_gym.glove.impairments import reference_kwargs
 from ias_gym.glove.population import population_ids
 from ias_gym.outputs import atomic_output, check_output_file
 from ias_gym.rates import Rate

@@ -28,7 +28,7 @@ from tqdm import tqdm
 
 from ias_gym.assist.assistants import AnalyticAssistant, load_templates
 from ias_gym.assist.evaluation import evaluate_assistance, switch_latency
-from ias_gym.assist.impairments import DEFAULT_STRENGTHS, IMPAIRMENTS
+from ias_gym.glove.impairments import DEFAULT_STRENGTHS, IMPAIRMENTS
 from ias_gym.glove.skills import SKILLS
 
 #: (from, to) skill pairs of the intent-switch measurement.

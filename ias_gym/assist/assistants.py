@@ -1,7 +1,7 @@
 """The analytic assistant: complete the recognised skill from its stored model (paper Flow 3).
 
 Every control step :class:`AnalyticAssistant` reads the operator's upcoming joint targets Θ
-(``IAS-GloveAssist-v0``'s :attr:`~ias_gym.assist.env.GloveAssistEnv.upcoming_theta`; on
+(``IAS-GloveAssist-v0``'s :attr:`~ias_gym.envs.glove_assist.GloveAssistEnv.upcoming_theta`; on
 another glove env, e.g. ``IAS-GloveHardware-v0``, the last applied ones), asks its recogniser
 for the posterior over the library's skills and returns joint-target offsets, the sum of
 
@@ -13,7 +13,7 @@ for the posterior over the library's skills and returns joint-target offsets, th
 
    - *the opening*: the operator's pinch joints are compared with the library's joint
      template (every skill starts with the same pinch-lift) along the pinch's closing
-     direction (:func:`~ias_gym.assist.impairments.pinch_direction`: index MCP, PIP/2,
+     direction (:func:`~ias_gym.glove.impairments.pinch_direction`: index MCP, PIP/2,
      thumb flexion), twice. At rest (:data:`REST_WINDOW`), finger by finger: both fingers
      opened beyond :data:`BIAS_THRESHOLD` is a biased calibration, in every reading, and
      the less opened finger's opening is added from then on, the close included. In the
@@ -59,8 +59,9 @@ operator's motion 0.1 s ahead from the library (another person's speed) or from 
 recent past made lagged sessions worse.
 
 :class:`OracleRecogniser` has the recogniser protocol (``reset``, ``update``, ``add_skill``,
-``skills``) and knows the true intent (the env's :meth:`~ias_gym.assist.env.GloveAssistEnv.intent`):
-the upper bound of recognition, and the stand-in until a learned recogniser is given.
+``skills``) and knows the true intent (the env's
+:meth:`~ias_gym.envs.glove_assist.GloveAssistEnv.intent`): the upper bound of recognition,
+and the stand-in until a learned recogniser is given.
 """
 
 from __future__ import annotations
@@ -77,11 +78,11 @@ from numpy.typing import NDArray
 from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from ias_gym.assist.evaluation import LIFT_END, MAX_TIME_SHIFT
-from ias_gym.assist.impairments import TREMOR_JOINTS, pinch_direction
 from ias_gym.assist.stream import frames_from_env
 from ias_gym.envs.glove_grasp import OBSERVATION
 from ias_gym.errors import InputError
 from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS, joint_index
+from ias_gym.glove.impairments import TREMOR_JOINTS, pinch_direction
 from ias_gym.glove.skills import SKILL_TIMINGS, SKILLS, skill_start_time
 from ias_gym.grasp.grasp_margin import grasp_margin
 from ias_gym.skills.db import SkillDB
@@ -361,7 +362,7 @@ def closing_direction(env: Any) -> FloatArray:
     """``(10,)`` the joint-target direction that moves the index pad and the thumb pad
     straight toward each other (along the line between them, where the pinch's internal
     force acts: paper eq. 20), scaled to the 1-norm of
-    :func:`~ias_gym.assist.impairments.pinch_direction` [rad per unit].
+    :func:`~ias_gym.glove.impairments.pinch_direction` [rad per unit].
 
     Each finger's joints solve ``J dq = +-n`` in the least-squares sense with MuJoCo's site
     Jacobian (the thumb's coupled hinges folded into its flexion). Closing along the

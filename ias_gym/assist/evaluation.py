@@ -12,7 +12,7 @@ A session **succeeds** (:func:`session_success`) when
   is no part of a skill) of the **unimpaired person's**
   session: the same person, skill and seed with ``impairment="none"`` and no assistant
   (for ``hand_size``, with the same resized hand:
-  :func:`~ias_gym.assist.impairments.reference_kwargs`).
+  :func:`~ias_gym.glove.impairments.reference_kwargs`).
 
 The tolerances are a few times the spread of unimpaired sessions over seeds (the glove's
 noise): measured in docs/assistance.md.
@@ -37,9 +37,9 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.assist.impairments import reference_kwargs
 from ias_gym.envs.glove_grasp import OBSERVATION
 from ias_gym.glove.hand import N_JOINTS
+from ias_gym.glove.impairments import reference_kwargs
 from ias_gym.glove.skills import SKILL_TIMINGS
 from ias_gym.rollout import rollout
 
@@ -410,7 +410,7 @@ def evaluate_assistance(
     Args:
         make_assistant: ``() -> Assistant``, a fresh assistant.
         persons: person ids.
-        impairments: impairment specs (:mod:`~ias_gym.assist.impairment_spec`).
+        impairments: impairment specs (:mod:`~ias_gym.glove.impairment_spec`).
         episodes: sessions per person and impairment.
         seed: the first reset seed.
         skills: the skills to cycle through (default all six glove skills).

@@ -116,7 +116,7 @@ def _persons(text: str) -> list[str]:
 
 def _impairments(specs: list[str] | None) -> list[str]:
     """The ``--impairment`` specs, ``all`` expanded (default: ``none`` and every family)."""
-    from ias_gym.assist.impairment_spec import expand_specs
+    from ias_gym.glove.impairment_spec import expand_specs
 
     try:
         return expand_specs(specs or ["none", "all"])
@@ -164,8 +164,8 @@ def _assistant_factory(kind: str, recogniser: str, db: Path) -> Any:
     (:func:`~ias_gym.assist.policy.make_assistant`, recogniser ``phase``, ``dtw`` or
     ``none``) or the analytic one on the env's state."""
     if kind == "observation":
-        from ias_gym.assist.env import OBSERVATION_PARTS
         from ias_gym.assist.policy import RECOGNISERS, make_assistant
+        from ias_gym.envs.glove_assist import OBSERVATION_PARTS
         from ias_gym.envs.layout import observation_layout
 
         if recogniser not in RECOGNISERS:

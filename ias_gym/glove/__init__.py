@@ -18,6 +18,9 @@
   pen after the pinch-lift (:data:`~ias_gym.glove.skills.SKILLS`), each person's style.
 - :mod:`~ias_gym.glove.profile_cache`: the simulated persons' calibrations (any person id:
   trained once, cached as profiles).
+- :mod:`~ias_gym.glove.impairments`: impaired operators (tremor, weak grip, lag, biased
+  calibration, another hand size, a stop), named by the specs of
+  :mod:`~ias_gym.glove.impairment_spec` (``NAME[:KEY=VALUE,...]``).
 - :mod:`~ias_gym.glove.ids`: :func:`check_id`, the one rule for person and glove ids
   (they name files).
 

@@ -27,7 +27,6 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from ias_gym.assist.assistants import AnalyticAssistant, SkillTemplate
-from ias_gym.assist.env import OBS_SIZE
 from ias_gym.assist.evaluation import (
     OBS_PEN,
     OBS_QUAT,
@@ -36,8 +35,9 @@ from ias_gym.assist.evaluation import (
     pen_axis,
     run_session,
 )
-from ias_gym.assist.impairments import Impairment, reference_kwargs
+from ias_gym.envs.glove_assist import OBS_SIZE
 from ias_gym.glove.hand import N_JOINTS
+from ias_gym.glove.impairments import Impairment, reference_kwargs
 from ias_gym.glove.skills import SKILLS
 
 FloatArray = NDArray[np.float64]

@@ -15,7 +15,7 @@ from, with the source of the range). A spec string names it::
 :func:`parse_impairment` turns a spec into an :class:`Impairment` (a bad name, key or value
 is an :class:`~ias_gym.errors.InputError` that names it and the allowed range);
 :func:`expand_specs` expands the CLI's ``all``; :meth:`Impairment.draw` resolves
-``sampled`` from a random stream. Pure Python: the env (:mod:`ias_gym.assist.env`) applies
+``sampled`` from a random stream. Pure Python: the env (:mod:`ias_gym.envs.glove_assist`) applies
 the parts.
 """
 

@@ -2,7 +2,7 @@
 
 Each impairment family changes one link of the glove chain of ``IAS-GloveGrasp-v0`` (intent
 Θ(t) -> glove readings Ψ -> calibration Θ = f(Ψ) -> the hand's joint targets); a spec
-(:mod:`ias_gym.assist.impairment_spec`: ``NAME[:KEY=VALUE,...]``, ``A+B``, ``sampled``)
+(:mod:`ias_gym.glove.impairment_spec`: ``NAME[:KEY=VALUE,...]``, ``A+B``, ``sampled``)
 names the families and their parameters, with the ranges they come from:
 
 =======================  ===========================================================
@@ -23,7 +23,7 @@ family                   what
                          own motion and then holds still (:class:`StopsOperator`)
 =======================  ===========================================================
 
-Pure numpy on the glove layer's types (no MuJoCo): the env (:mod:`ias_gym.assist.env`) puts
+Pure numpy on the glove layer's types (no MuJoCo): the env (:mod:`ias_gym.envs.glove_assist`) puts
 them together.
 """
 
@@ -38,13 +38,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.assist.impairment_spec import (
-    FAMILIES,
-    NONE,
-    STRENGTH_KEY,
-    Impairment,
-    parse_impairment,
-)
 from ias_gym.errors import InputError
 from ias_gym.glove.calibration import Calibration
 from ias_gym.glove.device import GloveDevice, GloveReading, GloveWrapper, ReachPinchLiftTimings
@@ -56,6 +49,13 @@ from ias_gym.glove.hand import (
     PersonParams,
     joint_index,
 )
+from ias_gym.glove.impairment_spec import (
+    FAMILIES,
+    NONE,
+    STRENGTH_KEY,
+    Impairment,
+    parse_impairment,
+)
 from ias_gym.glove.operator import ScriptedOperator
 from ias_gym.glove.skills import SkillOperator
 
@@ -65,7 +65,7 @@ __all__ = ["Impairment", "parse_impairment"]
 
 #: The impairment families, ``"none"`` first.
 IMPAIRMENTS: tuple[str, ...] = (NONE, *FAMILIES)
-#: Each family's default size (its :data:`~ias_gym.assist.impairment_spec.STRENGTH_KEY`).
+#: Each family's default size (its :data:`~ias_gym.glove.impairment_spec.STRENGTH_KEY`).
 DEFAULT_STRENGTHS: dict[str, float] = {
     NONE: 0.0,
     **{name: float(keys[STRENGTH_KEY[name]].default) for name, keys in FAMILIES.items()},

@@ -3,12 +3,12 @@
 Paper, Flow 3: the assistant "identifies and anticipates the action the human operator wants
 to perform, and if the necessary skill has been stored in the skill data base before, it is
 applied". The world is ``IAS-GloveGrasp-v0``'s (physics, calibration, force display, reward,
-success) with a skill always set, an operator impaired as :mod:`ias_gym.assist.impairments`
+success) with a skill always set, an operator impaired as :mod:`ias_gym.glove.impairments`
 says, and the assistant as the agent: its action is the env's action, offsets of the hand's
 joint targets on top of the operator's calibrated Θ.
 
 The assistant sits between the glove and the hand: the glove is read one sample ahead
-(:class:`~ias_gym.assist.impairments.PeekGlove`), and the observation ends with the joint
+(:class:`~ias_gym.glove.impairments.PeekGlove`), and the observation ends with the joint
 targets the operator's next reading will give (:attr:`GloveAssistEnv.upcoming_theta`), so
 an offset corrects the command the hand is about to get, not the one it got 10 ms ago.
 
@@ -25,7 +25,13 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from ias_gym.assist.impairments import (
+from ias_gym.envs.glove_grasp import OBSERVATION_PARTS as GLOVE_PARTS
+from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.envs.layout import observation_layout
+from ias_gym.errors import InputError
+from ias_gym.glove.device import GloveDevice, ReachPinchLiftTimings, SimulatedGlove
+from ias_gym.glove.hand import JOINT_HIGH, JOINT_LOW, N_JOINTS, PersonParams
+from ias_gym.glove.impairments import (
     Impairment,
     LaggedGlove,
     PeekGlove,
@@ -38,12 +44,6 @@ from ias_gym.assist.impairments import (
     session_rng,
     stock_person,
 )
-from ias_gym.envs.glove_grasp import OBSERVATION_PARTS as GLOVE_PARTS
-from ias_gym.envs.glove_grasp import GloveGraspEnv
-from ias_gym.envs.layout import observation_layout
-from ias_gym.errors import InputError
-from ias_gym.glove.device import GloveDevice, ReachPinchLiftTimings, SimulatedGlove
-from ias_gym.glove.hand import JOINT_HIGH, JOINT_LOW, N_JOINTS, PersonParams
 from ias_gym.glove.operator import FromPreShape, ScriptedOperator, skill_operator
 from ias_gym.glove.profile_cache import default_calibration
 from ias_gym.glove.skills import SKILL_TIMINGS, SkillOperator, check_skill
@@ -93,7 +93,7 @@ class GloveAssistEnv(GloveGraspEnv):
 
     ## Description
     ``IAS-GloveGrasp-v0`` performing ``skill`` (default ``lift_hold``), its operator impaired
-    as the spec ``impairment`` says (:mod:`ias_gym.assist.impairment_spec`: ``none``, a
+    as the spec ``impairment`` says (:mod:`ias_gym.glove.impairment_spec`: ``none``, a
     family ``tremor``, ``weak_grip``, ``lag``, ``biased_calibration``, ``hand_size`` or
     ``stops`` with its parameters, e.g. ``"tremor:hz=5"``, families joined by ``+``, or
     ``sampled``: a family and its parameters drawn from the person's id and the skill).
@@ -135,7 +135,7 @@ class GloveAssistEnv(GloveGraspEnv):
     of a family given by its bare name (``impairment_spec.STRENGTH_KEY``);
     ``switch_to`` [None]: a skill the operator switches to at ``switch_time`` [s, episode
     time]; ``hand_scale`` [None]: the person with their hand resized to this scale
-    (:func:`~ias_gym.assist.impairments.resized_person`), the operator planning for that
+    (:func:`~ias_gym.glove.impairments.resized_person`), the operator planning for that
     hand (``hand_size`` with the same scale runs the stock plan on it instead); and the
     fields of :class:`~ias_gym.envs.glove_grasp.GloveGraspConfig`
     (``person_id``, ``skill``, ``control_dt``, ``duration``, ``action_scale``, ...).
@@ -145,7 +145,7 @@ class GloveAssistEnv(GloveGraspEnv):
       scale 0.8 judged against the person's own hand, before any release).
 
     Attributes:
-        impairment: the :class:`~ias_gym.assist.impairment_spec.Impairment` (``sampled``
+        impairment: the :class:`~ias_gym.glove.impairment_spec.Impairment` (``sampled``
             resolved: the drawn one).
         operator_person: whose hand the operator's script plans for (``hand_size``: the
             stock hand; else the hand's owner).
