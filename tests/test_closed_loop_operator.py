@@ -12,7 +12,7 @@ from ias_gym.envs.glove_grasp import GloveGraspEnv
 from ias_gym.errors import InputError
 from ias_gym.glove.closed_loop import ClosedLoopOperator, _Delayed, pen_tilt
 from ias_gym.glove.device import SimulatedGlove, WorldView
-from ias_gym.glove.hand import PersonParams
+from ias_gym.glove.hand import INDEX_JOINTS, PersonParams
 from ias_gym.glove.impairments import LaggedGlove
 from ias_gym.glove.operator import FromPreShape, skill_operator
 from ias_gym.glove.skills import LIFT_GOAL, SKILLS, SkillStyle, skill_object_target
@@ -84,7 +84,7 @@ def test_the_person_loosens_toward_their_goal_but_never_squeezes_deeper_than_pla
     plan0 = np.asarray(op.plan(t0 + op.start))
     tau = np.array([0.05, 0.03, 0.01, -0.04, -0.02])
     tau *= felt_share * op.grip_goal / op.felt_force(tau, plan0)
-    index = [3, 4]  # index MCP and PIP: what the squeeze moves
+    index = list(INDEX_JOINTS[:2])  # index MCP and PIP: what the squeeze moves
     deeper = []
     for k in range(200):
         t = t0 + k * dt
