@@ -20,7 +20,6 @@ import daqp
 import highspy
 import numpy as np
 
-from ias_gym.grasp.contacts import wrench_matrix
 from ias_gym.grasp.internal_forces import (
     InternalForceSettings,
     InternalForceSolver,
@@ -28,6 +27,7 @@ from ias_gym.grasp.internal_forces import (
     solve_socp,
 )
 from ias_gym.grasp.internal_forces_problem import _friction_rows
+from ias_gym.grasp.wrench_matrix import wrench_matrix
 
 RADIUS = 0.01  # pen radius r [m]
 WEIGHT = 1.0  # m g [N]

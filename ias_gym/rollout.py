@@ -4,7 +4,7 @@ Every episode loop of the package runs here: evaluation, skill recording, skill 
 the assisting sessions, the figures, the completion table, the observation statistics and
 the fine-tuning's validation. A policy is anything with Stable-Baselines3's ``predict``
 (:class:`Policy`); other drivers are adapted where they are used (an assistant that acts on
-the env: :class:`~ias_gym.assist.evaluation.AssistantPolicy`; a plain function of the
+the env: :class:`~ias_gym.assist.sessions.AssistantPolicy`; a plain function of the
 observation: :class:`FunctionPolicy`). What a loop needs beyond the trajectory (a skill
 model sampled from the physics, video frames: :class:`FrameRecorder`) it does in the hooks
 ``on_reset`` and ``on_step``.

@@ -26,7 +26,7 @@ from ias_gym.assist.assistants import (
     closing_direction,
     load_templates,
 )
-from ias_gym.assist.evaluation import (
+from ias_gym.assist.sessions import (
     HELD_FROM,
     POSITION_TOLERANCE,
     REFERENCE_STARTS,
@@ -395,7 +395,7 @@ def test_a_knife_edge_reference_is_no_reference(
     ones (here sessions made up, so the test is of the rule, not of one person's chaos) and
     keeps the first only when each other one holds the pen from the lift on and agrees with
     it; a first that fails itself is none either."""
-    import ias_gym.assist.evaluation as evaluation
+    import ias_gym.assist.sessions as evaluation
 
     assert len(nearby) == REFERENCE_STARTS
     env = make(skill="lift_hold")
@@ -636,7 +636,7 @@ def test_intervention_is_offsets_over_the_operators_motion() -> None:
 
 
 def test_cli_evaluate_json_keys(capsys, monkeypatch) -> None:
-    from ias_gym.cli import assist as cli_assist
+    from ias_gym.cli import assist_commands as cli_assist
     from ias_gym.cli import main
     from ias_gym.skills.transfer import shipped_skill_db
 

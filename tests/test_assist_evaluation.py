@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from ias_gym.assist.evaluation import (
+from ias_gym.assist.sessions import (
     MAX_TIME_SHIFT,
     POSITION_TOLERANCE,
     SessionResult,
@@ -131,7 +131,7 @@ def test_the_shift_never_fails_a_session_that_fits_unshifted(monkeypatch) -> Non
         result.pen_position[:, 0] = (
             amp * np.sin(2 * np.pi * 1.5 * (T - shift)) * (T - shift > START)
         )
-        monkeypatch.setattr("ias_gym.assist.evaluation.MAX_TIME_SHIFT", 0.0)
+        monkeypatch.setattr("ias_gym.assist.sessions.MAX_TIME_SHIFT", 0.0)
         unshifted = session_success(result, reference)
         monkeypatch.undo()
         fits += unshifted

@@ -13,7 +13,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from ias_gym.assist.evaluation import HELD_FROM
+from ias_gym.assist.sessions import HELD_FROM
 from ias_gym.envs.glove_grasp import REWARD_TERMS, GloveGraspEnv
 from ias_gym.errors import InputError
 from ias_gym.glove import skills as glove_skills
@@ -29,7 +29,7 @@ from ias_gym.glove.skills import (
     skill_object_target,
     skill_start_time,
 )
-from ias_gym.grasp.contacts import wrench_matrix
+from ias_gym.grasp.wrench_matrix import wrench_matrix
 from ias_gym.sim.glove_contacts import (
     FingerContacts,
     pinch_null_basis,

@@ -8,7 +8,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from paper_reference import eq16
 
-from ias_gym.grasp.contacts import contact_wrench_basis, wrench_matrix
 from ias_gym.grasp.grip_transform import (
     GraspRankError,
     GripTransform,
@@ -16,6 +15,7 @@ from ias_gym.grasp.grip_transform import (
     pseudo_inverse,
 )
 from ias_gym.grasp.pen_skill import pen_wrench_matrix
+from ias_gym.grasp.wrench_matrix import contact_wrench_basis, wrench_matrix
 
 PEN_W = pen_wrench_matrix([0.03, 0.02, 0.02, 0.03])
 R = 0.01

@@ -109,7 +109,7 @@ def test_person_params_and_the_profile_cache_refuse_hostile_ids(
 
 
 def _skills(argv: list[str]) -> int:
-    from ias_gym.cli.skills import add_skills_commands
+    from ias_gym.cli.skills_commands import add_skills_commands
 
     parser = argparse.ArgumentParser(prog="ias-gym")
     add_skills_commands(parser.add_subparsers(dest="command", required=True))
@@ -211,7 +211,7 @@ def test_recover_environment_of_a_hostile_minari_dataset(
 
 @pytest.mark.parametrize("name", ["absolute", "parent", "backslash", "long", "dot"])
 def test_calibrate_refuses_hostile_person_and_glove_ids(name: str, tmp_path: Path) -> None:
-    from ias_gym.cli.glove import add_glove_commands
+    from ias_gym.cli.glove_commands import add_glove_commands
 
     parser = argparse.ArgumentParser(prog="ias-gym")
     add_glove_commands(parser.add_subparsers(dest="command", required=True))

@@ -12,7 +12,6 @@ from hypothesis import assume, event, given, settings
 from hypothesis import strategies as st
 from paper_reference import eq16
 
-from ias_gym.grasp.contacts import wrench_matrix
 from ias_gym.grasp.internal_forces import (
     Cone,
     InfeasibleGraspError,
@@ -25,6 +24,7 @@ from ias_gym.grasp.internal_forces import (
     solve_lp,
     solve_socp,
 )
+from ias_gym.grasp.wrench_matrix import wrench_matrix
 
 # docs/NOTES.md "Reference LP result": the paper's pen in SI units.
 MU = 0.25  # [-]

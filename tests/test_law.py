@@ -1,7 +1,7 @@
 """The terms of Theorem 1 (ias_gym.baselines.law) on synthetic grasps; one check of the adapter.
 
 A synthetic grasp: four point contacts with friction on a cylinder along x (normals into the
-cylinder, t1 along its axis), W from :func:`ias_gym.grasp.contacts.wrench_matrix`, a random
+cylinder, t1 along its axis), W from :func:`ias_gym.grasp.wrench_matrix.wrench_matrix`, a random
 block-diagonal fingertip Jacobian J (one well-conditioned 3 x 3 block per finger) and a random
 symmetric positive definite joint inertia M. Each test states the equation it checks and
 computes the expected value another way than the law does.
@@ -22,9 +22,9 @@ import ias_gym  # noqa: F401  (registers the envs)
 from ias_gym.baselines import law
 from ias_gym.baselines.grip_transform_control import GripTransformController, _right_inverses
 from ias_gym.envs.pen_hand_env import PenHandEnv
-from ias_gym.grasp.contacts import cross3, wrench_matrix
 from ias_gym.grasp.grip_transform import GraspRankError, null_space_basis, pseudo_inverse
 from ias_gym.grasp.internal_forces import InternalForceSettings, friction_cone_residual
+from ias_gym.grasp.wrench_matrix import cross3, wrench_matrix
 
 K = 4  # fingers
 SEEDS = st.integers(0, 2**31 - 1)

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ias_gym.cli.glove import add_glove_commands
+from ias_gym.cli.glove_commands import add_glove_commands
 from ias_gym.errors import InputError
 from ias_gym.glove import (
     PersonParams,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ias_gym.grasp.contacts import wrench_matrix
+from ias_gym.grasp.wrench_matrix import wrench_matrix
 from ias_gym.sim.contacts import (
     PointContacts,
     axis_normals,

@@ -11,11 +11,11 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from ias_gym.cli.skills import add_skills_commands
+from ias_gym.cli.skills_commands import add_skills_commands
 from ias_gym.envs.glove_grasp import OBSERVATION, GloveGraspEnv
 from ias_gym.errors import InputError
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
-from ias_gym.grasp.contacts import wrench_matrix
+from ias_gym.grasp.wrench_matrix import wrench_matrix
 from ias_gym.sim.glove_contacts import FingerContacts, GlovePenPhysics, squeeze_null_vector
 from ias_gym.sim.glove_scene import (
     FINGER_ABOVE,

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from test_skills_db import assert_identical, synthetic_skill
 
-from ias_gym.cli.skills import add_skills_commands
+from ias_gym.cli.skills_commands import add_skills_commands
 from ias_gym.skills import SkillDB, SkillDBError, SkillNotFoundError
 from ias_gym.skills.db import DEMO_ARRAYS, MODEL_ARRAYS, SCHEMA_VERSION
 

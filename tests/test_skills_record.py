@@ -11,7 +11,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from ias_gym.cli.skills import add_skills_commands
+from ias_gym.cli.skills_commands import add_skills_commands
 from ias_gym.errors import IasGymError, InputError
 from ias_gym.skills import (
     SkillDB,

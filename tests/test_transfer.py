@@ -23,13 +23,13 @@ from hypothesis import strategies as st
 from ias_gym.baselines.expert import ExpertPolicy
 from ias_gym.baselines.kinematic import KinematicPolicy
 from ias_gym.envs.pen_skill_env import PenSkillEnv, SkillReference
-from ias_gym.grasp.contacts import wrench_matrix
 from ias_gym.grasp.grasp_margin import (
     grasp_margin,
     least_squeeze,
     margin_series,
     scale_to_margin,
 )
+from ias_gym.grasp.wrench_matrix import wrench_matrix
 from ias_gym.sim.pen import matrix_to_rpy, rpy_to_matrix
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.skill import Demonstration, Skill, SkillModel

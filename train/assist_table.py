@@ -4,10 +4,10 @@ For every impairment (``IAS-GloveAssist-v0``) and held-out person, each glove sk
 (seed ``--seed + i``) without an assistant, with the analytic assistant and, if
 ``--residual`` names a trained model (``train/assist_residual.py``), with the learned
 residual on top of it; every session judged against the unimpaired session of the same
-person, skill and seed (``ias_gym.assist.evaluation``). Then the intent-switch latency:
+person, skill and seed (``ias_gym.assist.sessions``). Then the intent-switch latency:
 the unimpaired operator switches skills at ``--switch-time``. Writes a markdown table, the
 JSON of the numbers and, per session, what it did (``OUT.sessions.json``: success, the pose
-errors, whether and when the pen was lost; ``ias_gym.assist.evaluation.session_record``).
+errors, whether and when the pen was lost; ``ias_gym.assist.sessions.session_record``).
 
     ias-gym assist library --db out/library.db      # p1-p5, every skill twice
     PYTHONPATH=$PWD python train/assist_table.py --db out/library.db --recogniser phase \
@@ -27,7 +27,7 @@ import numpy as np
 from tqdm import tqdm
 
 from ias_gym.assist.assistants import AnalyticAssistant, load_templates
-from ias_gym.assist.evaluation import evaluate_assistance, switch_latency
+from ias_gym.assist.sessions import evaluate_assistance, switch_latency
 from ias_gym.glove.impairments import DEFAULT_STRENGTHS, IMPAIRMENTS
 from ias_gym.glove.skills import SKILLS
 

@@ -214,7 +214,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         drawn = population_ids(args.population, args.population_seed)
         args.persons = args.heldout = ",".join(drawn)
     if args.figure:
-        from ias_gym.figures.transfer import transfer_figure
+        from ias_gym.figures.transfer_figure import transfer_figure
 
         transfer_figure(args.figure, args.db, args.figure_id, overwrite=args.overwrite)
         print(f"wrote {args.figure}")

@@ -4,7 +4,7 @@ acquisition, and completing the recognised skill from the skill library.
 - :mod:`~ias_gym.assist.stream`, :mod:`~ias_gym.assist.recognition`,
   :mod:`~ias_gym.assist.metrics`: what the recogniser sees, the recognisers, their metrics.
 - :mod:`~ias_gym.assist.assistants`: the analytic assistant (template + grasp margin).
-- :mod:`~ias_gym.assist.evaluation`: sessions with and without an assistant, success against
+- :mod:`~ias_gym.assist.sessions`: sessions with and without an assistant, success against
   the unimpaired operator, intervention size, intent-switch latency.
 
 The impaired operators (:mod:`ias_gym.glove.impairments`, their specs in

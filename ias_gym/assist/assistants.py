@@ -77,7 +77,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import butter, sosfilt, sosfilt_zi
 
-from ias_gym.assist.evaluation import LIFT_END, MAX_TIME_SHIFT
+from ias_gym.assist.sessions import LIFT_END, MAX_TIME_SHIFT
 from ias_gym.assist.stream import frames_from_env
 from ias_gym.envs.glove_grasp import OBSERVATION
 from ias_gym.errors import InputError

@@ -50,8 +50,8 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.assist.evaluation import LIFT_END
 from ias_gym.assist.recognition import METHODS, make_recogniser
+from ias_gym.assist.sessions import LIFT_END
 from ias_gym.assist.stream import SessionFrame
 from ias_gym.envs.glove_grasp import OBSERVATION
 from ias_gym.errors import InputError
@@ -364,7 +364,7 @@ class ObservationAssistant:
     """
 
     #: It acts on the observation, not on an env
-    #: (:class:`~ias_gym.assist.evaluation.AssistantPolicy`).
+    #: (:class:`~ias_gym.assist.sessions.AssistantPolicy`).
     reads_observations = True
 
     def __init__(

@@ -58,7 +58,6 @@ import numpy as np
 
 from ias_gym.baselines import law
 from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv, PenReference
-from ias_gym.grasp.contacts import cross3, wrench_matrices
 from ias_gym.grasp.grasp_margin import scale_to_margin
 from ias_gym.grasp.grip_transform import null_space_basis, pseudo_inverse
 from ias_gym.grasp.internal_forces import (
@@ -67,6 +66,7 @@ from ias_gym.grasp.internal_forces import (
     InternalForceSettings,
     InternalForceSolver,
 )
+from ias_gym.grasp.wrench_matrix import cross3, wrench_matrices
 from ias_gym.sim.pen_hand import mj_to_paper
 
 NDArrayBool = np.ndarray

@@ -33,12 +33,12 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.grasp.contacts import cross_last
 from ias_gym.grasp.internal_forces import (
     POLYGON_DIRECTIONS,
     POLYGON_SCALE,
     InternalForceSettings,
 )
+from ias_gym.grasp.wrench_matrix import cross_last
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

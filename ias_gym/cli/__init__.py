@@ -1,12 +1,14 @@
 """The ``ias-gym`` command: one module per command group, its argument parsing beside it.
 
 - :mod:`~ias_gym.cli.args`: argparse types and options shared by the groups;
-- :mod:`~ias_gym.cli.figures`: ``figure wrench-intensities|control-error``;
-- :mod:`~ias_gym.cli.evaluate`: ``evaluate``; :mod:`~ias_gym.cli.robustness`: ``robustness``;
-- :mod:`~ias_gym.cli.skills`: ``skills record|list|show|export|check|delete|migrate|merge``;
-  :mod:`~ias_gym.cli.transfer`: ``skills transfer``;
-- :mod:`~ias_gym.cli.glove`: ``calibrate``;
-- :mod:`~ias_gym.cli.hardware`: ``glove-emulator``, ``glove-bench``.
+- :mod:`~ias_gym.cli.figure_commands`: ``figure wrench-intensities|control-error``;
+- :mod:`~ias_gym.cli.evaluate_command`: ``evaluate``;
+  :mod:`~ias_gym.cli.robustness_command`: ``robustness``;
+- :mod:`~ias_gym.cli.skills_commands`:
+  ``skills record|list|show|export|check|delete|migrate|merge``;
+  :mod:`~ias_gym.cli.transfer_command`: ``skills transfer``;
+- :mod:`~ias_gym.cli.glove_commands`: ``calibrate``;
+- :mod:`~ias_gym.cli.hardware_commands`: ``glove-emulator``, ``glove-bench``.
 
 This is the top layer: it imports the library, the library never imports it. Every command
 imports what it needs when it runs, so ``ias-gym --help`` stays fast.
@@ -32,13 +34,13 @@ from ias_gym.cli.args import (
     parse_env_kwargs,
     positive_int,
 )
-from ias_gym.cli.assist import add_assist_commands
-from ias_gym.cli.evaluate import add_evaluate_command
-from ias_gym.cli.figures import add_figure_commands
-from ias_gym.cli.glove import add_glove_commands
-from ias_gym.cli.hardware import add_hardware_commands
-from ias_gym.cli.robustness import add_robustness_command
-from ias_gym.cli.skills import add_skills_commands
+from ias_gym.cli.assist_commands import add_assist_commands
+from ias_gym.cli.evaluate_command import add_evaluate_command
+from ias_gym.cli.figure_commands import add_figure_commands
+from ias_gym.cli.glove_commands import add_glove_commands
+from ias_gym.cli.hardware_commands import add_hardware_commands
+from ias_gym.cli.robustness_command import add_robustness_command
+from ias_gym.cli.skills_commands import add_skills_commands
 from ias_gym.errors import IasGymError
 
 #: Exit code of a usage or input error (argparse's own too).

@@ -24,7 +24,7 @@
 - :mod:`~ias_gym.glove.ids`: :func:`check_id`, the one rule for person and glove ids
   (they name files).
 
-``ias-gym calibrate`` lives in :mod:`ias_gym.cli.glove` (this package never imports the
+``ias-gym calibrate`` lives in :mod:`ias_gym.cli.glove_commands` (this package never imports the
 command line).
 """
 

@@ -1,12 +1,11 @@
 """The paper's grasp model, pure math (numpy, scipy; no MuJoCo, no I/O).
 
-- :mod:`~ias_gym.grasp.contacts`: contact wrench bases and the wrench matrix W (eq. 3);
+- :mod:`~ias_gym.grasp.wrench_matrix`: contact wrench bases and the wrench matrix W (eq. 3);
 - :mod:`~ias_gym.grasp.grip_transform`: W+, N and the grip transform G (eqs. 4-15);
 - :mod:`~ias_gym.grasp.internal_forces`: internal forces by optimisation (eqs. 19-24);
 - :mod:`~ias_gym.grasp.pen_skill`: the sliding pen of sections 3.2 and 4.2 (eqs. 16-18).
 """
 
-from ias_gym.grasp.contacts import ContactModel, contact_wrench_basis, wrench_matrix
 from ias_gym.grasp.grip_transform import (
     GraspRankError,
     GripTransform,
@@ -23,6 +22,7 @@ from ias_gym.grasp.internal_forces import (
     solve_socp,
 )
 from ias_gym.grasp.pen_skill import PenSkillParams, pen_wrench_matrix, wrench_intensities
+from ias_gym.grasp.wrench_matrix import ContactModel, contact_wrench_basis, wrench_matrix
 
 __all__ = [
     "ContactModel",

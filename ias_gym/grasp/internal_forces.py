@@ -3,7 +3,7 @@
 Given the wrench matrix ``W`` of eq. (3) (the modern *grasp matrix*) of ``m`` hard-finger
 contacts and the external wrench ``w_ext`` on the object, find the wrench intensities ``c``
 (per contact ``[normal, t1, t2]``, the column order of
-:func:`ias_gym.grasp.contacts.wrench_matrix`; a compressive contact has ``c_n > 0``) that
+:func:`ias_gym.grasp.wrench_matrix.wrench_matrix`; a compressive contact has ``c_n > 0``) that
 
 - hold the object: ``W c = -w_ext`` (the fingers cancel the external wrench, e.g. the weight
   ``w_ext = [0, -m g, 0, 0, 0, 0]`` of eq. 18; docs/NOTES.md "Sign of gravity");

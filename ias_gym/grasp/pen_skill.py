@@ -21,13 +21,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ias_gym.grasp.contacts import wrench_matrix
 from ias_gym.grasp.internal_forces import (
     Cone,
     InfeasibleGraspError,
     InternalForceSettings,
     solve_internal_forces,
 )
+from ias_gym.grasp.wrench_matrix import wrench_matrix
 
 FloatArray = NDArray[np.float64]
 

@@ -9,10 +9,10 @@ reward restores the operator's intent: at every reset the same person, skill and
 once unimpaired and unassisted (the simulator can; the reward is only needed in training),
 and each step earns ``exp(-(|dp| / 3 mm)^2) + exp(-(|da| / 5 deg)^2)`` for the pen's centre
 ``p`` and axis ``a`` against that session's at the same step (the success test's tolerances,
-:mod:`ias_gym.assist.evaluation`), minus ``RESIDUAL_COST |r|^2``: the residual has to earn
+:mod:`ias_gym.assist.sessions`), minus ``RESIDUAL_COST |r|^2``: the residual has to earn
 its intervention. A dropped pen ends the episode, and with it the reward.
 :class:`ResidualAssistant` acts with a saved model (loaded without unpickling,
-:mod:`ias_gym.safe_sb3`) through the assistant protocol of :mod:`ias_gym.assist.evaluation`.
+:mod:`ias_gym.safe_sb3`) through the assistant protocol of :mod:`ias_gym.assist.sessions`.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from ias_gym.assist.assistants import AnalyticAssistant, SkillTemplate
-from ias_gym.assist.evaluation import (
+from ias_gym.assist.sessions import (
     OBS_PEN,
     OBS_QUAT,
     POSITION_TOLERANCE,

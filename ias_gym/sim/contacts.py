@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.grasp.contacts import wrench_matrix
+from ias_gym.grasp.wrench_matrix import wrench_matrix
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

@@ -54,8 +54,8 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.grasp.contacts import ContactModel, wrench_matrix
 from ias_gym.grasp.grip_transform import RANK_RTOL
+from ias_gym.grasp.wrench_matrix import ContactModel, wrench_matrix
 from ias_gym.sim.contacts import (
     PointContacts,
     axis_normals,

@@ -8,7 +8,7 @@
 - :func:`export_minari` writes the demonstrations of a task as a Minari dataset (no jax).
 - :func:`check_database` verifies every skill's checksums.
 
-The ``ias-gym skills ...`` commands live in :mod:`ias_gym.cli.skills` (this package never
+The ``ias-gym skills ...`` commands live in :mod:`ias_gym.cli.skills_commands` (this package never
 imports the command line).
 """
 

@@ -31,7 +31,7 @@ from ias_gym.cli.args import (
     parse_env_kwargs,
     policy_arguments,
 )
-from ias_gym.cli.transfer import add_transfer_command
+from ias_gym.cli.transfer_command import add_transfer_command
 from ias_gym.errors import IasGymError, InputError
 from ias_gym.glove.population import population_ids
 from ias_gym.glove.skills import SKILLS

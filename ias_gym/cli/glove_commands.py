@@ -263,7 +263,7 @@ def _calibrate(args: argparse.Namespace) -> int:
 
 
 def _population(args: argparse.Namespace) -> int:
-    from ias_gym.figures.population import person_rows, population_figure
+    from ias_gym.figures.population_histograms import person_rows, population_figure
     from ias_gym.glove.population import check_population
     from ias_gym.outputs import check_output_file
 

@@ -191,7 +191,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         raise InputError(f"--db {db} does not exist; give a skill library (skills record)")
     from tqdm import tqdm
 
-    from ias_gym.assist.evaluation import evaluate_assistance
+    from ias_gym.assist.sessions import evaluate_assistance
 
     make = _assistant_factory(args.assistant, args.recogniser, db)
     total = len(persons) * len(impairments) * args.episodes
@@ -253,7 +253,7 @@ def _demo(args: argparse.Namespace) -> int:
     import numpy as np
 
     from ias_gym.assist.assistants import AnalyticAssistant, load_templates
-    from ias_gym.assist.evaluation import AssistantPolicy
+    from ias_gym.assist.sessions import AssistantPolicy
     from ias_gym.evaluation import write_video
     from ias_gym.rollout import FrameRecorder, rollout
 
