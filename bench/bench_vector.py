@@ -3,7 +3,7 @@
 Run: ``python bench/bench_vector.py`` (options: ``--help``). For ``num_envs`` x
 ``num_workers``, the env steps per second of random actions (episodes end after a few
 steps, so resets count) in Gymnasium's ``SyncVectorEnv`` and ``AsyncVectorEnv``, SB3's
-``SubprocVecEnv`` and the batched vector env of ``ias_gym.envs.vector``; each as a ratio to
+``SubprocVecEnv`` and the batched vector env of ``ias_gym.runtime.vector_env``; each as a ratio to
 one plain env (measured right before each row) and to linear scaling (``min(processes,
 cores)`` x one plain env): on a machine that other processes load, no row scales. Then each
 env's reset time [ms] and single-env rate, with ``IAS-PenRotate-Shadow-v0`` and
@@ -28,7 +28,7 @@ import mujoco
 import numpy as np
 
 import ias_gym  # noqa: F401  (registers the ids)
-from ias_gym.envs.vector import make_batched_vec
+from ias_gym.runtime.vector_env import make_batched_vec
 
 ADROIT = "AdroitHandPen-v1"
 #: The pen task on the Shadow hand (the model behind Adroit), timed beside it.

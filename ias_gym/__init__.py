@@ -18,7 +18,7 @@ __all__ = ["__version__", "make_batched_vec"]
 def __getattr__(name: str) -> Any:
     # ias_gym.make_batched_vec, imported on first use (the package import stays light)
     if name == "make_batched_vec":
-        from ias_gym.envs.vector import make_batched_vec
+        from ias_gym.runtime.vector_env import make_batched_vec
 
         return make_batched_vec
     raise AttributeError(f"module 'ias_gym' has no attribute {name!r}")

@@ -36,8 +36,22 @@ class MissingDependencyError(IasGymError, ImportError):
 
 
 class WorkerError(IasGymError):
-    """A worker process of a :class:`~ias_gym.envs.vector.BatchedWorkers` died, timed out or
-    could not start."""
+    """A worker process died, timed out or could not start.
+
+    Raised by the vector envs' pool (:class:`~ias_gym.runtime.workers.BatchedWorkers`) and by
+    the job runner (:func:`~ias_gym.runtime.jobs.run_jobs`), which raises it after every other
+    job is done, naming the jobs whose worker died on every attempt.
+
+    Attributes:
+        items: the failed jobs' items (seeds), in order (empty for a vector env's worker).
+    """
+
+    def __init__(self, message: str, items: Sequence[Any] = ()) -> None:
+        super().__init__(message)
+        self.items = list(items)
+
+    def __reduce__(self) -> tuple[Any, ...]:  # picklable with its items
+        return (type(self), (str(self), self.items))
 
 
 class UnknownEnvError(InputError, LookupError):
@@ -79,21 +93,6 @@ class OutputExistsError(InputError, FileExistsError):
 
 class RayMissingError(IasGymError):
     """``--ray`` was asked for but Ray (the ``[distributed]`` extra) is not installed."""
-
-
-class WorkerDiedError(IasGymError):
-    """Jobs whose worker process died on every attempt.
-
-    Attributes:
-        items: the failed jobs' items (seeds), in order.
-    """
-
-    def __init__(self, message: str, items: Sequence[Any] = ()) -> None:
-        super().__init__(message)
-        self.items = list(items)
-
-    def __reduce__(self) -> tuple[Any, ...]:  # picklable with its items
-        return (type(self), (str(self), self.items))
 
 
 class RolloutError(IasGymError, ValueError):

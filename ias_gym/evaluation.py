@@ -3,7 +3,7 @@
 :func:`evaluate` takes a policy object with SB3's ``predict`` (as SB3's ``evaluate_policy``
 does); :func:`evaluate_spec` is its convenience from strings (env id, policy spec), whose
 episodes (:class:`EpisodeJob`, one per seed) run here, on local worker processes or on Ray
-(:mod:`ias_gym.parallel`) with the same results. Policies
+(:mod:`ias_gym.runtime.jobs`) with the same results. Policies
 are loaded by :func:`ias_gym.baselines.policies.load_policy` (re-exported here with
 its errors, :data:`TELEOP` and :data:`Policy`, for the callers that import them from here).
 """
@@ -38,8 +38,8 @@ from ias_gym.errors import (
     UnknownEnvError,
 )
 from ias_gym.outputs import atomic_output, check_output_file
-from ias_gym.parallel import SERIAL, Backend, prepare_here, run_jobs, worker_resource
 from ias_gym.rollout import FrameRecorder, rollout
+from ias_gym.runtime.jobs import SERIAL, Backend, prepare_here, run_jobs, worker_resource
 from ias_gym.settings import seed_from_environment
 
 #: Frame rate of evaluation videos [1/s]; the env's frames are thinned to it.
@@ -235,10 +235,10 @@ def seed_policy(policy: Policy, seed: int) -> None:
 @dataclass(frozen=True)
 class EpisodeJob:
     """One seeded episode of a policy spec on an env spec: the job that
-    :func:`~ias_gym.parallel.run_jobs` maps over seeds (``job(seed) -> EpisodeOutcome``).
+    :func:`~ias_gym.runtime.jobs.run_jobs` maps over seeds (``job(seed) -> EpisodeOutcome``).
 
     The process that runs it builds the env and loads the policy from the spec (once per
-    process, :func:`~ias_gym.parallel.worker_resource`) and seeds the policy with the
+    process, :func:`~ias_gym.runtime.jobs.worker_resource`) and seeds the policy with the
     episode's seed (:func:`seed_policy`), so the outcome depends on the seed alone.
 
     Attributes:
@@ -432,14 +432,14 @@ def evaluate_spec(
         overwrite: replace an existing ``video`` file.
         trust_pickle: load a model file with SB3's own ``load`` (runs code from the file).
         reset_options: as for :func:`evaluate`.
-        backend: where the episodes run (:class:`~ias_gym.parallel.Backend`; default: here).
+        backend: where the episodes run (:class:`~ias_gym.runtime.jobs.Backend`; default: here).
 
     Raises:
         InputError: bad ``episodes``/``seed``, unusable ``video`` path, unknown env id or
             env kwargs, or a policy that cannot be loaded for this env (see
             :func:`make_env`, :func:`load_policy`).
         OutputExistsError: ``video`` exists and ``overwrite`` is false.
-        WorkerDiedError: a worker process died twice running the same episode.
+        WorkerError: a worker process died twice running the same episode.
     """
     check_run(episodes, seed)
     if video is not None:  # before the env is built: a bad path must not cost its build

@@ -24,8 +24,8 @@ from ias_gym.evaluation import (
     evaluate,
     make_env,
 )
-from ias_gym.parallel import SERIAL, Backend, prepare_here, run_jobs
 from ias_gym.rates import Rate
+from ias_gym.runtime.jobs import SERIAL, Backend, prepare_here, run_jobs
 
 #: The classes: name -> env kwargs. A person does not know mu or the pen's mass either.
 DISTURBANCES: dict[str, dict[str, Any]] = {
@@ -209,7 +209,7 @@ def run_robustness_spec(
         env_kwargs: further env kwargs for every class (a class's own win).
         progress: one progress bar over all episodes (on stderr).
         trust_pickle: load a model file with SB3's own ``load`` (runs code from the file).
-        backend: where the episodes run (:class:`~ias_gym.parallel.Backend`; default: here).
+        backend: where the episodes run (:class:`~ias_gym.runtime.jobs.Backend`; default: here).
 
     Returns:
         One row per class, in the order asked.
@@ -217,7 +217,7 @@ def run_robustness_spec(
     Raises:
         InputError: an unknown class, env id or env kwarg, bad ``episodes``/``seed``, or a
             policy that cannot be loaded for the env.
-        WorkerDiedError: a worker process died twice running the same episode.
+        WorkerError: a worker process died twice running the same episode.
     """
     names = check_classes(classes)
     check_run(episodes, seed)

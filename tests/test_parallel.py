@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from ias_gym.cli import main
-from ias_gym.parallel import (
+from ias_gym.runtime.jobs import (
     RAY_MISSING,
     Backend,
-    WorkerDiedError,
+    WorkerError,
     iter_jobs,
     run_jobs,
 )
@@ -200,7 +200,7 @@ def test_a_killed_worker_is_retried_once(tmp_path: Path) -> None:
 
 def test_a_job_that_always_kills_its_worker_is_named(tmp_path: Path) -> None:
     got: list[int] = []
-    with pytest.raises(WorkerDiedError, match=r"running 5 died on every attempt") as info:
+    with pytest.raises(WorkerError, match=r"running 5 died on every attempt") as info:
         for square, _ in iter_jobs(
             Killer(str(tmp_path), 5, always=True), range(8), Backend("processes", 2)
         ):
@@ -247,7 +247,7 @@ class TestOnRay:
 
     def test_a_task_that_always_kills_its_worker_is_named(self, tmp_path: Path) -> None:
         got: list[int] = []
-        with pytest.raises(WorkerDiedError, match=r"running 1 died") as info:
+        with pytest.raises(WorkerError, match=r"running 1 died") as info:
             for square, _ in iter_jobs(
                 Killer(str(tmp_path), 1, always=True), range(4), Backend("ray", 0)
             ):

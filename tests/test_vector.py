@@ -1,5 +1,5 @@
 """Vector envs: Gymnasium's sync and async vector envs, SB3's, and the batched one of
-``ias_gym.envs.vector`` give every sub-env the trajectory of a single env seeded
+``ias_gym.runtime.vector_env`` give every sub-env the trajectory of a single env seeded
 ``seed + i``, with each library's autoreset convention; the batched one's workers end on
 close and a dead worker is an error, not a hang."""
 
@@ -20,11 +20,12 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import SubprocVecEnv
 
 import ias_gym  # noqa: F401  (registers the ids)
-from ias_gym.envs.vector import BatchedVectorEnv, WorkerError, make_batched_vec
-from ias_gym.errors import InputError
+from ias_gym.errors import InputError, WorkerError
 from ias_gym.learning.finetune import make_vec_env
-from ias_gym.learning.vec_env import BatchedVecEnv, make_batched_vec_env
+from ias_gym.learning.training_envs import make_batched_vec_env
 from ias_gym.registration import ENV_SPECS
+from ias_gym.runtime.sb3_vec_env import BatchedVecEnv
+from ias_gym.runtime.vector_env import BatchedVectorEnv, make_batched_vec
 
 PEN = "IAS-PenSlide-v0"
 #: fork: starts in milliseconds (the default of the platform here; forkserver is tested once)
@@ -427,7 +428,7 @@ def test_training_envs_are_batched_for_more_than_one_env() -> None:
     """train/*.py --n-envs N: one env in this process, N > 1 batched, the same envs."""
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from ias_gym.learning.vec_env import make_training_env
+    from ias_gym.learning.training_envs import make_training_env
 
     one = make_training_env(PEN, 1, seed=3)
     assert isinstance(one, DummyVecEnv)

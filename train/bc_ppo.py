@@ -44,7 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--n-envs",
         type=int,
         default=4,
-        help="PPO envs; more than one run batched in worker processes (ias_gym.envs.vector)",
+        help="PPO envs; more than one run batched in worker processes (ias_gym.runtime.vector_env)",
     )
     parser.add_argument(
         "--workers", type=int, default=None, help="worker processes (None: one per core)"
@@ -78,7 +78,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ias_gym.evaluation import report
     from ias_gym.learning.cloning import behaviour_clone
     from ias_gym.learning.finetune import KeepBestPolicy, WallClockLimit, fine_tune
-    from ias_gym.learning.vec_env import make_training_env
+    from ias_gym.learning.training_envs import make_training_env
 
     torch.set_num_threads(args.threads)
     out = Path(args.out)

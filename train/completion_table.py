@@ -25,8 +25,8 @@ from pathlib import Path
 
 from ias_gym.glove.population import population_ids
 from ias_gym.glove.skills import SKILLS
-from ias_gym.parallel import Backend
 from ias_gym.rates import SET_KINDS, Rate
+from ias_gym.runtime.jobs import Backend
 from ias_gym.skills.completion import SessionOutcome, completion, completion_table
 
 #: Person parameters plotted against the outcome.

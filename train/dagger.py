@@ -150,9 +150,9 @@ def evaluate_rows(
     env_id: str, policy: Path, episodes: int, seed: int, workers: int
 ) -> dict[str, dict[str, Any]]:
     """Success per disturbance class with its Wilson interval, on seeds from ``seed``."""
-    from ias_gym.parallel import Backend
     from ias_gym.rates import Rate
     from ias_gym.robustness import run_robustness_spec
+    from ias_gym.runtime.jobs import Backend
 
     rows = run_robustness_spec(
         env_id,

@@ -30,7 +30,7 @@ def build_parser(algo: str, description: str) -> argparse.ArgumentParser:
         "--n-envs",
         type=int,
         default=4 if algo == "ppo" else 1,
-        help="envs; more than one run batched in worker processes (ias_gym.envs.vector)",
+        help="envs; more than one run batched in worker processes (ias_gym.runtime.vector_env)",
     )
     parser.add_argument(
         "--workers", type=int, default=None, help="worker processes (None: one per core)"
@@ -71,7 +71,7 @@ def main(algo: str, description: str, argv: Sequence[str] | None = None) -> int:
     from ias_gym.learning.demonstrations import GAMMA
     from ias_gym.learning.finetune import WallClockLimit
     from ias_gym.learning.normalisation import policy_kwargs, rollout_statistics
-    from ias_gym.learning.vec_env import make_training_env
+    from ias_gym.learning.training_envs import make_training_env
 
     torch.set_num_threads(args.threads)
     out = Path(args.out)

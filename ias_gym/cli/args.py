@@ -2,7 +2,7 @@
 
 Only argparse, json and the package's errors: every command module of :mod:`ias_gym.cli`
 imports this one, and it imports no command module (no circle through ``cli/__init__``).
-:func:`backend_from_args` imports :mod:`ias_gym.parallel` when it runs (no gymnasium).
+:func:`backend_from_args` imports :mod:`ias_gym.runtime.jobs` when it runs (no gymnasium).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 from ias_gym.errors import InputError
 
 if TYPE_CHECKING:
-    from ias_gym.parallel import Backend
+    from ias_gym.runtime.jobs import Backend
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -175,7 +175,7 @@ def parallel_arguments(parser: argparse.ArgumentParser) -> None:
     ``--ray [ADDRESS]`` (a Ray cluster; without ADDRESS a local one is started).
 
     Using both (``--workers`` > 1) is a usage error (exit code 2). The options make a
-    :class:`~ias_gym.parallel.Backend` with :func:`backend_from_args`.
+    :class:`~ias_gym.runtime.jobs.Backend` with :func:`backend_from_args`.
     """
     parser.add_argument(
         "--workers",
@@ -205,6 +205,6 @@ def backend_from_args(args: argparse.Namespace) -> Backend:
     Raises:
         RayMissingError: ``--ray`` without Ray installed (one line: the extra to install).
     """
-    from ias_gym.parallel import Backend
+    from ias_gym.runtime.jobs import Backend
 
     return Backend.from_options(args.workers, args.ray)

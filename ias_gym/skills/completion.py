@@ -2,7 +2,7 @@
 
 :func:`glove_session` runs one unassisted session of ``IAS-GloveGrasp-v0`` (zero action: the
 person alone) and says how it ended (:class:`SessionOutcome`: success, and why not);
-:func:`completion` runs it over persons x skills on a :mod:`ias_gym.parallel` backend and
+:func:`completion` runs it over persons x skills on a :mod:`ias_gym.runtime.jobs` backend and
 :func:`completion_table` reports the rate per skill with its 95 % Wilson interval
 (:mod:`ias_gym.rates`). ``train/completion_table.py`` is the command behind the table in
 ``docs/population.md``.
@@ -21,9 +21,9 @@ from ias_gym.errors import PersonCannotError
 from ias_gym.glove.hand import PersonParams
 from ias_gym.glove.profile_cache import default_calibration
 from ias_gym.glove.skills import SKILLS, check_skill, person_parameters
-from ias_gym.parallel import SERIAL, Backend, run_jobs
 from ias_gym.rates import Rate
 from ias_gym.rollout import FunctionPolicy, rollout
+from ias_gym.runtime.jobs import SERIAL, Backend, run_jobs
 from ias_gym.sim.glove_scene import load_glove_scene
 
 #: Why a session failed (``SessionOutcome.reason``).

@@ -35,8 +35,8 @@ from ias_gym.errors import InputError
 from ias_gym.glove.ids import check_id
 from ias_gym.glove.skills import check_skill, parameters_of
 from ias_gym.grasp.grip_transform import GraspRankError, GripTransform
-from ias_gym.parallel import SERIAL, Backend, iter_jobs, prepare_here, worker_resource
 from ias_gym.rollout import rollout
+from ias_gym.runtime.jobs import SERIAL, Backend, iter_jobs, prepare_here, worker_resource
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.glove_session import GloveSkillModelRecorder, glove_session_source
 from ias_gym.skills.skill import Demonstration, Skill, SkillModel, SkillModelSamples
@@ -354,7 +354,7 @@ def record_skills_spec(
         person_id: stored as the skills' person id (glove envs: the env's person).
         skill: a glove skill (:data:`~ias_gym.glove.skills.SKILLS`; glove envs only).
         trust_pickle: load a model file with SB3's own ``load`` (runs code from the file).
-        backend: where the episodes run (:class:`~ias_gym.parallel.Backend`; default: here).
+        backend: where the episodes run (:class:`~ias_gym.runtime.jobs.Backend`; default: here).
 
     Returns:
         The new skills' ids, in episode order.
@@ -366,7 +366,7 @@ def record_skills_spec(
         ValueError: ``episodes`` < 1, ``expert`` on a glove env, ``teleop`` on a pen env
             (:func:`~ias_gym.baselines.policies.load_policy`), a person other than the glove
             env's (:func:`record_episode`).
-        WorkerDiedError: a worker process died twice recording the same episode (the
+        WorkerError: a worker process died twice recording the same episode (the
             episodes before it are stored).
     """
     if episodes < 1:
@@ -407,7 +407,7 @@ class RecordJob:
     :func:`record_skills_spec` maps over seeds (``job(seed) -> Skill``, not stored).
 
     The process that runs it makes the env and loads the policy (once per process,
-    :func:`~ias_gym.parallel.worker_resource`), seeds the ``random`` policy's sampling
+    :func:`~ias_gym.runtime.jobs.worker_resource`), seeds the ``random`` policy's sampling
     with the episode's seed, and records the episode (:func:`record_episode`).
 
     Attributes:

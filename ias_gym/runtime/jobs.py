@@ -27,7 +27,7 @@ jobs that had started on a worker are retried once, each alone in a fresh one-wo
 (so a job that kills its worker again is identified exactly and the jobs that only shared
 the pool with it are not blamed), the jobs that had not started are resubmitted. Ray
 retries a task whose worker died once itself (``max_retries``). A job that fails again is
-reported by :class:`WorkerDiedError` naming its items, after every other result is in: a
+reported by :class:`WorkerError` naming its items, after every other result is in: a
 result is never silently missing. An exception raised *by* a job (a bad env kwarg) is not
 a fault: it is raised at once, as in a serial run.
 
@@ -49,7 +49,7 @@ from typing import Any, Generic, TypeVar
 
 from tqdm import tqdm
 
-from ias_gym.errors import IasGymError, InputError, RayMissingError, WorkerDiedError  # noqa: F401 - defined there, raised here
+from ias_gym.errors import IasGymError, InputError, RayMissingError, WorkerError  # noqa: F401 - defined there, raised here
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -232,7 +232,7 @@ def run_jobs(
     """``[job(item) for item in items]`` on ``backend``: see :func:`iter_jobs`.
 
     Raises:
-        WorkerDiedError: some jobs' workers died on every attempt (after all other jobs).
+        WorkerError: some jobs' workers died on every attempt (after all other jobs).
         Exception: what a job raised (at once).
     """
     return list(iter_jobs(job, items, backend, desc=desc, progress=progress))
@@ -264,7 +264,7 @@ def iter_jobs(
         attempt is left out and reported at the end).
 
     Raises:
-        WorkerDiedError: some jobs' workers died on every attempt (raised after every
+        WorkerError: some jobs' workers died on every attempt (raised after every
             other result has been yielded; the message names their items).
         RayMissingError: a Ray backend without Ray installed.
         Exception: what a job raised, at once (the remaining jobs are cancelled).
@@ -304,7 +304,7 @@ def iter_jobs(
         bar.close()
     if failures:
         shown = ", ".join(repr(f.item) for f in failures)
-        raise WorkerDiedError(
+        raise WorkerError(
             f"the worker running {shown} died on every attempt ({RETRIES + 1} attempts; "
             f"{failures[0].reason}); run {'it' if len(failures) == 1 else 'them'} alone "
             "(--workers 1) to see why",
@@ -437,7 +437,7 @@ __all__ = [
     "THREAD_VARIABLES",
     "Backend",
     "RayMissingError",
-    "WorkerDiedError",
+    "WorkerError",
     "import_ray",
     "iter_jobs",
     "limit_threads",
