@@ -13,7 +13,7 @@ ENV_SPECS: dict[str, tuple[str, int]] = {
     "IAS-PenRotate3F-v0": ("ias_gym.envs.pen_rotate:PenRotateEnv", 400),
     "IAS-PenRotate-Shadow-v0": ("ias_gym.envs.pen_rotate:PenRotateEnv", 400),
     "IAS-GloveGrasp-v0": ("ias_gym.envs.glove_grasp:GloveGraspEnv", 400),
-    "IAS-PenSkill-v0": ("ias_gym.skills.transfer:PenSkillDBEnv", 300),
+    "IAS-PenSkill-v0": ("ias_gym.envs.pen_skill_env:PenSkillEnv", 300),
     "IAS-GloveAssist-v0": ("ias_gym.envs.glove_assist:GloveAssistEnv", 400),
 }
 #: The keyword arguments an id passes to its entry point (its defaults; ``gym.make`` kwargs

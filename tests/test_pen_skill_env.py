@@ -14,7 +14,8 @@ from test_transfer import synthetic_skill
 
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.baselines.expert import ExpertPolicy
-from ias_gym.envs.pen_skill_env import PenSkillEnv, SkillReference
+from ias_gym.envs.pen_skill_env import PenSkillEnv
+from ias_gym.envs.skill_reference import SkillReference
 from ias_gym.errors import InputError
 from ias_gym.glove.skills import SKILLS
 from ias_gym.skills.check import check_database
@@ -88,7 +89,7 @@ def test_reset_option_picks_the_skill_and_refuses_a_bad_index() -> None:
 
 def test_an_env_without_references_or_at_another_period_is_refused() -> None:
     with pytest.raises(InputError, match="at least one skill reference"):
-        PenSkillEnv(references=[])
+        PenSkillEnv(reader=lambda *args: [])
     with pytest.raises(InputError, match=r"sampled every 0\.01 s"):
         PenSkillEnv(references=references(), control_dt=0.02)
 
@@ -115,6 +116,21 @@ def test_gym_make_reads_the_skills_of_a_database(skill_db: Path) -> None:
     assert [r.skill_id for r in only.unwrapped.references] == [2]
     with pytest.raises(InputError, match="no skills with ids"):
         gym.make("IAS-PenSkill-v0", skill_db=str(skill_db), skill_ids=[7])
+
+
+def test_the_skill_reader_is_injected_and_given_the_hand_and_its_grid() -> None:
+    """Another store than a skill database: the env asks its reader, not the database."""
+    calls = []
+
+    def reader(skill_db, skill_ids, hand, control_dt, duration):  # type: ignore[no-untyped-def]
+        calls.append((skill_db, skill_ids, hand, control_dt, duration))
+        return references()
+
+    env = gym.make(
+        "IAS-PenSkill-v0", skill_db="a-store", skill_ids=[5], reader=reader, duration=0.5
+    )
+    assert calls == [("a-store", [5], "ias4f", 0.01, 0.5)]
+    assert [r.skill_id for r in env.unwrapped.references] == [r.skill_id for r in references()]
 
 
 def test_gym_make_uses_the_shipped_human_skills_by_default() -> None:

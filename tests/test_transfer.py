@@ -22,7 +22,8 @@ from hypothesis import strategies as st
 
 from ias_gym.baselines.expert import ExpertPolicy
 from ias_gym.baselines.kinematic import KinematicPolicy
-from ias_gym.envs.pen_skill_env import PenSkillEnv, SkillReference
+from ias_gym.envs.pen_skill_env import PenSkillEnv
+from ias_gym.envs.skill_reference import SkillReference
 from ias_gym.grasp.grasp_margin import (
     grasp_margin,
     least_squeeze,

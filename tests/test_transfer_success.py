@@ -19,7 +19,8 @@ import pytest
 from closed_loop import perturbed_starts
 
 from ias_gym.baselines.kinematic import KinematicGains
-from ias_gym.envs.pen_skill_env import PenSkillEnv, SkillReference
+from ias_gym.envs.pen_skill_env import PenSkillEnv
+from ias_gym.envs.skill_reference import SkillReference
 from ias_gym.errors import InputError
 from ias_gym.glove.skills import SKILLS
 from ias_gym.skills.db import SkillDB

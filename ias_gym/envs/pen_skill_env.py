@@ -3,11 +3,11 @@
 The paper's Flow 2 (Proposition 1): a skill is stored as the time behaviour of the grip
 transform G(t) - the object's trajectory and the internal forces - so that a hand of another
 structure than the glove's can execute it. This env is the execution side: it takes the
-skills as arrays (:class:`SkillReference`, built from the skill database by
-:mod:`ias_gym.skills.transfer`, which the envs layer cannot import) and asks the hand to move
-the pen along the reference while holding it with the person's grasp margin
-(:mod:`ias_gym.grasp.grasp_margin`). ``gym.make("IAS-PenSkill-v0", skill_db=...)`` goes
-through :class:`ias_gym.skills.transfer.PenSkillDBEnv`, which reads the database.
+skills as arrays (:class:`~ias_gym.envs.skill_reference.SkillReference`) and asks the hand to
+move the pen along the reference while holding it with the person's grasp margin
+(:mod:`ias_gym.grasp.grasp_margin`). Where the references come from is injected: a reader
+(default :func:`ias_gym.skills.transfer.load_references`, which opens a skill database and
+lives above the envs) turns ``skill_db`` and ``skill_ids`` into references for the hand.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any, ClassVar
 
 import mujoco
@@ -27,6 +28,7 @@ from ias_gym.envs.pen_hand_env import (
     PenHandEnv,
     PenReference,
 )
+from ias_gym.envs.skill_reference import ReferenceReader, SkillReference, default_reader
 from ias_gym.errors import InputError
 from ias_gym.grasp.grasp_margin import grasp_margin
 
@@ -41,99 +43,6 @@ MARGIN_CLIP = 10.0
 #: Success tolerances of a reference that carries none and a config that sets none: RMS
 #: position [m], RMS axis angle [rad], mean relative margin error [-] (inf: not checked).
 DEFAULT_TOLERANCE = {"position": 0.003, "rotation": 0.05, "margin": math.inf}
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class SkillReference:
-    """One skill as the target hand should execute it: arrays on the env's control grid.
-
-    Row k is time ``k dt`` after the grasp is established (the skill's own start); paper
-    frame, SI units, the pen's position relative to its nominal centre in the hand.
-
-    Attributes:
-        dt: sample period [s] (the env's ``control_dt``).
-        position, velocity, acceleration: ``(T, 3)`` pen centre [m], [m/s], [m/s^2].
-        axis: ``(T, 3)`` unit pen axis (its roll is free).
-        omega, alpha: ``(T, 3)`` angular velocity [rad/s] and acceleration [rad/s^2].
-        margin: ``(T,)`` grasp margin to hold [-] (:mod:`ias_gym.grasp.grasp_margin`).
-        skill_id: the skill's id in its database (-1: none).
-        name: the skill's name; person: who demonstrated it ("" if unknown).
-        scale: translation scale into the hand's workspace [-].
-        scale_rotation: rotation scale [-].
-        tolerance_rotation, tolerance_position, tolerance_margin: how far an execution may
-            stay from this reference and succeed: RMS axis angle [rad], RMS centre
-            distance [m], mean relative margin error [-] (``None``: the env's defaults;
-            :mod:`ias_gym.skills.tolerance` sets them from the person's repeatability).
-    """
-
-    dt: float
-    position: FloatArray
-    velocity: FloatArray
-    acceleration: FloatArray
-    axis: FloatArray
-    omega: FloatArray
-    alpha: FloatArray
-    margin: FloatArray
-    skill_id: int = -1
-    name: str = ""
-    person: str = ""
-    scale: float = 1.0
-    scale_rotation: float = 1.0
-    tolerance_rotation: float | None = None
-    tolerance_position: float | None = None
-    tolerance_margin: float | None = None
-
-    def __post_init__(self) -> None:
-        T = len(self.position)
-        for name in ("tolerance_rotation", "tolerance_position", "tolerance_margin"):
-            value = getattr(self, name)
-            if value is not None and not (math.isfinite(value) and value > 0):
-                raise InputError(f"skill reference {name} must be None or > 0, got {value}")
-        if T < 2 or not (math.isfinite(self.dt) and self.dt > 0):
-            raise InputError(f"a skill reference needs >= 2 samples and dt > 0, got {T}, {self.dt}")
-        for name in ("position", "velocity", "acceleration", "axis", "omega", "alpha"):
-            value = np.asarray(getattr(self, name), dtype=float)
-            if value.shape != (T, 3) or not np.all(np.isfinite(value)):
-                raise InputError(
-                    f"skill reference {name} must be finite with shape ({T}, 3), got {value.shape}"
-                )
-            object.__setattr__(self, name, value)
-        margin = np.asarray(self.margin, dtype=float)
-        if margin.shape != (T,) or not np.all(np.isfinite(margin)) or np.any(margin <= 0):
-            raise InputError(f"skill reference margin must be ({T},), finite and > 0")
-        object.__setattr__(self, "margin", margin)
-        norms = np.linalg.norm(self.axis, axis=1)
-        if np.any(np.abs(norms - 1.0) > 1e-6):
-            raise InputError("skill reference axis must be unit vectors")
-
-    @property
-    def length(self) -> int:
-        """Number of samples T."""
-        return len(self.position)
-
-    @property
-    def duration(self) -> float:
-        """Time spanned [s]."""
-        return (self.length - 1) * self.dt
-
-    def index(self, t: float) -> int:
-        """The sample at time ``t`` [s] (the last one after the end: the pose is held)."""
-        return min(max(round(t / self.dt), 0), self.length - 1)
-
-    def at(self, t: float) -> PenReference:
-        """The :class:`PenReference` the expert tracks at time ``t`` [s]."""
-        k = self.index(t)
-        end = k == self.length - 1 and t > self.duration  # held at rest after the skill
-        zero = np.zeros(3)
-        return PenReference(
-            position=self.position[k],
-            velocity=zero if end else self.velocity[k],
-            acceleration=zero if end else self.acceleration[k],
-            axis=self.axis[k],
-            omega=zero if end else self.omega[k],
-            alpha=zero if end else self.alpha[k],
-            sliding={},
-        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -250,9 +159,11 @@ class PenSkillEnv(PenHandEnv):
     ## Arguments
     ``gym.make("IAS-PenSkill-v0", **kwargs)`` takes ``render_mode``, the skill library
     (``skill_db``: a skill database path, default the human skills shipped with the
-    package; ``skill_ids``: which of its skills, default all; see
-    :class:`ias_gym.skills.transfer.PenSkillDBEnv`) or, constructing this class directly,
-    ``references`` (a sequence of :class:`SkillReference`), and these config fields:
+    package; ``skill_ids``: which of its skills, default every successful glove skill;
+    ``reader``: what reads them, default the skill database's reader
+    :func:`ias_gym.skills.transfer.load_references`, which turns each skill into a
+    reference for this hand) or ``references`` (a sequence of :class:`SkillReference`,
+    built already), and these config fields:
 
     - ``hand`` [``"ias4f"``]: the robot hand.
     - ``control_dt`` [0.01 s], ``min_grasp_force`` [0.2 N], ``pen_position_noise``
@@ -304,25 +215,36 @@ class PenSkillEnv(PenHandEnv):
         self,
         render_mode: str | None = None,
         references: Sequence[SkillReference] = (),
+        skill_db: str | Path | None = None,
+        skill_ids: Sequence[int] | None = None,
+        reader: ReferenceReader | None = None,
         **config: Any,
     ) -> None:
-        """Build the task.
+        """Build the task on a skill library: given, or read by ``reader``.
 
         Args:
             render_mode: ``None``, ``"human"``, ``"rgb_array"`` or ``"depth_array"``.
-            references: the skill library, at least one :class:`SkillReference` sampled at
-                ``control_dt``.
+            references: the skill library (:class:`SkillReference` sampled at
+                ``control_dt``); if empty, ``reader`` builds it.
+            skill_db: where ``reader`` reads the skills (default reader: a skill database
+                path; ``None``: the human skills shipped with the package).
+            skill_ids: which of its skills (``None``: every successful glove skill).
+            reader: ``reader(skill_db, skill_ids, hand, control_dt, duration)`` -> the
+                references (default :func:`~ias_gym.envs.skill_reference.default_reader`:
+                the skill database's).
             **config: fields of :class:`PenSkillConfig` to override.
 
         Raises:
             InputError: no references, or one sampled at another period than ``control_dt``.
         """
+        if not references:
+            cfg = PenSkillConfig(**config)
+            read = reader if reader is not None else default_reader()
+            references = read(skill_db, skill_ids, cfg.hand, cfg.control_dt, cfg.duration)
+        self.skill_db = skill_db
         refs = tuple(references)
         if not refs:
-            raise InputError(
-                "IAS-PenSkill-v0 needs at least one skill reference (gym.make builds them "
-                "from skill_db; see ias_gym.skills.transfer)"
-            )
+            raise InputError("IAS-PenSkill-v0 needs at least one skill reference: none was read")
         dt = float(config.get("control_dt", PenSkillConfig.control_dt))
         for ref in refs:
             if not isinstance(ref, SkillReference):
@@ -549,7 +471,7 @@ class PenSkillEnv(PenHandEnv):
     def __getstate__(self) -> dict[str, Any]:
         """Pickle as the base does, plus the skill library."""
         state = super().__getstate__()
-        state["references"] = self.references
+        state["references"], state["skill_db"] = self.references, self.skill_db
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -558,6 +480,7 @@ class PenSkillEnv(PenHandEnv):
             self,
             render_mode=state["render_mode"],
             references=state["references"],
+            skill_db=state["skill_db"],
             **state["config"],
         )
         spec = mujoco.mjtState.mjSTATE_INTEGRATION

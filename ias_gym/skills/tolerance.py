@@ -36,7 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from ias_gym.envs.pen_skill_env import MARGIN_CLIP, PenSkillConfig, SkillReference
+from ias_gym.envs.pen_skill_env import MARGIN_CLIP, PenSkillConfig
+from ias_gym.envs.skill_reference import SkillReference
 from ias_gym.errors import InputError
 
 #: The fitted tolerances shipped in ``ias_gym.assets``.

@@ -25,10 +25,10 @@ can reuse is not the glove's joint angles but
 - and the **tolerances** of its success test: as close as another demonstration of the
   same person comes (:mod:`ias_gym.skills.tolerance`), scaled like the reference.
 
-:class:`PenSkillDBEnv` is the registered ``IAS-PenSkill-v0``: it reads the skills from a
-database (default: the human skills shipped with the package) and builds their references
-for :class:`~ias_gym.envs.pen_skill_env.PenSkillEnv` (which, in the envs layer, cannot read
-the database). The math, with the equations: docs/transfer.md.
+:func:`load_references` is the reader that ``IAS-PenSkill-v0``
+(:class:`~ias_gym.envs.pen_skill_env.PenSkillEnv`) is given by default: it reads the skills
+from a database (default: the human skills shipped with the package) and builds their
+references for the env's hand. The math, with the equations: docs/transfer.md.
 """
 
 from __future__ import annotations
@@ -44,7 +44,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import savgol_filter
 
-from ias_gym.envs.pen_skill_env import PenSkillConfig, PenSkillEnv, SkillReference
+from ias_gym.envs.pen_skill_env import PenSkillEnv
+from ias_gym.envs.skill_reference import SkillReference
 from ias_gym.errors import (
     InputError,
     SkillTransferError,
@@ -338,82 +339,6 @@ def load_references(
     if not refs:
         raise InputError(f"no transferable skills in {path}")
     return refs
-
-
-class PenSkillDBEnv(PenSkillEnv):
-    """``IAS-PenSkill-v0`` with its skills read from a skill database.
-
-    ## Description
-    The registered form of :class:`~ias_gym.envs.pen_skill_env.PenSkillEnv`: a robot hand
-    executes the human skills of a skill database (default: the glove sessions shipped with
-    the package), each turned into a reference for this hand by
-    :func:`transfer_reference` (the object's motion relative to its grasp frame, scaled into
-    the hand's workspace, and the person's grasp margin).
-
-    ## Action Space
-    As :class:`~ias_gym.envs.pen_skill_env.PenSkillEnv`: ``Box(-1, 1, (3 k,))``, normalised
-    joint torques of the hand's k fingers.
-
-    ## Observation Space
-    As :class:`~ias_gym.envs.pen_skill_env.PenSkillEnv`: the pen tasks' 49 values, the
-    reference now and 5 and 10 steps ahead, tracking errors, reference and measured grasp
-    margin, progress and scales (78 for a four-finger hand).
-
-    ## Rewards
-    As :class:`~ias_gym.envs.pen_skill_env.PenSkillEnv`: ``track``, ``margin``,
-    ``contact``, ``effort``.
-
-    ## Starting State
-    As :class:`~ias_gym.envs.pen_skill_env.PenSkillEnv`; the skill is drawn from the
-    database's skills with the env's ``np_random``.
-
-    ## Episode End
-    As :class:`~ias_gym.envs.pen_skill_env.PenSkillEnv`: success = held, tracked and the
-    margin kept, within the tolerances of each skill (the persons' own repeatability,
-    :mod:`ias_gym.skills.tolerance`) unless the config sets them.
-
-    ## Arguments
-    ``skill_db`` [the shipped human skills]: a skill database path; ``skill_ids`` [all
-    successful glove skills]: the ids to use; ``render_mode``; ``references`` is built
-    from those (not passed); and the config fields of
-    :class:`~ias_gym.envs.pen_skill_env.PenSkillConfig`: ``hand``, ``control_dt``,
-    ``duration``, ``min_grasp_force``, ``pen_position_noise``, ``contact_noise``,
-    ``penetration``, ``drop_distance``, ``max_contact_gap``, ``max_position_error``,
-    ``settle_time``, ``max_rms_position_error``, ``max_rms_rotation_error``,
-    ``max_margin_error``, ``effort_weight``, ``contact_weight``, ``track_weight``,
-    ``margin_weight``, ``render_width``, ``render_height``, ``camera``,
-    ``friction_scale``, ``mass_scale``, ``push_force``, ``push_duration``,
-    ``force_noise``, ``joint_angle_noise``, ``joint_velocity_noise``, ``action_noise``,
-    ``action_delay``, ``internal_force_step``.
-
-    ## Version History
-    - v0: initial release.
-    """
-
-    def __init__(
-        self,
-        render_mode: str | None = None,
-        skill_db: str | None = None,
-        skill_ids: Sequence[int] | None = None,
-        references: Sequence[SkillReference] = (),
-        **config: Any,
-    ) -> None:
-        """Read the skills and build the env.
-
-        Args:
-            render_mode: as the pen tasks.
-            skill_db: skill database path (default: the shipped human skills).
-            skill_ids: the skills to use (default: every successful glove skill).
-            references: ignored unless given: a library built already (pickling).
-            **config: fields of :class:`PenSkillConfig`.
-        """
-        if not references:
-            cfg = PenSkillConfig(**config)
-            references = load_references(
-                skill_db, skill_ids, cfg.hand, cfg.control_dt, cfg.duration
-            )
-        self.skill_db = skill_db
-        super().__init__(render_mode=render_mode, references=references, **config)
 
 
 #: Methods of executing a transferred skill: the grip-transform expert (Theorem 1 on the
