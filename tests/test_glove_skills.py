@@ -37,7 +37,7 @@ from ias_gym.sim.glove_contacts import (
     soft_finger_cone_margin,
     soft_wrench_matrix,
 )
-from ias_gym.sim.glove_scene import scene_pen_radius
+from ias_gym.sim.scene_constants import glove_pen_radius
 from ias_gym.skills import SkillDB
 from ias_gym.skills.glove_session import GloveSkillModelRecorder
 from ias_gym.skills.record import record_skills_spec
@@ -187,7 +187,7 @@ def test_the_default_episode_is_the_old_pinch_lift(operator: str) -> None:
     cfg = unwrapped.config
     assert cfg.skill is None and unwrapped.skill_start is None
     person = unwrapped.person
-    old = pen_operator(person, scene_pen_radius())
+    old = pen_operator(person, glove_pen_radius())
     assert old.timings == ReachPinchLiftTimings() and old.pinch_force == 2.0
     script = FromPreShape(old)
     for options in perturbed_starts(env, seed=3, n=2):

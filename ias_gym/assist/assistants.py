@@ -26,8 +26,8 @@ for the posterior over the library's skills and returns joint-target offsets, th
      where the hold found the pinch opened beyond a bias (an unimpaired grip, and a biased
      one undone from rest, is left alone): an integrator on the
      larger of the live grasp margin's relative error against the library's (the soft
-     fingers' cones, :func:`~ias_gym.grasp.grasp_margin.grasp_margin`, mu = 0.25 and the
-     pads' torsional friction, as :func:`~ias_gym.skills.transfer.demonstrated_margin`
+     fingers' cones, :func:`~ias_gym.grasp.grasp_margin.grasp_margin`, the pads' friction and
+     torsion read from the scene, as :func:`~ias_gym.skills.transfer.demonstrated_margin`
      measures the library) and the pinch force's against :data:`FORCE_SHARE` of the
      library's, plus a slip reflex (:data:`SLIP_RATE` while the margin is at the cones'
      boundary), neither for a pinch already pressing :data:`FIRM_FORCE` times the
@@ -85,10 +85,9 @@ from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS, joint_index
 from ias_gym.glove.impairments import TREMOR_JOINTS, pinch_direction
 from ias_gym.glove.skills import SKILL_TIMINGS, SKILLS, skill_start_time
 from ias_gym.grasp.grasp_margin import grasp_margin
+from ias_gym.sim.scene_constants import glove_pad_friction
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.transfer import (
-    GLOVE_PAD_TORSION,
-    GLOVE_PEN_MU,
     demonstrated_margin,
     shipped_skill_db,
     skill_start_index,
@@ -347,7 +346,7 @@ def live_margin(env: Any) -> float:
         return math.nan
     c = p.contact_intensities(contacts)
     c_h = N @ (N.T @ c)
-    return grasp_margin(c - c_h, c_h, GLOVE_PEN_MU, GLOVE_PAD_TORSION, 4)
+    return grasp_margin(c - c_h, c_h, *glove_pad_friction(), 4)
 
 
 #: Joints that close the pinch along the pads' line: the index's MCP and PIP, the thumb's

@@ -68,6 +68,7 @@ from ias_gym.grasp.internal_forces import (
 )
 from ias_gym.grasp.wrench_matrix import cross3, wrench_matrices
 from ias_gym.sim.pen_hand import mj_to_paper
+from ias_gym.sim.scene_constants import pen_friction
 
 NDArrayBool = np.ndarray
 
@@ -98,7 +99,8 @@ class ControllerGains:
     kp_lateral: float = 20.0  # tip stiffness across the pen, toward its top/bottom line [N/m]
     kv_lateral: float = 1.5  # tip damping across the pen [N s/m]
     friction_margin: float = 0.4  # sticking contacts use mu (1 - margin) [-]
-    mu: float = 0.25  # friction coefficient the controller assumes [-]
+    # friction coefficient the controller assumes [-]: the nominal pen's (pen.xml)
+    mu: float = field(default_factory=pen_friction)
     cone: Cone = "polygon"  # friction cone of the internal-force problem: box or polygon
     jacobian_damping: float = 1e-6  # damping of J+ [m^2]
     finger_inertia: bool = True  # include the M J+ {...} terms of eq. (45)

@@ -10,7 +10,6 @@ read from the spec or the compiled model, never copied here.
 
 from __future__ import annotations
 
-import functools
 import importlib.resources
 import math
 
@@ -21,6 +20,7 @@ from numpy.typing import NDArray
 from ias_gym.glove.device import ReachPinchLift
 from ias_gym.glove.hand import JOINT_NAMES, PersonParams, hand_points, thumb_directions
 from ias_gym.glove.operator import pen_operator
+from ias_gym.sim.scene_constants import glove_pen_radius
 
 FloatArray = NDArray[np.float64]
 
@@ -73,19 +73,13 @@ def _scene_spec() -> mujoco.MjSpec:
         return mujoco.MjSpec.from_file(str(path))
 
 
-@functools.cache
-def scene_pen_radius() -> float:
-    """The radius of the glove scene's pen [m], read once from ``scene_glove.xml``."""
-    return float(_scene_spec().geom("pen").size[0])
-
-
 def scene_operator(person: PersonParams) -> ReachPinchLift:
     """:func:`~ias_gym.glove.operator.pen_operator` for the glove scene's pen.
 
     Raises:
         ValueError: no pen pinch is in reach of ``person``'s hand.
     """
-    return pen_operator(person, scene_pen_radius())
+    return pen_operator(person, glove_pen_radius())
 
 
 def pen_position_hand(

@@ -54,6 +54,7 @@ from ias_gym.grasp.grasp_margin import margin_series
 from ias_gym.rollout import rollout
 from ias_gym.sim import hands
 from ias_gym.sim.pen import rpy_to_matrix
+from ias_gym.sim.scene_constants import glove_pad_friction
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.glove_session import motion_window
 from ias_gym.skills.skill import Skill
@@ -63,11 +64,6 @@ FloatArray = NDArray[np.float64]
 
 #: The human-skill library shipped in ``ias_gym.assets``.
 SHIPPED_DB = "human_skills.db"
-#: Friction coefficient of the pen the glove sessions are performed with [-] (pen.xml).
-GLOVE_PEN_MU = 0.25
-#: Torsional friction of the glove hand's soft pads [m] (human_hand.xml, class "pad"; the
-#: pads win every pen contact by priority).
-GLOVE_PAD_TORSION = 0.03
 #: The margin reference is kept in this range [-]: below 1 would ask the robot to slip,
 #: and ``inf`` (no squeeze needed) leaves the hand its own least squeeze.
 MARGIN_RANGE = (1.0, 10.0)
@@ -135,19 +131,22 @@ def skill_start_index(skill: Skill) -> int:
     return int(np.argmax(held))
 
 
-def demonstrated_margin(skill: Skill, mu: float = GLOVE_PEN_MU) -> FloatArray:
+def demonstrated_margin(skill: Skill, mu: float | None = None) -> FloatArray:
     """``m(t)`` of the demonstration, one value per sample (NaN where a contact is missing).
 
     Args:
         skill: a stored skill with its model's ``c`` and ``c_h``.
-        mu: the object's friction coefficient [-]; soft-finger skills (4 intensities per
-            finger) also bound the torsion with MuJoCo's torsional coefficient of the pen.
+        mu: the object's friction coefficient [-] (default: the glove world's pen contacts,
+            :func:`~ias_gym.sim.scene_constants.glove_pad_friction`); soft-finger skills (4
+            intensities per finger) also bound the torsion with the glove pads' torsional
+            friction.
     """
+    glove_mu, glove_torsion = glove_pad_friction()
     m = skill.model
     k = m.touching.shape[1]
     per = m.c.shape[1] // k
-    mu_t = GLOVE_PAD_TORSION if per == 4 else 0.0
-    return margin_series(m.c_p, m.c_h, m.touching, mu, mu_t)
+    mu_t = glove_torsion if per == 4 else 0.0
+    return margin_series(m.c_p, m.c_h, m.touching, glove_mu if mu is None else mu, mu_t)
 
 
 def _axis_angles(rpy: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -175,7 +174,7 @@ def transfer_reference(
     hand: str = "ias4f",
     control_dt: float = 0.01,
     duration: float | None = None,
-    mu: float = GLOVE_PEN_MU,
+    mu: float | None = None,
     workspace: HandWorkspace | None = None,
     tolerances: dict[str, Tolerance] | None = None,
 ) -> SkillReference:
@@ -186,7 +185,8 @@ def transfer_reference(
         hand: the target hand's name (its workspace, unless ``workspace`` is given).
         control_dt: the target env's control period [s].
         duration: cut the reference after this long [s] (default: the whole skill).
-        mu: the demonstration's friction coefficient [-] (for its grasp margin).
+        mu: the demonstration's friction coefficient [-] (for its grasp margin; default:
+            the glove world's, as :func:`demonstrated_margin`).
         workspace: overrides the hand's workspace.
         tolerances: the success tolerances by skill class (default: the shipped ones,
             :func:`ias_gym.skills.tolerance.load_tolerances`).
