@@ -23,9 +23,8 @@ from ias_gym.assist.assistants import (
     REST_WINDOW,
     AnalyticAssistant,
     _along,
-    closing_direction,
-    load_templates,
 )
+from ias_gym.assist.pinch_geometry import closing_direction
 from ias_gym.assist.sessions import (
     HELD_FROM,
     POSITION_TOLERANCE,
@@ -35,6 +34,7 @@ from ias_gym.assist.sessions import (
     run_session,
     session_success,
 )
+from ias_gym.assist.skill_templates import load_templates
 from ias_gym.errors import InputError
 from ias_gym.glove.hand import PersonParams, joint_index
 from ias_gym.glove.impairment_spec import FAMILIES

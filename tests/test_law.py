@@ -20,7 +20,8 @@ from hypothesis import strategies as st
 
 import ias_gym  # noqa: F401  (registers the envs)
 from ias_gym.baselines import law
-from ias_gym.baselines.grip_transform_control import GripTransformController, _right_inverses
+from ias_gym.baselines.grip_transform_control import GripTransformController
+from ias_gym.baselines.grip_transform_terms import right_inverses
 from ias_gym.envs.pen_hand_env import PenHandEnv
 from ias_gym.grasp.grip_transform import GraspRankError, null_space_basis, pseudo_inverse
 from ias_gym.grasp.internal_forces import InternalForceSettings, friction_cone_residual
@@ -351,7 +352,7 @@ def test_the_controllers_right_inverse_of_a_batch_falls_back_per_env() -> None:
     rng = np.random.default_rng(4)
     W = np.stack([cylinder_grasp(rng) for _ in range(3)])
     W[1, :, 3:] = 0.0  # env 1: one finger left
-    result = _right_inverses(W)
+    result = right_inverses(W)
     np.testing.assert_allclose(result[1], np.linalg.pinv(W[1]), atol=1e-12)
     for i in (0, 2):
         np.testing.assert_allclose(result[i], pseudo_inverse(W[i]), rtol=1e-9, atol=1e-9)

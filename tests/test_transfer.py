@@ -38,9 +38,9 @@ from ias_gym.skills.transfer import (
     HandWorkspace,
     SkillTransferError,
     implied_wrench,
-    run_transfer,
     transfer_reference,
 )
+from ias_gym.skills.transfer_run import run_transfer
 
 MU = 0.25
 

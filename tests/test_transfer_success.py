@@ -33,7 +33,8 @@ from ias_gym.skills.tolerance import (
     skill_tolerance,
     still_reference,
 )
-from ias_gym.skills.transfer import run_transfer, shipped_skill_db, transfer_reference
+from ias_gym.skills.transfer import shipped_skill_db, transfer_reference
+from ias_gym.skills.transfer_run import run_transfer
 
 
 def shipped_references(hand: str = "ias4f") -> dict[str, SkillReference]:

@@ -17,7 +17,7 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from tqdm import tqdm
 
-from ias_gym.assist.assistants import load_templates
+from ias_gym.assist.skill_templates import load_templates
 from ias_gym.glove.impairments import IMPAIRMENTS
 from ias_gym.learning.assist_residual import ResidualAssistEnv
 

@@ -26,8 +26,9 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from ias_gym.assist.assistants import AnalyticAssistant, load_templates
+from ias_gym.assist.assistants import AnalyticAssistant
 from ias_gym.assist.sessions import evaluate_assistance, switch_latency
+from ias_gym.assist.skill_templates import load_templates
 from ias_gym.glove.impairments import DEFAULT_STRENGTHS, IMPAIRMENTS
 from ias_gym.glove.skills import SKILLS
 

@@ -240,12 +240,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return write_table(args, rows, parts[0]["db"], parts[0]["heldout"], **merged)
 
     from ias_gym.skills.db import SkillDB
-    from ias_gym.skills.transfer import (
-        hand_names,
-        run_transfer,
-        shipped_skill_db,
-        transfer_reference,
-    )
+    from ias_gym.skills.transfer import hand_names, shipped_skill_db, transfer_reference
+    from ias_gym.skills.transfer_run import run_transfer
 
     db_path = Path(args.db) if args.db else shipped_skill_db()
     hands = hand_names() if args.hands == "all" else args.hands.split(",")

@@ -42,7 +42,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ias_gym.outputs import atomic_output, check_output_file
     from ias_gym.rates import Rate
     from ias_gym.skills.db import SkillDB
-    from ias_gym.skills.transfer import hand_names, run_transfer, transfer_reference
+    from ias_gym.skills.transfer import hand_names, transfer_reference
+    from ias_gym.skills.transfer_run import run_transfer
 
     out = None
     if args.out_json:

@@ -31,7 +31,8 @@ for the posterior over the library's skills and returns joint-target offsets, th
      measures the library) and the pinch force's against :data:`FORCE_SHARE` of the
      library's, plus a slip reflex (:data:`SLIP_RATE` while the margin is at the cones'
      boundary), neither for a pinch already pressing :data:`FIRM_FORCE` times the
-     library's force; it closes along the line between the pads (:func:`closing_direction`);
+     library's force; it closes along the line between the pads
+     (:func:`~ias_gym.assist.pinch_geometry.closing_direction`);
    - after the close phase, a pinch with a pad off the pen closes at :data:`CLOSE_RATE`;
    - *the pad that comes to the pen first waits for the other*
      (:meth:`AnalyticAssistant._coordinate_offset`): until the close's end
@@ -58,8 +59,8 @@ close a loop through the lag, so a lag only delays the session, and predicting t
 operator's motion 0.1 s ahead from the library (another person's speed) or from its own
 recent past made lagged sessions worse.
 
-:class:`OracleRecogniser` has the recogniser protocol (``reset``, ``update``, ``add_skill``,
-``skills``) and knows the true intent (the env's
+:class:`~ias_gym.assist.oracle_recogniser.OracleRecogniser` has the recogniser protocol
+(``reset``, ``update``, ``add_skill``, ``skills``) and knows the true intent (the env's
 :meth:`~ias_gym.envs.glove_assist.GloveAssistEnv.intent`): the upper bound of recognition,
 and the stand-in until a learned recogniser is given.
 """
@@ -68,30 +69,21 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
-from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import butter, sosfilt, sosfilt_zi
 
+from ias_gym.assist.oracle_recogniser import OracleRecogniser
+from ias_gym.assist.pinch_geometry import CLOSING_JOINTS, closing_direction, live_margin
 from ias_gym.assist.sessions import LIFT_END, MAX_TIME_SHIFT
+from ias_gym.assist.skill_templates import SkillTemplate
 from ias_gym.assist.stream import frames_from_env
-from ias_gym.envs.glove_grasp import OBSERVATION
-from ias_gym.errors import InputError
 from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS, joint_index
 from ias_gym.glove.impairments import TREMOR_JOINTS, pinch_direction
 from ias_gym.glove.skills import SKILL_TIMINGS, SKILLS, skill_start_time
-from ias_gym.grasp.grasp_margin import grasp_margin
-from ias_gym.sim.scene_constants import glove_pad_friction
-from ias_gym.skills.db import SkillDB
-from ias_gym.skills.transfer import (
-    demonstrated_margin,
-    shipped_skill_db,
-    skill_start_index,
-)
 
 FloatArray = NDArray[np.float64]
 
@@ -167,7 +159,7 @@ COORDINATE_UNTIL = SKILL_TIMINGS.close - SKILL_TIMINGS.reach
 #: measured on development persons: docs/assistance.md) ...
 PUSH_DISTANCE = 0.002
 #: ... and the other finger reaches toward it at this rate along its part of
-#: :func:`closing_direction` [1/s] ...
+#: :func:`~ias_gym.assist.pinch_geometry.closing_direction` [1/s] ...
 REACH_RATE = 1.0
 #: ... up to this offset [rad, 1-norm] ...
 MAX_REACH = 0.4
@@ -191,212 +183,6 @@ HEIGHT_TIME_TOLERANCE = MAX_TIME_SHIFT
 _HEIGHT_SHIFTS = np.linspace(-HEIGHT_TIME_TOLERANCE, HEIGHT_TIME_TOLERANCE, 7)
 
 
-@dataclass(frozen=True)
-class SkillTemplate:
-    """One skill's stored model as the assistant uses it.
-
-    Attributes:
-        name: the skill.
-        time: ``(T,)`` episode time of the template [s], its skill starting at ``start``.
-        theta: ``(T, 10)`` the mean joint angles of the demonstrations [rad].
-        start: the template's skill start [s].
-        margin: the median grasp margin of the demonstrations from their skill start [-].
-        height: ``(T,)`` the mean height of the pen above its start [m] (the object
-            trajectory's vertical part).
-        force: the median pinch force of the demonstrations from their skill start (sum
-            of the pads' normal intensities) [N].
-    """
-
-    name: str
-    time: FloatArray
-    theta: FloatArray
-    start: float
-    margin: float
-    height: FloatArray
-    force: float
-
-    def height_at(self, tau: float) -> float:
-        """The pen's height above its start at template time ``tau`` [m]."""
-        return float(np.interp(tau, self.time, self.height))
-
-    def at(self, tau: float) -> FloatArray:
-        """``(10,)`` joint angles at template time ``tau`` [s] (linear interpolation, held
-        at the ends)."""
-        out: FloatArray = np.array(
-            [np.interp(tau, self.time, self.theta[:, j]) for j in range(N_JOINTS)]
-        )
-        return out
-
-
-def load_templates(db_path: str | Path | None = None) -> dict[str, SkillTemplate]:
-    """The templates of every glove skill in a library (default: the shipped one).
-
-    Each skill's demonstrations are aligned at their skill start and averaged.
-
-    Args:
-        db_path: a skill database (read-only).
-
-    Returns:
-        ``{skill name: template}`` for the glove skills the library holds.
-
-    Raises:
-        InputError: the file does not exist, or holds no glove skill.
-    """
-    path = Path(db_path) if db_path is not None else shipped_skill_db()
-    if not path.is_file():
-        raise InputError(f"skill library {path} does not exist (give an existing --db)")
-    groups: dict[str, list[tuple[FloatArray, FloatArray, float, float, FloatArray, float]]] = {}
-    with SkillDB(path, readonly=True) as db:
-        for skill_id in db.ids():
-            skill = db.get(skill_id)
-            if skill.name not in SKILLS or skill.person_id is None:
-                continue
-            model = skill.model
-            k = skill_start_index(skill)
-            margins = demonstrated_margin(skill)[k:]
-            finite = margins[np.isfinite(margins)]
-            margin = float(np.median(np.minimum(finite, 10.0))) if finite.size else 1.2
-            start = float(model.time[k])  # the record's own motion start (or its grasp's)
-            obs = np.asarray(skill.demonstration.observations, dtype=np.float64)
-            per = model.c.shape[1] // model.touching.shape[1]
-            normal = np.nan_to_num(np.asarray(model.c)[:, ::per]).sum(axis=1)
-            groups.setdefault(skill.name, []).append(
-                (
-                    np.asarray(model.time, dtype=np.float64),
-                    obs[:, OBSERVATION["joint_angles"]],
-                    start,
-                    margin,
-                    obs[:, OBSERVATION["pen_position"]][:, 2],  # the pen's height [m]
-                    float(np.median(normal[k:])),
-                )
-            )
-    if not groups:
-        raise InputError(f"skill library {path} holds no glove skill ({', '.join(SKILLS)})")
-    out = {}
-    for name, demos in groups.items():
-        start = float(np.mean([d[2] for d in demos]))
-        time = demos[0][0]
-        # every demonstration shifted so that its skill starts at the mean start
-        theta = np.mean(
-            [
-                np.stack(
-                    [np.interp(time + d[2] - start, d[0], d[1][:, j]) for j in range(N_JOINTS)], 1
-                )
-                for d in demos
-            ],
-            axis=0,
-        )
-        height = np.mean([np.interp(time + d[2] - start, d[0], d[4]) for d in demos], axis=0)
-        margin = float(np.median([d[3] for d in demos]))
-        force = float(np.median([d[5] for d in demos]))
-        out[name] = SkillTemplate(name, time, theta, start, margin, height, force)
-    return out
-
-
-class OracleRecogniser:
-    """A recogniser that knows the intent (the protocol of :mod:`ias_gym.assist.recognition`).
-
-    Args:
-        intent: episode time [s] -> the intended skill (e.g. the env's ``intent``).
-        skills: the skills it names.
-    """
-
-    def __init__(self, intent: Callable[[float], str], skills: Sequence[str] = SKILLS) -> None:
-        self.intent = intent
-        self._skills = tuple(skills)
-
-    @property
-    def skills(self) -> tuple[str, ...]:
-        """The skills it knows."""
-        return self._skills
-
-    def reset(self) -> None:
-        """Nothing to forget."""
-
-    def update(self, frame: Any) -> dict[str, float]:
-        """Posterior 1 on the intent at ``frame.time_s`` (``"unknown"`` if not a known skill)."""
-        truth = self.intent(float(frame.time_s))
-        post = dict.fromkeys((*self._skills, "unknown"), 0.0)
-        post[truth if truth in self._skills else "unknown"] = 1.0
-        return post
-
-    def add_skill(self, name: str, sessions: Sequence[Sequence[Any]]) -> None:
-        """Know ``name`` from now on (the oracle needs no sessions)."""
-        if name not in self._skills:
-            self._skills = (*self._skills, name)
-
-
-def live_margin(env: Any) -> float:
-    """The grasp margin of the pen's pinch now [-] (NaN unless both pads touch).
-
-    Args:
-        env: an unwrapped glove env after ``reset`` or ``step``.
-    """
-    from ias_gym.sim.glove_contacts import pinch_null_basis  # MuJoCo scene code
-
-    if env.contact_pass is None:
-        return math.nan
-    p = env.physics
-    contacts = p.finger_contacts(env.contact_pass)
-    W, active = p.wrench_matrix(contacts)
-    if not np.all(active):
-        return math.nan
-    N = pinch_null_basis(W, contacts)
-    if N is None:
-        return math.nan
-    c = p.contact_intensities(contacts)
-    c_h = N @ (N.T @ c)
-    return grasp_margin(c - c_h, c_h, *glove_pad_friction(), 4)
-
-
-#: Joints that close the pinch along the pads' line: the index's MCP and PIP, the thumb's
-#: CMC and flexion (with the thumb's coupled hinges).
-CLOSING_JOINTS: dict[str, tuple[str, ...]] = {
-    "index_tip": ("index_mcp", "index_pip"),
-    "thumb_tip": ("thumb_cmc", "thumb_flexion"),
-}
-
-
-def closing_direction(env: Any) -> FloatArray:
-    """``(10,)`` the joint-target direction that moves the index pad and the thumb pad
-    straight toward each other (along the line between them, where the pinch's internal
-    force acts: paper eq. 20), scaled to the 1-norm of
-    :func:`~ias_gym.glove.impairments.pinch_direction` [rad per unit].
-
-    Each finger's joints solve ``J dq = +-n`` in the least-squares sense with MuJoCo's site
-    Jacobian (the thumb's coupled hinges folded into its flexion). Closing along the
-    joints' own flexion instead (:func:`pinch_direction`) also slides the index pad along
-    the pen's surface, which pushes the pen out of a firm pinch (measured:
-    docs/assistance.md).
-
-    Args:
-        env: an unwrapped glove env after ``reset`` or ``step``.
-    """
-    import mujoco  # MuJoCo scene code
-
-    m, d = env.model, env.data
-    tips = {name: m.site(name).id for name in CLOSING_JOINTS}
-    line = d.site_xpos[tips["thumb_tip"]] - d.site_xpos[tips["index_tip"]]
-    n = line / max(float(np.linalg.norm(line)), 1e-9)
-    out = np.zeros(N_JOINTS)
-    jac = np.zeros((3, m.nv))
-    flex = joint_index("thumb_flexion")
-    for site, sign in (("index_tip", 1.0), ("thumb_tip", -1.0)):
-        mujoco.mj_jacSite(m, d, jac, None, tips[site])
-        cols = []
-        for name in CLOSING_JOINTS[site]:
-            col = jac[:, m.jnt_dofadr[m.joint(name).id]].copy()
-            if joint_index(name) == flex:
-                for j, ratio in zip(env._coupled_dofs, env._coupling, strict=True):
-                    col += ratio * jac[:, j]
-            cols.append(col)
-        dq, *_ = np.linalg.lstsq(np.stack(cols, axis=1), sign * n, rcond=None)
-        for name, v in zip(CLOSING_JOINTS[site], dq, strict=True):
-            out[joint_index(name)] = v
-    norm = float(np.abs(out).sum())
-    return out * (float(np.abs(pinch_direction()).sum()) / norm) if norm > 0 else pinch_direction()
-
-
 def _along(v: FloatArray, u: FloatArray) -> float:
     """The component of ``v`` along ``u``, in units of ``u``."""
     return float(u @ v / (u @ u))
@@ -406,9 +192,11 @@ class AnalyticAssistant:
     """Complete the recognised skill from its stored model (module docstring).
 
     Args:
-        templates: the library's templates (:func:`load_templates`).
+        templates: the library's templates
+            (:func:`~ias_gym.assist.skill_templates.load_templates`).
         recogniser: gives the posterior (the recogniser protocol); None: an
-            :class:`OracleRecogniser` on the env's intent, made at every :meth:`reset`.
+            :class:`~ias_gym.assist.oracle_recogniser.OracleRecogniser` on the env's
+            intent, made at every :meth:`reset`.
         tremor_filter, squeeze, height: switch the three terms (ablations).
         coordinate: switch the lone pad's wait and the other pad's reach (part of term 2).
     """

@@ -57,16 +57,26 @@ from typing import Any
 import numpy as np
 
 from ias_gym.baselines import law
+from ias_gym.baselines.grip_transform_terms import (
+    Gathered,
+    MotionRows,
+    ReferenceRows,
+    ahead,
+    estimated_masses,
+    lateral_servo,
+    right_inverses,
+    slide_servo,
+)
 from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv, PenReference
 from ias_gym.grasp.grasp_margin import scale_to_margin
-from ias_gym.grasp.grip_transform import null_space_basis, pseudo_inverse
+from ias_gym.grasp.grip_transform import null_space_basis
 from ias_gym.grasp.internal_forces import (
     Cone,
     InfeasibleGraspError,
     InternalForceSettings,
     InternalForceSolver,
 )
-from ias_gym.grasp.wrench_matrix import cross3, wrench_matrices
+from ias_gym.grasp.wrench_matrix import wrench_matrices
 from ias_gym.sim.pen_hand import mj_to_paper
 from ias_gym.sim.scene_constants import pen_friction
 
@@ -245,99 +255,6 @@ class GripTransformController:
         return np.clip(tau / env._ctrl_max, -1.0, 1.0)
 
 
-def _ahead(ref: PenReference, lead: float) -> PenReference:
-    """The reference ``lead`` seconds ahead, extrapolated with its own derivatives."""
-    if lead == 0.0:
-        return ref
-    axis = ref.axis + lead * cross3(ref.omega, ref.axis)
-    return PenReference(
-        position=ref.position + lead * ref.velocity + 0.5 * lead**2 * ref.acceleration,
-        velocity=ref.velocity + lead * ref.acceleration,
-        acceleration=ref.acceleration,
-        axis=axis / np.linalg.norm(axis),
-        omega=ref.omega + lead * ref.alpha,
-        alpha=ref.alpha,
-        sliding=ref.sliding,
-        contact_x=ref.contact_x,
-        contact_vx=ref.contact_vx,
-    )
-
-
-class _Gathered:
-    """What :func:`batch_torques` reads from ``n`` envs: one row per env (paper frame).
-
-    Each env's values are collected in lists and stacked once per field (a batch of one
-    takes a view of its only row: no copy).
-    """
-
-    motion: FloatArray  # (n, 12) measured position, axis, velocity, omega
-    ref: FloatArray  # (n, 6, 3) reference position, acceleration, axis, alpha, velocity, omega
-    contact_x: FloatArray  # (n, k) sliding schedule [m] (0: none)
-    contact_vx: FloatArray  # (n, k) [m/s]
-    sliding: NDArrayBool  # (n, k) touching and sliding
-    active: NDArrayBool  # (n, k)
-    points: FloatArray  # (n, k, 3)
-    frames: FloatArray  # (n, k, 3, 3)
-    com: FloatArray  # (n, 3)
-    J: FloatArray  # (n, 3 k, dofs)
-    prev_W: FloatArray  # (n, 6, 3 k), zeros on a first step
-    prev_J: FloatArray  # (n, 3 k, dofs)
-    c_measured: FloatArray  # (n, 3 k)
-    extra: FloatArray  # (n, 3 k) servo forces of the last step
-    qvel: FloatArray  # (n, dofs)
-    tips: FloatArray  # (n, k, 3)
-    tip_x: FloatArray  # (n, k)
-    M: FloatArray  # (n, dofs, dofs) (only with finger_inertia)
-    coriolis: FloatArray  # (n, dofs)
-    damping: FloatArray  # (n, dofs)
-    inertia: FloatArray  # (n, 3, 3)
-    gravity: FloatArray  # (n, 3)
-    mass: FloatArray  # (n,)
-    dt: FloatArray  # (n, 1)
-    scheduled: NDArrayBool  # (n, 1) the reference has a sliding schedule
-    first: NDArrayBool  # (n,) no previous W and J (first step)
-
-    #: The array fields, in the order of the rows :meth:`stack` takes.
-    FIELDS = (
-        "motion",
-        "ref",
-        "contact_x",
-        "contact_vx",
-        "sliding",
-        "active",
-        "points",
-        "frames",
-        "com",
-        "J",
-        "prev_W",
-        "prev_J",
-        "c_measured",
-        "extra",
-        "qvel",
-        "tips",
-        "tip_x",
-        "coriolis",
-        "damping",
-        "inertia",
-        "gravity",
-        "M",
-    )
-
-    def stack(self, rows: list[tuple[Any, ...]], scalars: list[tuple[Any, ...]]) -> _Gathered:
-        """The fields from one row per env (arrays in the order of :attr:`FIELDS`) and the
-        scalars ``(mass, dt, first, scheduled)`` per env."""
-        if len(rows) == 1:
-            for name, value in zip(self.FIELDS, rows[0], strict=False):
-                setattr(self, name, value[None])
-        else:
-            for name, column in zip(self.FIELDS, zip(*rows, strict=True), strict=False):
-                setattr(self, name, np.stack(column))
-        mass, dt, first, scheduled = zip(*scalars, strict=True)
-        self.mass, self.first = np.array(mass), np.array(first)
-        self.dt, self.scheduled = np.array(dt)[:, None], np.array(scheduled)[:, None]
-        return self
-
-
 def batch_torques(
     controllers: Sequence[GripTransformController],
     envs: Sequence[PenHandEnv],
@@ -381,7 +298,7 @@ def batch_torques(
     for i, (ctrl, env) in enumerate(zip(controllers, envs, strict=True)):
         ctrl._bind(env)
         p = env.physics
-        ref = _ahead(env.reference(), g.lead)
+        ref = ahead(env.reference(), g.lead)
         refs.append(ref)
         contacts = p.fingertip_contacts()
         J = p.fingertip_jacobians(contacts)
@@ -446,41 +363,13 @@ def batch_torques(
             )
         )
         scalars.append((p.pen_mass_nominal, env.config.control_dt, first, scheduled))
-    x = _Gathered().stack(rows, scalars)
+    x = Gathered().stack(rows, scalars)
     return _control_step(controllers, x, refs, slides, offsets, accel_offsets, margins)
-
-
-#: The mass estimate stays within this range of the nominal mass [-] (a misread force
-#: while a finger lands must not ask for a grip the hand cannot give).
-MASS_ESTIMATE_RANGE = (0.5, 2.0)
-
-
-def _estimated_masses(
-    controllers: Sequence[GripTransformController], x: _Gathered, W: FloatArray, tau: float
-) -> FloatArray:
-    """Each controller's estimate of the pen's mass [kg], updated from this step's measured
-    tip forces: the net contact force ``W c`` holds the pen against gravity, so its
-    component along ``-g`` over ``|g|^2`` is the mass (quasi-static), low-pass filtered with
-    time constant ``tau`` [s] and kept within :data:`MASS_ESTIMATE_RANGE` of the nominal
-    mass. Until every finger touches, the nominal mass."""
-    out = np.array(x.mass, dtype=float)
-    for i, ctrl in enumerate(controllers):
-        if ctrl._mass is None:
-            ctrl._mass = float(x.mass[i])
-        if bool(x.active[i].all()):
-            force = (W[i] @ x.c_measured[i])[:3]
-            gravity = x.gravity[i]
-            low, high = (r * float(x.mass[i]) for r in MASS_ESTIMATE_RANGE)
-            reading = float(np.clip(-(force @ gravity) / (gravity @ gravity), low, high))
-            alpha = float(x.dt[i, 0]) / (tau + float(x.dt[i, 0]))
-            ctrl._mass += alpha * (reading - ctrl._mass)
-        out[i] = ctrl._mass
-    return out
 
 
 def _control_step(
     controllers: Sequence[GripTransformController],
-    x: _Gathered,
+    x: Gathered,
     refs: Sequence[PenReference],
     slides: Sequence[dict[int, FloatArray]],
     offsets: Sequence[FloatArray | None],
@@ -490,8 +379,8 @@ def _control_step(
     """The control step of :func:`batch_torques` on the gathered rows (order of eq. 45)."""
     g = controllers[0].gains
     settings = controllers[0]._settings
-    state = _Motion(x.motion)
-    ref = _Reference(x.ref)
+    state = MotionRows(x.motion)
+    ref = ReferenceRows(x.ref)
     active = x.active
     W = wrench_matrices(x.points, x.frames, x.com)
     if not active.all():  # zero columns for fingers not touching
@@ -509,7 +398,10 @@ def _control_step(
         a_d = a_d + accel_offsets
     mass, pen_inertia = x.mass, x.inertia
     if g.mass_time_constant > 0:
-        mass = _estimated_masses(controllers, x, W, g.mass_time_constant)
+        current = [x.mass[i] if c._mass is None else c._mass for i, c in enumerate(controllers)]
+        mass = estimated_masses(np.array(current, dtype=float), x, W, g.mass_time_constant)
+        for ctrl, estimate in zip(controllers, mass, strict=True):
+            ctrl._mass = float(estimate)
         pen_inertia = x.inertia * (mass / x.mass)[:, None, None]
     wrench = law.object_wrench(mass, pen_inertia, state.omega, a_d, x.gravity)
     c_ref = np.empty_like(x.c_measured)
@@ -524,7 +416,7 @@ def _control_step(
             feasible[i] = False
 
     # Grip transform of the measured W (eqs. 5, 7): c = c_p + c_h.
-    W_pinv = _right_inverses(W, active.sum(axis=-1))
+    W_pinv = right_inverses(W, active.sum(axis=-1))
     dW = (W - x.prev_W) / x.dt[:, :, None]
     first = bool(x.first.any())
     if first:
@@ -562,8 +454,8 @@ def _control_step(
     c_cmd = c_p + c_h_cmd
 
     extra = np.zeros(c_cmd.shape)
-    extra[:, 2::3] = _lateral_servo(g, state, x.frames, J, x.qvel, x.tips)
-    extra[:, 1::3] = _slide_servo(g, state, x, J)
+    extra[:, 2::3] = lateral_servo(g.kp_lateral, g.kv_lateral, state, x.frames, J, x.qvel, x.tips)
+    extra[:, 1::3] = slide_servo(g.kp_slide, g.kv_slide, state, x, J)
     f = c_cmd + extra
 
     # H of eq. (35): Coriolis/centrifugal forces (gravity is compensated by the model's
@@ -604,87 +496,3 @@ def _control_step(
             float(error_scale[i]),
         )
     return tau
-
-
-class _Motion:
-    """Rows of measured object motion (``law.ObjectMotion`` for a batch)."""
-
-    def __init__(self, rows: FloatArray) -> None:
-        self.position, self.axis = rows[:, 0:3], rows[:, 3:6]
-        self.velocity, self.omega = rows[:, 6:9], rows[:, 9:12]
-
-
-class _Reference:
-    """Rows of references (``law.ObjectReference`` for a batch)."""
-
-    def __init__(self, rows: FloatArray) -> None:
-        self.position, self.acceleration, self.axis = rows[:, 0], rows[:, 1], rows[:, 2]
-        self.alpha, self.velocity, self.omega = rows[:, 3], rows[:, 4], rows[:, 5]
-        self.twist = rows[:, 4:].reshape(len(rows), 6)  # [velocity; omega]
-
-
-def _right_inverses(W: FloatArray, touching: np.ndarray | None = None) -> FloatArray:
-    """``W+ = W^T (W W^T)^-1`` (eq. 5) of each ``(6, 3 k)`` W of a batch of hard-finger
-    grasps (columns of a finger not touching are zero): one batched inverse of the 6 x 6
-    ``W W^T`` (a solve with W's 3 k columns as right-hand sides costs the same and changes
-    the last bits).
-
-    A grasp with at most two touching contacts has rank W <= 5 (no moment about the line
-    through them), so ``W W^T`` is singular: that env gets the least-squares inverse
-    ``np.linalg.pinv(W)`` (:func:`~ias_gym.grasp.grip_transform.pseudo_inverse`), decided
-    from the zero columns, not from the rounding errors of an elimination. So does every env
-    of a batch whose inverse LAPACK finds singular.
-    """
-    if touching is None:  # the touching contacts: those with a nonzero column
-        m = W.shape[-1] // 3
-        touching = np.any(W.reshape(*W.shape[:-1], m, 3) != 0.0, axis=(-3, -1)).sum(axis=-1)
-    few = touching <= 2
-    if few.any():
-        result = np.empty(W.swapaxes(-1, -2).shape)
-        result[few] = [np.linalg.pinv(w) for w in W[few]]
-        if (~few).any():
-            result[~few] = _right_inverses(W[~few], touching[~few])
-        return result
-    gram = W @ W.swapaxes(-1, -2)
-    try:
-        inverse: FloatArray = np.linalg.inv(gram).astype(np.float64, copy=False)
-    except np.linalg.LinAlgError:
-        return np.stack([pseudo_inverse(w, least_squares_if_singular=True) for w in W])
-    result = W.swapaxes(-1, -2) @ inverse
-    return result
-
-
-def _lateral_servo(
-    g: ControllerGains,
-    s: _Motion,
-    frames: FloatArray,
-    J: FloatArray,
-    qvel: FloatArray,
-    tips: FloatArray,
-) -> FloatArray:
-    """Forces along t2 [N] ``(n, k)`` that keep each tip on the pen's top or bottom line.
-
-    Without them nothing holds the tips from circling the pen (the pen rolls with them at
-    no cost), and they drift until the grasp breaks. The lateral direction is built from
-    the vertical and the pen's axis, never from the pen's own (rolling) frame.
-    """
-    ax, az = s.axis[:, 0], s.axis[:, 2]
-    norm = np.hypot(ax, az)
-    lateral = np.zeros_like(s.axis)  # up x axis, normalised
-    lateral[:, 0], lateral[:, 2] = az / norm, -ax / norm
-    sign = law._matvec(frames[:, :, 2], lateral)  # t2 is +-lateral
-    offset = law._matvec(tips - s.position[:, None], lateral)
-    rate = sign * law._matvec(J[:, 2::3], qvel) - law._dot(s.velocity, lateral)[:, None]
-    result: FloatArray = -sign * (g.kp_lateral * offset + g.kv_lateral * rate)
-    return result
-
-
-def _slide_servo(g: ControllerGains, s: _Motion, x: _Gathered, J: FloatArray) -> FloatArray:
-    """Forces along t1 [N] ``(n, k)`` that move sliding tips along their schedule (eq. 17);
-    zero for the others."""
-    # Velocity of each tip along the pen relative to the pen's centre, from J.
-    vx = law._matvec(J[:, 1::3], x.qvel) - law._dot(s.velocity, s.axis)[:, None]
-    error = x.contact_x - x.tip_x
-    force = g.kp_slide * error + g.kv_slide * (x.contact_vx - vx)
-    result: FloatArray = np.where(x.sliding & x.scheduled, force, 0.0)
-    return result

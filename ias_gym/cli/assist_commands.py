@@ -176,7 +176,8 @@ def _assistant_factory(kind: str, recogniser: str, db: Path) -> Any:
         layout = observation_layout(OBSERVATION_PARTS)
         assistant = make_assistant(db, recogniser, layout=layout)
         return lambda: assistant
-    from ias_gym.assist.assistants import AnalyticAssistant, load_templates
+    from ias_gym.assist.assistants import AnalyticAssistant
+    from ias_gym.assist.skill_templates import load_templates
 
     templates = load_templates(db)
     make_recogniser = _recogniser_factory(recogniser, db)
@@ -252,8 +253,9 @@ def _demo(args: argparse.Namespace) -> int:
     import gymnasium as gym
     import numpy as np
 
-    from ias_gym.assist.assistants import AnalyticAssistant, load_templates
+    from ias_gym.assist.assistants import AnalyticAssistant
     from ias_gym.assist.sessions import AssistantPolicy
+    from ias_gym.assist.skill_templates import load_templates
     from ias_gym.evaluation import write_video
     from ias_gym.rollout import FrameRecorder, rollout
 

@@ -52,13 +52,8 @@ def _transfer(args: argparse.Namespace) -> int:
         raise InputError("skills transfer needs --id N (or --list-hands)")
     from ias_gym.outputs import check_output_file
     from ias_gym.skills.db import SkillDB, SkillNotFoundError
-    from ias_gym.skills.transfer import (
-        METHODS,
-        hand_names,
-        run_transfer,
-        shipped_skill_db,
-        transfer_reference,
-    )
+    from ias_gym.skills.transfer import hand_names, shipped_skill_db, transfer_reference
+    from ias_gym.skills.transfer_run import METHODS, run_transfer
 
     if args.method not in METHODS:
         raise InputError(f"unknown --method {args.method!r}; methods: {list(METHODS)}")

@@ -21,14 +21,13 @@ from ias_gym.figures._io import save_png_atomic
 from ias_gym.outputs import check_output_file
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.transfer import (
-    TransferRun,
     demonstrated_margin,
     hand_names,
-    run_transfer,
     shipped_skill_db,
     skill_start_index,
     transfer_reference,
 )
+from ias_gym.skills.transfer_run import TransferRun, run_transfer
 
 #: The skill the figure shows by default: p1's slow see-saw in the shipped library.
 DEFAULT_SKILL_ID = 2

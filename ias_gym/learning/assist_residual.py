@@ -26,7 +26,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from ias_gym.assist.assistants import AnalyticAssistant, SkillTemplate
+from ias_gym.assist.assistants import AnalyticAssistant
 from ias_gym.assist.sessions import (
     OBS_PEN,
     OBS_QUAT,
@@ -35,6 +35,7 @@ from ias_gym.assist.sessions import (
     pen_axis,
     run_session,
 )
+from ias_gym.assist.skill_templates import SkillTemplate
 from ias_gym.envs.glove_assist import OBS_SIZE
 from ias_gym.glove.hand import N_JOINTS
 from ias_gym.glove.impairments import Impairment, reference_kwargs

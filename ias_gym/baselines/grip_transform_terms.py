@@ -1,0 +1,227 @@
+"""The batched terms of the grip-transform controller: gathered rows, servos, inverses.
+
+:func:`~ias_gym.baselines.grip_transform_control.batch_torques` reads ``n`` envs into one
+:class:`Gathered` (a row per env, paper frame) and computes the control step on the rows;
+the pieces it needs beyond the law's pure terms (:mod:`ias_gym.baselines.law`) live here:
+the reference extrapolated by the controller's lead (:func:`ahead`), the rows as the law's
+motion and reference (:class:`MotionRows`, :class:`ReferenceRows`), the batched right inverse
+``W+`` of eq. (5) (:func:`right_inverses`) and the two servos beyond the paper that hold the
+tips on the pen (:func:`lateral_servo`) and move sliding tips along their schedule
+(:func:`slide_servo`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ias_gym.baselines import law
+from ias_gym.envs.pen_hand_env import FloatArray, PenReference
+from ias_gym.grasp.grip_transform import pseudo_inverse
+from ias_gym.grasp.wrench_matrix import cross3
+
+NDArrayBool = np.ndarray
+
+
+def ahead(ref: PenReference, lead: float) -> PenReference:
+    """The reference ``lead`` seconds ahead, extrapolated with its own derivatives."""
+    if lead == 0.0:
+        return ref
+    axis = ref.axis + lead * cross3(ref.omega, ref.axis)
+    return PenReference(
+        position=ref.position + lead * ref.velocity + 0.5 * lead**2 * ref.acceleration,
+        velocity=ref.velocity + lead * ref.acceleration,
+        acceleration=ref.acceleration,
+        axis=axis / np.linalg.norm(axis),
+        omega=ref.omega + lead * ref.alpha,
+        alpha=ref.alpha,
+        sliding=ref.sliding,
+        contact_x=ref.contact_x,
+        contact_vx=ref.contact_vx,
+    )
+
+
+class Gathered:
+    """What :func:`~ias_gym.baselines.grip_transform_control.batch_torques` reads from ``n``
+    envs: one row per env (paper frame).
+
+    Each env's values are collected in lists and stacked once per field (a batch of one
+    takes a view of its only row: no copy).
+    """
+
+    motion: FloatArray  # (n, 12) measured position, axis, velocity, omega
+    ref: FloatArray  # (n, 6, 3) reference position, acceleration, axis, alpha, velocity, omega
+    contact_x: FloatArray  # (n, k) sliding schedule [m] (0: none)
+    contact_vx: FloatArray  # (n, k) [m/s]
+    sliding: NDArrayBool  # (n, k) touching and sliding
+    active: NDArrayBool  # (n, k)
+    points: FloatArray  # (n, k, 3)
+    frames: FloatArray  # (n, k, 3, 3)
+    com: FloatArray  # (n, 3)
+    J: FloatArray  # (n, 3 k, dofs)
+    prev_W: FloatArray  # (n, 6, 3 k), zeros on a first step
+    prev_J: FloatArray  # (n, 3 k, dofs)
+    c_measured: FloatArray  # (n, 3 k)
+    extra: FloatArray  # (n, 3 k) servo forces of the last step
+    qvel: FloatArray  # (n, dofs)
+    tips: FloatArray  # (n, k, 3)
+    tip_x: FloatArray  # (n, k)
+    M: FloatArray  # (n, dofs, dofs) (only with finger_inertia)
+    coriolis: FloatArray  # (n, dofs)
+    damping: FloatArray  # (n, dofs)
+    inertia: FloatArray  # (n, 3, 3)
+    gravity: FloatArray  # (n, 3)
+    mass: FloatArray  # (n,)
+    dt: FloatArray  # (n, 1)
+    scheduled: NDArrayBool  # (n, 1) the reference has a sliding schedule
+    first: NDArrayBool  # (n,) no previous W and J (first step)
+
+    #: The array fields, in the order of the rows :meth:`stack` takes.
+    FIELDS = (
+        "motion",
+        "ref",
+        "contact_x",
+        "contact_vx",
+        "sliding",
+        "active",
+        "points",
+        "frames",
+        "com",
+        "J",
+        "prev_W",
+        "prev_J",
+        "c_measured",
+        "extra",
+        "qvel",
+        "tips",
+        "tip_x",
+        "coriolis",
+        "damping",
+        "inertia",
+        "gravity",
+        "M",
+    )
+
+    def stack(self, rows: list[tuple[Any, ...]], scalars: list[tuple[Any, ...]]) -> Gathered:
+        """The fields from one row per env (arrays in the order of :attr:`FIELDS`) and the
+        scalars ``(mass, dt, first, scheduled)`` per env."""
+        if len(rows) == 1:
+            for name, value in zip(self.FIELDS, rows[0], strict=False):
+                setattr(self, name, value[None])
+        else:
+            for name, column in zip(self.FIELDS, zip(*rows, strict=True), strict=False):
+                setattr(self, name, np.stack(column))
+        mass, dt, first, scheduled = zip(*scalars, strict=True)
+        self.mass, self.first = np.array(mass), np.array(first)
+        self.dt, self.scheduled = np.array(dt)[:, None], np.array(scheduled)[:, None]
+        return self
+
+
+class MotionRows:
+    """Rows of measured object motion (``law.ObjectMotion`` for a batch)."""
+
+    def __init__(self, rows: FloatArray) -> None:
+        self.position, self.axis = rows[:, 0:3], rows[:, 3:6]
+        self.velocity, self.omega = rows[:, 6:9], rows[:, 9:12]
+
+
+class ReferenceRows:
+    """Rows of references (``law.ObjectReference`` for a batch)."""
+
+    def __init__(self, rows: FloatArray) -> None:
+        self.position, self.acceleration, self.axis = rows[:, 0], rows[:, 1], rows[:, 2]
+        self.alpha, self.velocity, self.omega = rows[:, 3], rows[:, 4], rows[:, 5]
+        self.twist = rows[:, 4:].reshape(len(rows), 6)  # [velocity; omega]
+
+
+def right_inverses(W: FloatArray, touching: np.ndarray | None = None) -> FloatArray:
+    """``W+ = W^T (W W^T)^-1`` (eq. 5) of each ``(6, 3 k)`` W of a batch of hard-finger
+    grasps (columns of a finger not touching are zero): one batched inverse of the 6 x 6
+    ``W W^T`` (a solve with W's 3 k columns as right-hand sides costs the same and changes
+    the last bits).
+
+    A grasp with at most two touching contacts has rank W <= 5 (no moment about the line
+    through them), so ``W W^T`` is singular: that env gets the least-squares inverse
+    ``np.linalg.pinv(W)`` (:func:`~ias_gym.grasp.grip_transform.pseudo_inverse`), decided
+    from the zero columns, not from the rounding errors of an elimination. So does every env
+    of a batch whose inverse LAPACK finds singular.
+    """
+    if touching is None:  # the touching contacts: those with a nonzero column
+        m = W.shape[-1] // 3
+        touching = np.any(W.reshape(*W.shape[:-1], m, 3) != 0.0, axis=(-3, -1)).sum(axis=-1)
+    few = touching <= 2
+    if few.any():
+        result = np.empty(W.swapaxes(-1, -2).shape)
+        result[few] = [np.linalg.pinv(w) for w in W[few]]
+        if (~few).any():
+            result[~few] = right_inverses(W[~few], touching[~few])
+        return result
+    gram = W @ W.swapaxes(-1, -2)
+    try:
+        inverse: FloatArray = np.linalg.inv(gram).astype(np.float64, copy=False)
+    except np.linalg.LinAlgError:
+        return np.stack([pseudo_inverse(w, least_squares_if_singular=True) for w in W])
+    result = W.swapaxes(-1, -2) @ inverse
+    return result
+
+
+def lateral_servo(
+    kp: float,
+    kv: float,
+    s: MotionRows,
+    frames: FloatArray,
+    J: FloatArray,
+    qvel: FloatArray,
+    tips: FloatArray,
+) -> FloatArray:
+    """Forces along t2 [N] ``(n, k)`` that keep each tip on the pen's top or bottom line.
+
+    Without them nothing holds the tips from circling the pen (the pen rolls with them at
+    no cost), and they drift until the grasp breaks. The lateral direction is built from
+    the vertical and the pen's axis, never from the pen's own (rolling) frame.
+    """
+    ax, az = s.axis[:, 0], s.axis[:, 2]
+    norm = np.hypot(ax, az)
+    lateral = np.zeros_like(s.axis)  # up x axis, normalised
+    lateral[:, 0], lateral[:, 2] = az / norm, -ax / norm
+    sign = law._matvec(frames[:, :, 2], lateral)  # t2 is +-lateral
+    offset = law._matvec(tips - s.position[:, None], lateral)
+    rate = sign * law._matvec(J[:, 2::3], qvel) - law._dot(s.velocity, lateral)[:, None]
+    result: FloatArray = -sign * (kp * offset + kv * rate)
+    return result
+
+
+def slide_servo(kp: float, kv: float, s: MotionRows, x: Gathered, J: FloatArray) -> FloatArray:
+    """Forces along t1 [N] ``(n, k)`` that move sliding tips along their schedule (eq. 17);
+    zero for the others."""
+    # Velocity of each tip along the pen relative to the pen's centre, from J.
+    vx = law._matvec(J[:, 1::3], x.qvel) - law._dot(s.velocity, s.axis)[:, None]
+    error = x.contact_x - x.tip_x
+    force = kp * error + kv * (x.contact_vx - vx)
+    result: FloatArray = np.where(x.sliding & x.scheduled, force, 0.0)
+    return result
+
+
+#: The mass estimate stays within this range of the nominal mass [-] (a misread force
+#: while a finger lands must not ask for a grip the hand cannot give).
+MASS_ESTIMATE_RANGE = (0.5, 2.0)
+
+
+def estimated_masses(current: FloatArray, x: Gathered, W: FloatArray, tau: float) -> FloatArray:
+    """The estimates of the pen's mass [kg] ``(n,)``, updated from this step's measured tip
+    forces: the net contact force ``W c`` holds the pen against gravity, so its component
+    along ``-g`` over ``|g|^2`` is the mass (quasi-static), low-pass filtered with time
+    constant ``tau`` [s] and kept within :data:`MASS_ESTIMATE_RANGE` of the nominal mass
+    (``x.mass``). An env whose fingers do not all touch keeps its ``current`` estimate.
+    """
+    out = np.array(current, dtype=float)
+    for i in range(len(out)):
+        if bool(x.active[i].all()):
+            force = (W[i] @ x.c_measured[i])[:3]
+            gravity = x.gravity[i]
+            low, high = (r * float(x.mass[i]) for r in MASS_ESTIMATE_RANGE)
+            reading = float(np.clip(-(force @ gravity) / (gravity @ gravity), low, high))
+            alpha = float(x.dt[i, 0]) / (tau + float(x.dt[i, 0]))
+            out[i] += alpha * (reading - out[i])
+    return out
