@@ -14,6 +14,7 @@ BENCHES = (
     "bench_glove.py",
     "bench_glove_loop.py",
     "bench_glove_speed.py",
+    "bench_shadow_adroit.py",
 )
 
 if __name__ == "__main__":
