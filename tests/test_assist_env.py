@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import ias_gym  # noqa: F401  (registers the ids)
+from ias_gym.assist.assistance_evaluation import REFERENCE_STARTS, reference_session
 from ias_gym.assist.assistants import (
     BIAS_THRESHOLD,
     CLOSING_DEADBAND,
@@ -28,9 +29,7 @@ from ias_gym.assist.pinch_geometry import closing_direction
 from ias_gym.assist.sessions import (
     HELD_FROM,
     POSITION_TOLERANCE,
-    REFERENCE_STARTS,
     SessionResult,
-    reference_session,
     run_session,
     session_success,
 )
@@ -395,7 +394,7 @@ def test_a_knife_edge_reference_is_no_reference(
     ones (here sessions made up, so the test is of the rule, not of one person's chaos) and
     keeps the first only when each other one holds the pen from the lift on and agrees with
     it; a first that fails itself is none either."""
-    import ias_gym.assist.sessions as evaluation
+    import ias_gym.assist.assistance_evaluation as evaluation
 
     assert len(nearby) == REFERENCE_STARTS
     env = make(skill="lift_hold")
@@ -584,7 +583,7 @@ def test_the_opening_is_read_finger_by_finger_at_rest_and_along_the_pinch_in_the
 
 
 def test_with_the_phase_recogniser_the_assistant_follows_an_intent_switch(templates) -> None:
-    from ias_gym.assist.recognition import make_recogniser
+    from ias_gym.assist.recogniser_registry import make_recogniser
     from ias_gym.skills import SkillDB
     from ias_gym.skills.transfer import shipped_skill_db
 

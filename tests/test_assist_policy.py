@@ -15,9 +15,9 @@ import ias_gym  # noqa: F401
 from ias_gym.assist.policy import (
     AssistParams,
     frame_from_observation,
-    load_motions,
     make_assistant,
 )
+from ias_gym.assist.skill_motions import load_motions
 from ias_gym.assist.stream import frames_from_env
 from ias_gym.errors import InputError
 from ias_gym.evaluation import perturbed_starts

@@ -13,6 +13,7 @@ import pytest
 
 pytest.importorskip("dtaidistance")
 
+from ias_gym.assist.dtw_recogniser import DTW_STRIDE, DTWRecogniser, open_end_dtw_cost
 from ias_gym.assist.metrics import (
     LabelledSession,
     auroc,
@@ -21,17 +22,14 @@ from ias_gym.assist.metrics import (
     record_sessions,
     score_trace,
 )
+from ias_gym.assist.phase_recogniser import PhaseRecogniser
+from ias_gym.assist.recogniser_registry import make_recogniser
 from ias_gym.assist.recognition import (
-    DTW_STRIDE,
     UNKNOWN,
-    DTWRecogniser,
     LibrarySession,
-    PhaseRecogniser,
     Posterior,
     Recogniser,
     acquire_skill,
-    make_recogniser,
-    open_end_dtw_cost,
 )
 from ias_gym.assist.stream import frames_from_skill
 from ias_gym.cli import main
@@ -399,7 +397,7 @@ def _frames(times: np.ndarray, pronation: np.ndarray, offset_m: float = 0.0) -> 
 def test_features_ignore_where_a_person_holds_the_pen() -> None:
     """Features are relative to the end of the lift: a person's lateral pen offset of 1 cm
     changes nothing, the skill's motion after it does."""
-    from ias_gym.assist.recognition import FEATURE_T0, feature_matrix
+    from ias_gym.assist.recognition_features import FEATURE_T0, feature_matrix
 
     t = np.arange(0, 401) * 0.01
     motion = np.where(t > FEATURE_T0, 0.2 * np.sin(t - FEATURE_T0), 0.0)
@@ -429,7 +427,7 @@ def test_dtw_window_keeps_a_still_hold_from_matching_a_skill_not_started_yet() -
 
 
 def _as_lib(t: np.ndarray, pronation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    from ias_gym.assist.recognition import feature_matrix
+    from ias_gym.assist.recognition_features import feature_matrix
 
     return feature_matrix(_frames(t, pronation)), t
 

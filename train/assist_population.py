@@ -17,8 +17,10 @@ import gymnasium as gym
 from tqdm import tqdm
 
 import ias_gym  # noqa: F401  (registers the envs)
-from ias_gym.assist.policy import load_motions, make_assistant
-from ias_gym.assist.sessions import reference_session, run_session, session_success
+from ias_gym.assist.assistance_evaluation import reference_session
+from ias_gym.assist.policy import make_assistant
+from ias_gym.assist.sessions import run_session, session_success
+from ias_gym.assist.skill_motions import load_motions
 from ias_gym.envs.glove_assist import OBSERVATION_PARTS
 from ias_gym.envs.layout import observation_layout
 from ias_gym.glove.impairment_spec import expand_specs

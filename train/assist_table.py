@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from ias_gym.assist.assistance_evaluation import evaluate_assistance, switch_latency
 from ias_gym.assist.assistants import AnalyticAssistant
-from ias_gym.assist.sessions import evaluate_assistance, switch_latency
 from ias_gym.assist.skill_templates import load_templates
 from ias_gym.glove.impairments import DEFAULT_STRENGTHS, IMPAIRMENTS
 from ias_gym.glove.skills import SKILLS
@@ -82,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     templates = load_templates(args.db)
     assistants: dict[str, Any] = {"analytic": lambda: AnalyticAssistant(templates)}
     if args.recogniser != "oracle":
-        from ias_gym.assist.recognition import make_recogniser
+        from ias_gym.assist.recogniser_registry import make_recogniser
         from ias_gym.skills import SkillDB
         from ias_gym.skills.transfer import shipped_skill_db
 

@@ -28,8 +28,9 @@ import numpy as np
 from tqdm import tqdm
 
 import ias_gym  # noqa: F401  (registers the envs)
-from ias_gym.assist.policy import PARAMS_PATH, AssistParams, load_motions, make_assistant
+from ias_gym.assist.policy import PARAMS_PATH, AssistParams, make_assistant
 from ias_gym.assist.sessions import run_session
+from ias_gym.assist.skill_motions import load_motions
 from ias_gym.glove.impairment_spec import FAMILIES
 from ias_gym.glove.impairments import session_rng
 from ias_gym.glove.population import population_ids

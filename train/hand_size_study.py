@@ -29,8 +29,9 @@ import numpy as np
 from tqdm import tqdm
 
 import ias_gym  # noqa: F401  (registers the ids)
+from ias_gym.assist.assistance_evaluation import reference_session
 from ias_gym.assist.assistants import AnalyticAssistant
-from ias_gym.assist.sessions import reference_session, run_session, session_record
+from ias_gym.assist.sessions import run_session, session_record
 from ias_gym.assist.skill_templates import load_templates
 from ias_gym.glove.skills import SKILLS
 

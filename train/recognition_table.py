@@ -32,7 +32,8 @@ from ias_gym.assist.metrics import (
     labelled_session,
     record_sessions,
 )
-from ias_gym.assist.recognition import METHODS, UNKNOWN, acquire_skill, make_recogniser
+from ias_gym.assist.recogniser_registry import METHODS, make_recogniser
+from ias_gym.assist.recognition import UNKNOWN, acquire_skill
 from ias_gym.errors import InputError
 from ias_gym.glove.skills import SKILLS
 from ias_gym.skills import Skill, SkillDB

@@ -27,12 +27,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym.assist.recogniser_registry import make_recogniser
 from ias_gym.assist.recognition import (
     UNKNOWN,
     LibrarySession,
     Recogniser,
     library_session,
-    make_recogniser,
 )
 from ias_gym.assist.stream import SessionFrame, frames_from_skill
 from ias_gym.errors import InputError
@@ -316,7 +316,7 @@ def unknown_auroc(
     """Leave each skill out of the library in turn; score the sessions as unknown.
 
     Args:
-        method: the recogniser (:func:`~ias_gym.assist.recognition.make_recogniser`).
+        method: the recogniser (:func:`~ias_gym.assist.recogniser_registry.make_recogniser`).
         library: the library's sessions.
         sessions: test sessions (other persons).
 

@@ -17,20 +17,21 @@ Every step:
    recogniser (:mod:`ias_gym.assist.recognition`) updates its posterior ``p_k`` over the
    library's skills and ``unknown``.
 2. **Completion from the recognised skill's stored model.** Each skill's template
-   (:class:`SkillMotion`: the mean of its demonstrations' joint trajectories, aligned at
-   their skill start, less the pose at the start) says how the skill moves the joints it
-   moves. For each skill the assistant fits the operator's own version of it to what the
-   operator has done since the skill's motion set in: amplitude ``a``, speed ``v`` and
-   start ``t0`` (least squares over a grid of ``v`` and ``t0``, ``a`` in closed form), so
-   that ``a m_k(v (t - t0))`` is this person's motion. When the operator's motion falls
-   short of the fitted model's (their speed over :attr:`AssistParams.stop_window_s` below
-   :attr:`AssistParams.stop_ratio` of the model's, on the skill's principal joint, with at
-   least :attr:`AssistParams.min_remaining_rad` of the model's motion still to go), the
-   assistant latches that the operator has stopped and drives the principal joint the rest
-   of the way, resuming from the stopped pose and catching up with the fitted timeline at
-   twice its pace: offset ``= a m_k(v (t - t0)) - (Θ - Θ_0)``, weighted by the skill's
-   posterior a stop window before the stop (the ``unknown`` share adds nothing, so without
-   skill knowledge there is no completion).
+   (:class:`~ias_gym.assist.skill_motions.SkillMotion`: the mean of its demonstrations'
+   joint trajectories, aligned at their skill start, less the pose at the start) says how
+   the skill moves the joints it moves. For each skill the assistant fits the operator's own
+   version of it to what the operator has done since the skill's motion set in: amplitude
+   ``a``, speed ``v`` and start ``t0`` (least squares over a grid of ``v`` and ``t0``, ``a``
+   in closed form), so that ``a m_k(v (t - t0))`` is this person's motion. When the
+   operator's motion falls short of the fitted model's (their speed over
+   :attr:`AssistParams.stop_window_s` below :attr:`AssistParams.stop_ratio` of the model's,
+   on the skill's principal joint, with at least :attr:`AssistParams.min_remaining_rad` of
+   the model's motion still to go), the assistant latches that the operator has stopped and
+   drives the principal joint the rest of the way, resuming from the stopped pose and
+   catching up with the fitted timeline at twice its pace:
+   offset ``= a m_k(v (t - t0)) - (Θ - Θ_0)``, weighted by the skill's posterior a stop
+   window before the stop (the ``unknown`` share adds nothing, so without skill knowledge
+   there is no completion).
 
 The thresholds are :class:`AssistParams`, fitted on development persons by
 ``train/fit_assistant.py`` and stored in ``ias_gym/assets/assistant_params.json``.
@@ -50,27 +51,21 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.assist.recognition import METHODS, make_recogniser
+from ias_gym.assist.recogniser_registry import METHODS, make_recogniser
 from ias_gym.assist.sessions import LIFT_END
+from ias_gym.assist.skill_motions import SkillMotion, load_motions
 from ias_gym.assist.stream import SessionFrame
-from ias_gym.envs.glove_grasp import OBSERVATION
 from ias_gym.errors import InputError
 from ias_gym.glove.hand import N_JOINTS
-from ias_gym.glove.skills import SKILLS
 from ias_gym.outputs import atomic_output
 from ias_gym.sim.pen import R_PAPER_TO_MJ, matrix_to_rpy, mj_to_paper
 from ias_gym.skills.db import SkillDB
-from ias_gym.skills.transfer import shipped_skill_db, skill_start_index
+from ias_gym.skills.transfer import shipped_skill_db
 
 FloatArray = NDArray[np.float64]
 
 #: Where the fitted parameters are stored (``train/fit_assistant.py`` writes it).
 PARAMS_PATH = Path(__file__).resolve().parents[1] / "assets" / "assistant_params.json"
-#: A skill's template moves a joint if its range over the motion, beyond the holding
-#: skill's, exceeds this [rad] (under a third of the smallest, the fast see-saw's 0.1 rad).
-MOVING_JOINT = 0.03
-#: The skill that holds the pen still after the lift: what the others share.
-HOLD_SKILL = "lift_hold"
 #: The grids the operator's speed and start are fitted on: speeds relative to the
 #: library's mean person [-] (the population's speed factors lie within 0.6-1.6) ...
 SPEED_GRID = np.linspace(0.6, 1.6, 21)
@@ -82,7 +77,7 @@ REFIT_EVERY = 5
 #: How far ahead the model's motion still to go is looked for [s] (the longest skill motion
 #: of the slowest person).
 FUTURE_S = 3.0
-#: Recognisers by name: the library's (:data:`~ias_gym.assist.recognition.METHODS`) and
+#: Recognisers by name: the library's (:data:`~ias_gym.assist.recogniser_registry.METHODS`) and
 #: ``"none"``, which always says ``unknown`` (the "no skill knowledge" ablation).
 RECOGNISERS = (*METHODS, "none")
 
@@ -146,88 +141,6 @@ class AssistParams:
 
 def _positive(value: object) -> bool:
     return isinstance(value, int | float) and math.isfinite(value) and value > 0
-
-
-@dataclass(frozen=True)
-class SkillMotion:
-    """How one skill moves the joints, from its demonstrations.
-
-    Attributes:
-        name: the skill.
-        tau: ``(T,)`` time since the skill's start [s] (the library's mean person).
-        delta: ``(T, J)`` the mean joint angles less those at the start [rad], on ``joints``.
-        joints: the joints the skill moves (indices into ``JOINT_NAMES``).
-        amplitude_range: the smallest and largest amplitude of a demonstration relative to
-            the mean (least squares on ``joints``) [-]: how much persons differ.
-    """
-
-    name: str
-    tau: FloatArray
-    delta: FloatArray
-    joints: NDArray[np.int64]
-    amplitude_range: tuple[float, float]
-
-    @property
-    def principal(self) -> int:
-        """The position in :attr:`joints` of the joint the skill moves most."""
-        return int(np.argmax(np.ptp(self.delta, axis=0)))
-
-    def at(self, tau: FloatArray) -> FloatArray:
-        """``(len(tau), J)`` the motion at times ``tau`` (0 before the start, held after)."""
-        return np.stack(
-            [np.interp(tau, self.tau, self.delta[:, j], left=0.0) for j in range(len(self.joints))],
-            axis=-1,
-        )
-
-
-def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
-    """Every glove skill's :class:`SkillMotion` in a library (default: the shipped one): the
-    mean of its demonstrations from their skill start, less the holding skill's
-    (:data:`HOLD_SKILL`); skills that move no joint beyond it are left out.
-
-    Raises:
-        InputError: the file does not exist.
-    """
-    path = Path(db_path) if db_path is not None else shipped_skill_db()
-    if not path.is_file():
-        raise InputError(f"skill library {path} does not exist (give an existing --db)")
-    groups: dict[str, list[tuple[FloatArray, FloatArray]]] = {}
-    with SkillDB(path, readonly=True) as db:
-        for skill_id in db.ids():
-            skill = db.get(skill_id)
-            if skill.person_id is None or skill.name not in SKILLS:
-                continue
-            k = skill_start_index(skill)
-            time = np.asarray(skill.model.time, dtype=np.float64)
-            obs = np.asarray(skill.demonstration.observations, dtype=np.float64)
-            theta = obs[: len(time), OBSERVATION["joint_angles"]]
-            groups.setdefault(skill.name, []).append((time[k:] - time[k], theta[k:] - theta[k]))
-    means: dict[str, tuple[FloatArray, FloatArray]] = {}
-    resampled: dict[str, FloatArray] = {}  # (D, T, 10) each demonstration on the mean's grid
-    for name, demos in groups.items():
-        end = min(float(t[-1]) for t, _ in demos)
-        tau = np.arange(0.0, end, 0.01)
-        each = np.array(
-            [np.stack([np.interp(tau, t, d[:, j]) for j in range(N_JOINTS)], 1) for t, d in demos]
-        )
-        means[name], resampled[name] = (tau, each.mean(axis=0)), each
-    # What every skill shares after its start (the grip settling, the lift's end) is the
-    # holding skill's motion; each skill's own motion is what it does beyond that.
-    shared = means.get(HOLD_SKILL)
-    out = {}
-    for name, (tau, mean) in means.items():
-        base = np.zeros_like(mean)
-        if shared is not None:
-            base = np.stack(
-                [np.interp(tau, shared[0], shared[1][:, j]) for j in range(N_JOINTS)], 1
-            )
-        joints = np.flatnonzero(np.ptp(mean - base, axis=0) > MOVING_JOINT)
-        if not joints.size:
-            continue
-        m = (mean - base)[:, joints]
-        amps = [float(((d - base)[:, joints] * m).sum() / (m * m).sum()) for d in resampled[name]]
-        out[name] = SkillMotion(name, tau, m, joints, (min(amps), max(amps)))
-    return out
 
 
 def frame_from_observation(
@@ -354,7 +267,7 @@ class ObservationAssistant:
     """Completes the recognised skill, from observations alone (module docstring).
 
     Args:
-        motions: the library's skill motions (:func:`load_motions`).
+        motions: the library's skill motions (:func:`~ias_gym.assist.skill_motions.load_motions`).
         recogniser: the recogniser (the protocol of :mod:`ias_gym.assist.recognition`).
         params: the fitted thresholds.
         control_dt: the env's step [s].

@@ -41,7 +41,8 @@ def _recognise(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from ias_gym.assist.metrics import check_held_out, evaluate_methods, record_sessions
-    from ias_gym.assist.recognition import METHODS, load_library
+    from ias_gym.assist.recogniser_registry import METHODS
+    from ias_gym.assist.recognition import load_library
     from ias_gym.glove.ids import check_id
     from ias_gym.glove.skills import SKILLS
     from ias_gym.skills import SkillDB
@@ -148,7 +149,7 @@ def _recogniser_factory(method: str, db: Path | None) -> Any:
     on ``db`` (default: the shipped library) and reset by the assistant every session."""
     if method == "oracle":
         return lambda: None
-    from ias_gym.assist.recognition import METHODS, make_recogniser
+    from ias_gym.assist.recogniser_registry import METHODS, make_recogniser
     from ias_gym.skills import SkillDB
     from ias_gym.skills.transfer import shipped_skill_db
 
@@ -192,7 +193,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         raise InputError(f"--db {db} does not exist; give a skill library (skills record)")
     from tqdm import tqdm
 
-    from ias_gym.assist.sessions import evaluate_assistance
+    from ias_gym.assist.assistance_evaluation import evaluate_assistance
 
     make = _assistant_factory(args.assistant, args.recogniser, db)
     total = len(persons) * len(impairments) * args.episodes
