@@ -6,14 +6,15 @@ episodes (:class:`EpisodeJob`, one per seed) run here, on local worker processes
 (:mod:`ias_gym.runtime.jobs`) with the same results. Policies
 are loaded by :func:`ias_gym.baselines.policies.load_policy` (re-exported here with
 its errors, :data:`TELEOP` and :data:`Policy`, for the callers that import them from here).
+The outcomes and their summary are :mod:`ias_gym.evaluation_results`'s; nearby starts of a
+seed (1e-9 away) are :mod:`ias_gym.perturbed_starts`'s.
 """
 
 from __future__ import annotations
 
 import json
-import math
 import os
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -37,83 +38,15 @@ from ias_gym.errors import (
     InputError,
     UnknownEnvError,
 )
+from ias_gym.evaluation_results import EpisodeOutcome, EvaluationResult
 from ias_gym.outputs import atomic_output, check_output_file
 from ias_gym.rollout import FrameRecorder, rollout
 from ias_gym.runtime.jobs import SERIAL, Backend, prepare_here, run_jobs, worker_resource
-from ias_gym.settings import seed_from_environment
 
 #: Frame rate of evaluation videos [1/s]; the env's frames are thinned to it.
 VIDEO_FPS = 25
 #: File name suffixes of evaluation videos (ffmpeg picks the container by it).
 VIDEO_SUFFIXES = (".mp4",)
-#: Unit of each task metric in the summary: ``metric -> (summary name, unit, factor)``; the
-#: envs report SI (m, rad, N), the summary mm, deg and percent, named in every key.
-METRIC_UNITS: Mapping[str, tuple[str, str, float]] = {
-    "final_slide_error": ("final_slide_error", "mm", 1e3),
-    "max_position_error": ("max_position_error", "mm", 1e3),
-    "max_pen_tilt": ("max_pen_tilt", "deg", math.degrees(1.0)),
-    "rms_tilt_error": ("rms_tilt_error", "deg", math.degrees(1.0)),
-    "rms_tilt_error_fraction": ("rms_tilt_error_of_amplitude", "pct", 100.0),
-    "pen_height": ("pen_height", "mm", 1e3),
-    "pinch_force": ("pinch_force", "N", 1.0),
-}
-
-
-#: Size of the perturbation of each qpos entry of a nearby start [m or rad]: another
-#: machine's last bits (:func:`perturbed_starts`).
-PERTURBATION = 1e-9
-#: How many perturbed starts follow the nominal one.
-N_PERTURBED = 5
-#: Environment variable of the perturbation mode (:func:`perturb_seed`): when set to an
-#: integer, :func:`perturbed_starts` moves the seed's own start too, as another machine would.
-PERTURB_SEED_VAR = "IAS_GYM_PERTURB_SEED"
-#: Most nearby starts after the first in the perturbation mode: its run is one more sample of
-#: starts after the normal one (``make test-perturbed`` after ``make test``), not a second
-#: sweep of as many.
-PERTURB_MODE_NEARBY = 2
-
-
-def perturb_seed() -> int | None:
-    """The perturbation mode's seed: ``$IAS_GYM_PERTURB_SEED`` as an integer, None if unset
-    or empty (the normal mode).
-
-    Raises:
-        InputError: the variable is set but is not an integer >= 0 (a numpy seed).
-    """
-    return seed_from_environment(PERTURB_SEED_VAR)
-
-
-def perturbed_starts(
-    env: gym.Env[Any, Any], seed: int, n: int = N_PERTURBED, scale: float = PERTURBATION
-) -> Iterator[dict[str, Any] | None]:
-    """Reset options for ``env.reset(seed=seed, options=...)``: ``None`` (the seed's own
-    start), then ``n`` starts whose ``qpos`` differ from it by Gaussian noise of ``scale``.
-
-    A closed-loop rollout is chaotic: another CPU or BLAS changes the last bits of a step and
-    the trajectories part. A result that holds from the nominal start only may sit on a
-    knife edge another machine falls off; the same result from these starts does not. The
-    env must accept ``options={"qpos": ..., "qvel": ...}`` (every IAS pen and glove task).
-
-    In the perturbation mode (``$IAS_GYM_PERTURB_SEED`` set: :func:`perturb_seed`) the first
-    start is not the seed's own either: its ``qpos`` is moved by the same noise, drawn from a
-    generator seeded by both seeds, so a result checked from these starts is checked from
-    starts this machine has never computed, what another machine's last bits do; at most
-    :data:`PERTURB_MODE_NEARBY` nearby starts follow it.
-    """
-    env.reset(seed=seed)
-    data = env.unwrapped.data  # type: ignore[attr-defined]
-    qpos, qvel = data.qpos.copy(), data.qvel.copy()
-    mode = perturb_seed()
-    if mode is None:
-        yield None
-    else:
-        base = np.random.default_rng([mode, seed])
-        qpos = qpos + base.normal(0.0, scale, qpos.shape)
-        yield {"qpos": qpos.copy(), "qvel": qvel.copy()}
-        n = min(n, PERTURB_MODE_NEARBY)
-    rng = np.random.default_rng(seed)
-    for _ in range(n):
-        yield {"qpos": qpos + rng.normal(0.0, scale, qpos.shape), "qvel": qvel.copy()}
 
 
 def make_env(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
@@ -153,23 +86,6 @@ def check_env_id(env_id: str) -> None:
         raise UnknownEnvError(
             f"unknown env id {env_id!r} ({' '.join(str(exc).split())}); the IAS envs are: {ids}"
         ) from None
-
-
-@dataclass(frozen=True)
-class EpisodeOutcome:
-    """One episode's outcome (what a worker sends back: plain numbers).
-
-    Attributes:
-        is_success: the env's ``is_success`` at the end.
-        episode_return: the sum of the rewards [-].
-        length: number of steps.
-        metrics: the env's ``episode_metrics`` (SI units; NaN: not defined).
-    """
-
-    is_success: bool
-    episode_return: float
-    length: int
-    metrics: dict[str, float]
 
 
 def run_episode(
@@ -274,49 +190,6 @@ class EpisodeJob:
         env, policy = worker_resource(self.key(), self.build)
         seed_policy(policy, seed)
         return run_episode(env, policy, seed, reset_options=self.reset_options)
-
-
-@dataclass
-class EvaluationResult:
-    """Per-episode outcomes and their summary (see :meth:`summary`)."""
-
-    env_id: str
-    policy: str
-    successes: list[bool] = field(default_factory=list)
-    returns: list[float] = field(default_factory=list)
-    lengths: list[int] = field(default_factory=list)
-    metrics: list[dict[str, float]] = field(default_factory=list)
-
-    def add(self, outcome: EpisodeOutcome) -> None:
-        """Append one episode's outcome."""
-        self.successes.append(outcome.is_success)
-        self.returns.append(outcome.episode_return)
-        self.lengths.append(outcome.length)
-        self.metrics.append(outcome.metrics)
-
-    def summary(self) -> dict[str, Any]:
-        """JSON-ready summary: success rate, mean return, and mean/max of each task metric.
-
-        Each metric's keys name its statistic and unit, ``<metric>_<mean|max>_<unit>``
-        (``max_position_error_max_mm``, ``max_pen_tilt_mean_deg``, ``pinch_force_max_N``,
-        :data:`METRIC_UNITS`); a metric without a known unit keeps the env's SI value
-        and ends in ``_si``. ``None``: the metric was not defined in any episode.
-        """
-        out: dict[str, Any] = {
-            "env": self.env_id,
-            "policy": self.policy,
-            "episodes": len(self.successes),
-            "success_rate": float(np.mean(self.successes)) if self.successes else 0.0,
-            "mean_return": float(np.mean(self.returns)) if self.returns else 0.0,
-            "mean_length": float(np.mean(self.lengths)) if self.lengths else 0.0,
-        }
-        for key in self.metrics[0] if self.metrics else ():
-            name, unit, factor = METRIC_UNITS.get(key, (key, "si", 1.0))
-            values = factor * np.array([m[key] for m in self.metrics])
-            values = values[np.isfinite(values)]  # NaN: not defined for that episode
-            out[f"{name}_mean_{unit}"] = float(values.mean()) if len(values) else None
-            out[f"{name}_max_{unit}"] = float(values.max()) if len(values) else None
-        return out
 
 
 def evaluate(
@@ -519,13 +392,10 @@ def write_video(
 
 
 __all__ = [
-    "METRIC_UNITS",
     "TELEOP",
     "VIDEO_FPS",
     "VIDEO_SUFFIXES",
     "EpisodeJob",
-    "EpisodeOutcome",
-    "EvaluationResult",
     "MissingDependencyError",
     "Policy",
     "PolicyNotFoundError",

@@ -18,12 +18,12 @@ from ias_gym.baselines.policies import PolicyFactory
 from ias_gym.errors import InputError
 from ias_gym.evaluation import (
     EpisodeJob,
-    EpisodeOutcome,
     check_env_id,
     check_run,
     evaluate,
     make_env,
 )
+from ias_gym.evaluation_results import EpisodeOutcome
 from ias_gym.rates import Rate
 from ias_gym.runtime.jobs import SERIAL, Backend, prepare_here, run_jobs
 

@@ -11,10 +11,10 @@ steps checks its property from each of them.
 
 from __future__ import annotations
 
-from ias_gym.evaluation import N_PERTURBED, PERTURBATION, perturbed_starts
 from ias_gym.glove.hand import PersonParams
 from ias_gym.glove.population import PARAMETERS, population_ids
 from ias_gym.glove.skills import SkillStyle
+from ias_gym.perturbed_starts import N_PERTURBED, PERTURBATION, perturbed_starts
 
 __all__ = ["N_PERTURBED", "PERTURBATION", "perturbed_starts", "typical_person"]
 

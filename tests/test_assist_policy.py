@@ -20,8 +20,8 @@ from ias_gym.assist.policy import (
 from ias_gym.assist.skill_motions import load_motions
 from ias_gym.assist.stream import frames_from_env
 from ias_gym.errors import InputError
-from ias_gym.evaluation import perturbed_starts
 from ias_gym.glove.hand import joint_index
+from ias_gym.perturbed_starts import perturbed_starts
 from ias_gym.sim.pen import R_PAPER_TO_MJ, matrix_to_rpy, mj_to_paper
 
 PRON = joint_index("wrist_pronation")
@@ -35,7 +35,7 @@ LATCHING = AssistParams(stop_ratio=0.2)
 
 def _sessions(recogniser: str, impairment: str, skill: str = "tilt_left") -> list[tuple]:
     """(operator's targets, commanded targets, assistant) of the session from reset seed 0
-    and from its nearby starts (:func:`~ias_gym.evaluation.perturbed_starts`), the
+    and from its nearby starts (:func:`~ias_gym.perturbed_starts.perturbed_starts`), the
     assistant fed nothing but observations (no env object)."""
     env = gym.make("IAS-GloveAssist-v0", person_id="p1", skill=skill, impairment=impairment)
     u = env.unwrapped

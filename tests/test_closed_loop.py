@@ -12,7 +12,7 @@ import pytest
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.baselines.action_wrapper import GripTransformAction
 from ias_gym.errors import InputError
-from ias_gym.evaluation import PERTURB_MODE_NEARBY, PERTURB_SEED_VAR, perturb_seed
+from ias_gym.perturbed_starts import PERTURB_MODE_NEARBY, PERTURB_SEED_VAR, perturb_seed
 from tests.closed_loop import N_PERTURBED, PERTURBATION, perturbed_starts
 
 

@@ -19,19 +19,16 @@ pytest.importorskip("stable_baselines3")
 from ias_gym.baselines.expert import ExpertPolicy  # noqa: E402
 from ias_gym.baselines.policies import ModelPolicy, load_policy  # noqa: E402
 from ias_gym.errors import InputError  # noqa: E402
-from ias_gym.learning.dagger import (  # noqa: E402
+from ias_gym.learning.dagger import DaggerResult, cloning_epochs, dagger  # noqa: E402
+from ias_gym.learning.expert_labelling import collect_episode, expert_dataset  # noqa: E402
+from ias_gym.learning.randomised_dynamics import (  # noqa: E402
     DEFAULT_RANDOMISATION,
     FAMILIES,
     HELD_OUT_SEED_START,
     OBSERVATION_NOISE,
-    DaggerResult,
     EpisodeDynamics,
     Randomisation,
-    cloning_epochs,
-    collect_episode,
-    dagger,
     episode_dynamics,
-    expert_dataset,
 )
 from ias_gym.robustness import DISTURBANCES  # noqa: E402
 

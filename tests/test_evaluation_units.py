@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from ias_gym.evaluation import METRIC_UNITS, EvaluationResult
+from ias_gym.evaluation_results import METRIC_UNITS, EvaluationResult
 
 SUFFIXES = ("_mm", "_deg", "_pct", "_N")
 #: Summary keys without a unit: counts, fractions of episodes, the reward's own scale.

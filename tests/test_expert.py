@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from ias_gym.cli import main
-from ias_gym.evaluation import EvaluationResult, evaluate_spec
+from ias_gym.evaluation import evaluate_spec
+from ias_gym.evaluation_results import EvaluationResult
 from tests.closed_loop import perturbed_starts
 
 os.environ.setdefault("MUJOCO_GL", "egl")

@@ -35,7 +35,8 @@ With all eight families (runs 1 and 2, 16792 and 26572 labels) BC reached 0 % an
 - **Precision needs optimisation**: BC from more labels and more Adam steps did better in
   every run (run 2's BC: 36k steps).
 
-What it does (:mod:`ias_gym.learning.dagger` has the details):
+What it does (:mod:`ias_gym.learning.dagger`, :mod:`ias_gym.learning.expert_labelling` and
+:mod:`ias_gym.learning.randomised_dynamics` have the details):
 
 - **DAgger** (Ross, Gordon & Bagnell 2011): iteration 0 clones expert rollouts; iteration
   ``i`` rolls out the mixture (expert with probability ``beta_decay ** i`` per step, else
@@ -122,7 +123,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--families",
         default=None,
         help="comma-separated randomisation families to draw from (default: all of "
-        "ias_gym.learning.dagger.FAMILIES)",
+        "ias_gym.learning.randomised_dynamics.FAMILIES)",
     )
     parser.add_argument("--no-baseline", action="store_true", help="skip the BC baseline")
     parser.add_argument(
@@ -175,7 +176,8 @@ def development_curve_point(
     Run ``seed`` + :data:`DEVELOPMENT_RUN` draws the dynamics (never a training run's) and
     their reset seeds (all below the held-out seeds).
     """
-    from ias_gym.learning.dagger import collect_episode, episode_dynamics
+    from ias_gym.learning.expert_labelling import collect_episode
+    from ias_gym.learning.randomised_dynamics import episode_dynamics
     from ias_gym.rates import Rate
 
     outcomes = []
@@ -198,15 +200,13 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     from ias_gym.errors import InputError
     from ias_gym.learning.cloning import behaviour_clone
-    from ias_gym.learning.dagger import (
+    from ias_gym.learning.dagger import cloning_epochs, dagger
+    from ias_gym.learning.expert_labelling import check_pen_task, expert_dataset
+    from ias_gym.learning.randomised_dynamics import (
         DEFAULT_RANDOMISATION,
         HELD_OUT_SEED_START,
         NOMINAL,
         Randomisation,
-        check_pen_task,
-        cloning_epochs,
-        dagger,
-        expert_dataset,
     )
 
     out = Path(args.out)

@@ -20,7 +20,7 @@ from ias_gym.assist.sessions import SessionResult, run_session, session_record, 
 from ias_gym.glove.impairments import reference_kwargs
 
 #: A reference counts only if the unimpaired session from this many nearby starts
-#: (:func:`ias_gym.evaluation.perturbed_starts`: ``qpos`` 1e-9 away, another machine's last
+#: (:func:`ias_gym.perturbed_starts.perturbed_starts`: ``qpos`` 1e-9 away, another machine's last
 #: bits) also holds the pen throughout and stays within the tolerances of it
 #: (:func:`reference_session`).
 REFERENCE_STARTS = 2
@@ -81,7 +81,7 @@ def reference_session(
     any assistant, so neither a success nor a loss with one means anything there (measured:
     docs/assistance.md).
     """
-    from ias_gym.evaluation import perturbed_starts
+    from ias_gym.perturbed_starts import perturbed_starts
 
     env = gym.make("IAS-GloveAssist-v0", person_id=person, skill=skill, **env_kwargs)
     try:

@@ -16,37 +16,12 @@ normalisation inside the saved model):
   shifted by the expert-only iteration); the expert labels every visited state; the labels
   are added to the dataset (aggregation) and the learner is cloned afresh on all of it.
 
-**How the expert labels a state.** :class:`~ias_gym.baselines.expert.ExpertPolicy` is
-privileged and stateful: it ignores the observation, reads the simulator (contacts,
-Jacobians, the task's reference) and keeps a memory along the episode (the last feasible
-internal forces, the servo forces it commanded the step before, the previous grasp and
-hand Jacobians for their rates). So it cannot label an isolated stored observation
-afterwards; it labels the states *while they are visited*: :class:`ShadowExpert` runs the
-expert "in the shadow" of every step, on the same env, whatever acts. Its memory then
-follows the visited trajectory (what it would have commanded there, not what was
-executed), which is the standard way with a stateful teacher. A label is the expert's
-clean action: the env's action noise and delay act after it, its observation noise is in
-the measurements the expert reads too.
-
-**Randomised dynamics.** Every training episode draws one family of the robustness suite
-(:data:`ias_gym.robustness.DISTURBANCES`) uniformly, and that family's parameters uniformly
-from :class:`Randomisation`'s ranges, which contain the suite's fixed classes with a
-margin (the fixed value in brackets):
-
-============================  ==================================  ==================
-family                        env kwargs (uniform)                suite class
-============================  ==================================  ==================
-``nominal``                   none                                ``nominal``
-``friction``                  ``friction_scale`` 0.6 - 1.4        0.7, 1.3
-``mass``                      ``mass_scale`` 0.6 - 1.4            0.7, 1.3
-``push``                      ``push_force`` 0.1 - 0.4 N,         0.3 N, 0.05 s
-                              ``push_duration`` 0.03 - 0.07 s
-``observation_noise``         x 0 - 1.5 of the class's sigmas     x 1 (0.02 N,
-                              (force, joint angle, velocity)      1 mrad, 0.02 rad/s)
-``action_delay``              ``action_delay`` 0 - 2 steps        1 step
-``action_noise``              ``action_noise`` 0 - 0.003          0.002
-``internal_force_steps``      ``internal_force_step`` 0 - 0.15 N  0.1 N
-============================  ==================================  ==================
+The expert labels the states while they are visited
+(:class:`~ias_gym.learning.expert_labelling.ShadowExpert`; its module says how a
+stateful, privileged teacher labels), and every training episode runs under dynamics drawn
+from the robustness suite's families
+(:class:`~ias_gym.learning.randomised_dynamics.Randomisation`, whose module has the table
+of ranges), its reset seed below the held-out evaluation seeds.
 
 **Measured** (IAS-PenSlide-v0, ``train/dagger.py``'s docstring and docs/dagger_results.json):
 with ~15-25k expert labels neither DAgger nor behaviour cloning comes near the expert's
@@ -54,10 +29,6 @@ with ~15-25k expert labels neither DAgger nor behaviour cloning comes near the e
 within 0.1-0.5 s, so its iterations add few labels), and training episodes of the
 ``action_delay`` family break the cloning (drop that family with ``Randomisation(families=
 ...)``).
-
-An episode's dynamics and reset seed depend only on the run's seed and the episode's
-index (:func:`episode_dynamics`), and every training reset seed is below
-:data:`HELD_OUT_SEED_START`, so evaluation seeds from there on are never trained on.
 """
 
 from __future__ import annotations
@@ -70,310 +41,18 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from numpy.typing import NDArray
 from stable_baselines3 import PPO
 from tqdm import tqdm
 
-from ias_gym.baselines.expert import ExpertPolicy
-from ias_gym.envs.pen_hand_env import PenHandEnv
 from ias_gym.errors import InputError
 from ias_gym.learning.cloning import behaviour_clone
+from ias_gym.learning.expert_labelling import Dataset, check_pen_task, collect_episode
 from ias_gym.learning.normalisation import DEFAULT_NET_ARCH
-from ias_gym.robustness import DISTURBANCES
-from ias_gym.rollout import Policy, Trajectory, rollout
-
-FloatArray = NDArray[np.float32]
-
-#: Training reset seeds are drawn below this; evaluate on seeds from here on (held out).
-HELD_OUT_SEED_START = 100_000
-#: The families a training episode draws from (the robustness suite's classes, grouped).
-FAMILIES: tuple[str, ...] = (
-    "nominal",
-    "friction",
-    "mass",
-    "push",
-    "observation_noise",
-    "action_delay",
-    "action_noise",
-    "internal_force_steps",
+from ias_gym.learning.randomised_dynamics import (
+    DEFAULT_RANDOMISATION,
+    Randomisation,
+    episode_dynamics,
 )
-#: The suite's observation-noise class: the sigmas a draw of that family scales.
-OBSERVATION_NOISE: Mapping[str, float] = DISTURBANCES["observation_noise"]
-
-
-@dataclass(frozen=True)
-class Randomisation:
-    """The ranges training dynamics are drawn from (see the module docstring's table).
-
-    Each range is ``(low, high)``, drawn uniformly (``action_delay``: a whole number of
-    steps, both ends included).
-
-    Attributes:
-        families: the families drawn from, uniformly (names of :data:`FAMILIES`).
-        friction_scale: the pen's friction coefficient x this [-].
-        mass_scale: the pen's mass and inertia x this [-].
-        push_force: the push's magnitude [N].
-        push_duration: the push's duration [s].
-        observation_noise_scale: factor on the suite's observation-noise sigmas [-].
-        action_delay: control steps between an action and its effect [-].
-        action_noise: sigma of the noise on the normalised action [-].
-        internal_force_step: size of the internal-force reference steps [N].
-    """
-
-    families: tuple[str, ...] = FAMILIES
-    friction_scale: tuple[float, float] = (0.6, 1.4)
-    mass_scale: tuple[float, float] = (0.6, 1.4)
-    push_force: tuple[float, float] = (0.1, 0.4)
-    push_duration: tuple[float, float] = (0.03, 0.07)
-    observation_noise_scale: tuple[float, float] = (0.0, 1.5)
-    action_delay: tuple[int, int] = (0, 2)
-    action_noise: tuple[float, float] = (0.0, 0.003)
-    internal_force_step: tuple[float, float] = (0.0, 0.15)
-
-    def __post_init__(self) -> None:
-        unknown = [f for f in self.families if f not in FAMILIES]
-        if unknown or not self.families:
-            raise InputError(
-                f"unknown randomisation families {unknown or list(self.families)}; "
-                f"known: {', '.join(FAMILIES)}"
-            )
-        for name in (
-            "friction_scale",
-            "mass_scale",
-            "push_force",
-            "push_duration",
-            "observation_noise_scale",
-            "action_delay",
-            "action_noise",
-            "internal_force_step",
-        ):
-            low, high = getattr(self, name)
-            if not (math.isfinite(low) and math.isfinite(high) and 0 <= low <= high):
-                raise InputError(
-                    f"{name} range must be finite with 0 <= low <= high, got {low, high}"
-                )
-        if self.friction_scale[0] <= 0 or self.mass_scale[0] <= 0 or self.push_duration[0] <= 0:
-            raise InputError("friction_scale, mass_scale and push_duration ranges must be > 0")
-
-    def sample(self, rng: np.random.Generator) -> tuple[str, dict[str, Any]]:
-        """One episode's ``(family, env kwargs)``."""
-        family = self.families[int(rng.integers(len(self.families)))]
-
-        def uniform(bounds: tuple[float, float]) -> float:
-            return float(rng.uniform(bounds[0], bounds[1]))
-
-        kwargs: dict[str, Any]
-        if family == "nominal":
-            kwargs = {}
-        elif family == "friction":
-            kwargs = {"friction_scale": uniform(self.friction_scale)}
-        elif family == "mass":
-            kwargs = {"mass_scale": uniform(self.mass_scale)}
-        elif family == "push":
-            kwargs = {
-                "push_force": uniform(self.push_force),
-                "push_duration": uniform(self.push_duration),
-            }
-        elif family == "observation_noise":
-            scale = uniform(self.observation_noise_scale)
-            kwargs = {name: scale * sigma for name, sigma in OBSERVATION_NOISE.items()}
-        elif family == "action_delay":
-            low, high = self.action_delay
-            kwargs = {"action_delay": int(rng.integers(low, high + 1))}
-        elif family == "action_noise":
-            kwargs = {"action_noise": uniform(self.action_noise)}
-        else:
-            kwargs = {"internal_force_step": uniform(self.internal_force_step)}
-        return family, kwargs
-
-
-#: The default ranges (the module docstring's table).
-DEFAULT_RANDOMISATION = Randomisation()
-#: No randomisation: every episode nominal.
-NOMINAL = Randomisation(families=("nominal",))
-
-
-@dataclass(frozen=True)
-class EpisodeDynamics:
-    """What one training episode runs under.
-
-    Attributes:
-        family: the drawn family (a name of :data:`FAMILIES`).
-        env_kwargs: the env kwargs it was drawn as.
-        seed: the episode's reset seed (< :data:`HELD_OUT_SEED_START`).
-    """
-
-    family: str
-    env_kwargs: dict[str, Any]
-    seed: int
-
-
-def episode_dynamics(
-    seed: int, episode: int, randomisation: Randomisation = DEFAULT_RANDOMISATION
-) -> EpisodeDynamics:
-    """The dynamics and reset seed of training episode ``episode`` of the run ``seed``.
-
-    A function of ``(seed, episode)`` alone (its own generator), so a run is reproducible
-    and any episode can be recomputed.
-
-    Args:
-        seed: the run's seed (>= 0).
-        episode: the episode's index in the run (>= 0).
-        randomisation: the ranges.
-    """
-    rng = np.random.default_rng([seed, episode, 0xDA99E])
-    family, kwargs = randomisation.sample(rng)
-    return EpisodeDynamics(family, kwargs, int(rng.integers(HELD_OUT_SEED_START)))
-
-
-class ShadowExpert:
-    """The rollout policy of a DAgger episode: the expert labels every step, the mixture acts.
-
-    Every ``predict`` first asks the expert for its action on the env's current state (the
-    label, stepping the expert's memory along the visited trajectory), then acts with it
-    with probability ``beta`` and with the learner's action otherwise (a coin per step).
-
-    Args:
-        env: the pen env the episode runs in (the expert reads its simulator).
-        learner: the learner (SB3's ``predict``); ``None``: the expert always acts.
-        beta: probability that the expert acts on a step [-].
-        seed: seeds the coins and the noise.
-        expert_noise: sigma of Gaussian noise added to the expert's action when it is the
-            one executed (noise injection, DART: Laskey et al. 2017; the label stays clean)
-            [normalised torque].
-
-    Attributes:
-        observations: the observations labelled, one per step (what ``predict`` was given).
-        labels: the expert's actions on them.
-        expert_acted: per step, whether the expert's action was the one executed.
-    """
-
-    def __init__(
-        self,
-        env: gym.Env[Any, Any],
-        learner: Policy | None,
-        beta: float,
-        seed: int = 0,
-        expert_noise: float = 0.0,
-    ) -> None:
-        if not 0.0 <= beta <= 1.0:
-            raise InputError(f"beta must be in [0, 1], got {beta}")
-        if not (math.isfinite(expert_noise) and expert_noise >= 0):
-            raise InputError(f"expert_noise must be finite and >= 0, got {expert_noise}")
-        if learner is None and beta < 1.0:
-            raise InputError("without a learner the expert must always act (beta = 1)")
-        self.expert = ExpertPolicy(env)
-        self.learner = learner
-        self.beta = float(beta)
-        self.expert_noise = float(expert_noise)
-        self._rng = np.random.default_rng([seed, 0xC01])
-        self.observations: list[NDArray[Any]] = []
-        self.labels: list[FloatArray] = []
-        self.expert_acted: list[bool] = []
-
-    def predict(
-        self,
-        observation: Any,
-        state: Any = None,
-        episode_start: Any = None,
-        deterministic: bool = True,
-    ) -> tuple[NDArray[Any], Any]:
-        """The executed action for ``observation`` (SB3's signature); records the label."""
-        label, _ = self.expert.predict(observation, episode_start=episode_start)
-        self.observations.append(np.array(observation, copy=True))
-        self.labels.append(np.asarray(label, dtype=np.float32).copy())
-        expert_acts = self.learner is None or bool(self._rng.random() < self.beta)
-        self.expert_acted.append(expert_acts)
-        if expert_acts:
-            if self.expert_noise:
-                noise = self._rng.normal(0.0, self.expert_noise, np.shape(label))
-                return np.clip(label + noise, -1.0, 1.0).astype(np.float32), state
-            return label, state
-        assert self.learner is not None
-        action, state = self.learner.predict(
-            observation, state=state, episode_start=episode_start, deterministic=True
-        )
-        return np.asarray(action), state
-
-
-@dataclass
-class Dataset:
-    """The aggregated (observation, expert action) pairs.
-
-    Attributes:
-        observations: ``(N, obs_dim)``.
-        actions: ``(N, act_dim)`` the expert's labels [normalised torque].
-    """
-
-    observations: NDArray[np.float64]
-    actions: FloatArray
-
-    @classmethod
-    def empty(cls, obs_dim: int, act_dim: int) -> Dataset:
-        """No pairs yet."""
-        return cls(np.zeros((0, obs_dim)), np.zeros((0, act_dim), dtype=np.float32))
-
-    def __len__(self) -> int:
-        return len(self.actions)
-
-    def extend(self, observations: NDArray[Any], actions: NDArray[Any]) -> None:
-        """Append pairs (aggregation)."""
-        self.observations = np.concatenate([self.observations, np.asarray(observations)])
-        self.actions = np.concatenate([self.actions, np.asarray(actions, dtype=np.float32)])
-
-
-@dataclass(frozen=True)
-class LabelledEpisode:
-    """One collected episode.
-
-    Attributes:
-        dynamics: what it ran under.
-        trajectory: the rollout.
-        observations: ``(T, obs_dim)`` the visited observations (the trajectory's but the last).
-        labels: ``(T, act_dim)`` the expert's actions on them.
-        expert_fraction: fraction of steps the expert's action was executed [-].
-    """
-
-    dynamics: EpisodeDynamics
-    trajectory: Trajectory
-    observations: NDArray[np.float64]
-    labels: FloatArray
-    expert_fraction: float
-
-
-def collect_episode(
-    env_id: str,
-    dynamics: EpisodeDynamics,
-    learner: Policy | None,
-    beta: float,
-    *,
-    env_kwargs: Mapping[str, Any] | None = None,
-    expert_noise: float = 0.0,
-) -> LabelledEpisode:
-    """Run one episode of the mixture under ``dynamics``, the expert labelling every state.
-
-    Args:
-        env_id: a pen task.
-        dynamics: the env kwargs and reset seed (:func:`episode_dynamics`).
-        learner: the learner (``None``: the expert acts alone, ``beta`` must be 1).
-        beta: probability the expert acts on a step [-].
-        env_kwargs: further env kwargs (the drawn ones win).
-        expert_noise: noise on the expert's executed actions (:class:`ShadowExpert`).
-
-    Returns:
-        The episode with its labels.
-    """
-    env = gym.make(env_id, **{**dict(env_kwargs or {}), **dynamics.env_kwargs})
-    try:
-        shadow = ShadowExpert(env, learner, beta, dynamics.seed, expert_noise)
-        trajectory = rollout(env, shadow, dynamics.seed, action_dtype=np.float32, keep_infos=False)
-    finally:
-        env.close()
-    obs_dim = int(np.prod(env.observation_space.shape or ()))
-    observations = np.asarray(shadow.observations, dtype=np.float64).reshape(-1, obs_dim)
-    labels = np.asarray(shadow.labels, dtype=np.float32).reshape(len(observations), -1)
-    fraction = float(np.mean(shadow.expert_acted)) if shadow.expert_acted else 1.0
-    return LabelledEpisode(dynamics, trajectory, observations, labels, fraction)
 
 
 @dataclass(frozen=True)
@@ -443,28 +122,6 @@ class DaggerResult:
     models: list[PPO] = field(default_factory=list)
 
 
-def check_pen_task(env_id: str) -> None:
-    """Raise :class:`~ias_gym.errors.InputError` unless ``env_id`` is a pen task with an expert.
-
-    Raises:
-        InputError: an unknown id, or an env that is not an ``IAS-Pen*`` task.
-    """
-    try:
-        spec = gym.spec(env_id)
-    except gym.error.Error:
-        raise InputError(
-            f"unknown env id {env_id!r}; DAgger needs a pen task such as "
-            "IAS-PenSlide-v0 or IAS-PenRotate-v0"
-        ) from None
-    entry = spec.entry_point
-    env_class = gym.envs.registration.load_env_creator(entry) if isinstance(entry, str) else entry
-    if not (isinstance(env_class, type) and issubclass(env_class, PenHandEnv)):
-        raise InputError(
-            f"{env_id} is not a pen task (the analytic expert controls IAS-PenSlide-v0 and "
-            "IAS-PenRotate-v0 only)"
-        )
-
-
 def beta_schedule(iteration: int, beta_decay: float) -> float:
     """``beta_i``: 1 at iteration 0 (expert only), ``beta_decay ** i`` after [-]."""
     return 1.0 if iteration == 0 else float(beta_decay**iteration)
@@ -494,10 +151,11 @@ def dagger(
     """Train a policy by DAgger with the analytic expert as teacher (module docstring).
 
     Iteration ``i`` collects ``episodes_per_iteration`` episodes (training episode ``k`` of
-    the run under :func:`episode_dynamics` ``(seed, k)``), with the mixture of ``beta_i``
-    (:func:`beta_schedule`), adds every visited state with the expert's label, and clones a
-    new learner on the whole dataset (:func:`~ias_gym.learning.cloning.behaviour_clone`,
-    observation statistics of the dataset, seeded by ``seed``).
+    the run under :func:`~ias_gym.learning.randomised_dynamics.episode_dynamics`
+    ``(seed, k)``), with the mixture of ``beta_i`` (:func:`beta_schedule`), adds every
+    visited state with the expert's label, and clones a new learner on the whole dataset
+    (:func:`~ias_gym.learning.cloning.behaviour_clone`, observation statistics of the
+    dataset, seeded by ``seed``).
 
     Args:
         env_id: a pen task (``IAS-PenSlide-v0``, ``IAS-PenRotate-v0``).
@@ -508,8 +166,9 @@ def dagger(
         initial_episodes: expert episodes of iteration 0 (``None``:
             ``episodes_per_iteration``).
         expert_noise: sigma of the noise on the expert's executed actions, labels clean
-            (DART; :class:`ShadowExpert`) [normalised torque].
-        randomisation: the ranges of the training dynamics (:data:`NOMINAL`: none).
+            (DART; :class:`~ias_gym.learning.expert_labelling.ShadowExpert`) [normalised torque].
+        randomisation: the ranges of the training dynamics
+            (:data:`~ias_gym.learning.randomised_dynamics.NOMINAL`: none).
         env_kwargs: further env kwargs of every episode (e.g. a shorter ``duration``).
         epochs: cloning passes over the dataset per iteration.
         max_gradient_steps: cap on the cloning's Adam steps per iteration (fewer epochs on
@@ -634,63 +293,6 @@ def dagger(
     return result
 
 
-def expert_dataset(
-    env_id: str,
-    labels: int,
-    seed: int = 0,
-    *,
-    randomisation: Randomisation = DEFAULT_RANDOMISATION,
-    env_kwargs: Mapping[str, Any] | None = None,
-    expert_noise: float = 0.0,
-    progress: bool = True,
-) -> tuple[Dataset, list[LabelledEpisode]]:
-    """Expert rollouts under the training dynamics, cut at exactly ``labels`` pairs.
-
-    The behaviour-cloning baseline of a DAgger run with the same number of expert labels:
-    episode ``k`` runs under :func:`episode_dynamics` ``(seed, k)``, as DAgger's do.
-
-    Args:
-        env_id: a pen task.
-        labels: pairs wanted (>= 1).
-        seed: the run's seed (>= 0).
-        randomisation: the ranges of the dynamics.
-        env_kwargs: further env kwargs of every episode.
-        expert_noise: noise on the expert's executed actions, labels clean (DART).
-        progress: a progress bar over the pairs.
-
-    Returns:
-        The dataset and the episodes it came from.
-    """
-    check_pen_task(env_id)
-    if labels < 1:
-        raise InputError(f"labels must be >= 1, got {labels}")
-    probe = gym.make(env_id, **dict(env_kwargs or {}))
-    dataset = Dataset.empty(
-        int(np.prod(probe.observation_space.shape or ())),
-        int(np.prod(probe.action_space.shape or ())),
-    )
-    probe.close()
-    episodes: list[LabelledEpisode] = []
-    bar = tqdm(total=labels, desc=f"expert labels {env_id}", unit="pair", disable=not progress)
-    try:
-        while len(dataset) < labels:
-            episode = collect_episode(
-                env_id,
-                episode_dynamics(seed, len(episodes), randomisation),
-                None,
-                1.0,
-                env_kwargs=env_kwargs,
-                expert_noise=expert_noise,
-            )
-            take = min(len(episode.labels), labels - len(dataset))
-            dataset.extend(episode.observations[:take], episode.labels[:take])
-            episodes.append(episode)
-            bar.update(take)
-    finally:
-        bar.close()
-    return dataset, episodes
-
-
 def cloning_epochs(size: int, epochs: int, batch_size: int, max_gradient_steps: int | None) -> int:
     """``epochs``, lowered (to >= 1) so that cloning ``size`` pairs in minibatches of
     ``batch_size`` makes at most ``max_gradient_steps`` Adam steps (``None``: no cap)."""
@@ -701,22 +303,9 @@ def cloning_epochs(size: int, epochs: int, batch_size: int, max_gradient_steps: 
 
 
 __all__ = [
-    "DEFAULT_RANDOMISATION",
-    "FAMILIES",
-    "HELD_OUT_SEED_START",
-    "NOMINAL",
     "DaggerResult",
-    "Dataset",
-    "EpisodeDynamics",
     "IterationRecord",
-    "LabelledEpisode",
-    "Randomisation",
-    "ShadowExpert",
     "beta_schedule",
-    "check_pen_task",
     "cloning_epochs",
-    "collect_episode",
     "dagger",
-    "episode_dynamics",
-    "expert_dataset",
 ]

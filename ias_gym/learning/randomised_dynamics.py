@@ -1,0 +1,192 @@
+"""The randomised dynamics of DAgger's training episodes and their reset seeds.
+
+Every training episode of :func:`~ias_gym.learning.dagger.dagger` (and of
+:func:`~ias_gym.learning.expert_labelling.expert_dataset`) draws one family of the
+robustness suite (:data:`ias_gym.robustness.DISTURBANCES`) uniformly, and that family's
+parameters uniformly from :class:`Randomisation`'s ranges, which contain the suite's fixed
+classes with a margin (the fixed value in brackets):
+
+============================  ==================================  ==================
+family                        env kwargs (uniform)                suite class
+============================  ==================================  ==================
+``nominal``                   none                                ``nominal``
+``friction``                  ``friction_scale`` 0.6 - 1.4        0.7, 1.3
+``mass``                      ``mass_scale`` 0.6 - 1.4            0.7, 1.3
+``push``                      ``push_force`` 0.1 - 0.4 N,         0.3 N, 0.05 s
+                              ``push_duration`` 0.03 - 0.07 s
+``observation_noise``         x 0 - 1.5 of the class's sigmas     x 1 (0.02 N,
+                              (force, joint angle, velocity)      1 mrad, 0.02 rad/s)
+``action_delay``              ``action_delay`` 0 - 2 steps        1 step
+``action_noise``              ``action_noise`` 0 - 0.003          0.002
+``internal_force_steps``      ``internal_force_step`` 0 - 0.15 N  0.1 N
+============================  ==================================  ==================
+
+An episode's dynamics and reset seed depend only on the run's seed and the episode's
+index (:func:`episode_dynamics`), and every training reset seed is below
+:data:`HELD_OUT_SEED_START`, so evaluation seeds from there on are never trained on.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ias_gym.errors import InputError
+from ias_gym.robustness import DISTURBANCES
+
+#: Training reset seeds are drawn below this; evaluate on seeds from here on (held out).
+HELD_OUT_SEED_START = 100_000
+#: The families a training episode draws from (the robustness suite's classes, grouped).
+FAMILIES: tuple[str, ...] = (
+    "nominal",
+    "friction",
+    "mass",
+    "push",
+    "observation_noise",
+    "action_delay",
+    "action_noise",
+    "internal_force_steps",
+)
+#: The suite's observation-noise class: the sigmas a draw of that family scales.
+OBSERVATION_NOISE: Mapping[str, float] = DISTURBANCES["observation_noise"]
+
+
+@dataclass(frozen=True)
+class Randomisation:
+    """The ranges training dynamics are drawn from (see the module docstring's table).
+
+    Each range is ``(low, high)``, drawn uniformly (``action_delay``: a whole number of
+    steps, both ends included).
+
+    Attributes:
+        families: the families drawn from, uniformly (names of :data:`FAMILIES`).
+        friction_scale: the pen's friction coefficient x this [-].
+        mass_scale: the pen's mass and inertia x this [-].
+        push_force: the push's magnitude [N].
+        push_duration: the push's duration [s].
+        observation_noise_scale: factor on the suite's observation-noise sigmas [-].
+        action_delay: control steps between an action and its effect [-].
+        action_noise: sigma of the noise on the normalised action [-].
+        internal_force_step: size of the internal-force reference steps [N].
+    """
+
+    families: tuple[str, ...] = FAMILIES
+    friction_scale: tuple[float, float] = (0.6, 1.4)
+    mass_scale: tuple[float, float] = (0.6, 1.4)
+    push_force: tuple[float, float] = (0.1, 0.4)
+    push_duration: tuple[float, float] = (0.03, 0.07)
+    observation_noise_scale: tuple[float, float] = (0.0, 1.5)
+    action_delay: tuple[int, int] = (0, 2)
+    action_noise: tuple[float, float] = (0.0, 0.003)
+    internal_force_step: tuple[float, float] = (0.0, 0.15)
+
+    def __post_init__(self) -> None:
+        unknown = [f for f in self.families if f not in FAMILIES]
+        if unknown or not self.families:
+            raise InputError(
+                f"unknown randomisation families {unknown or list(self.families)}; "
+                f"known: {', '.join(FAMILIES)}"
+            )
+        for name in (
+            "friction_scale",
+            "mass_scale",
+            "push_force",
+            "push_duration",
+            "observation_noise_scale",
+            "action_delay",
+            "action_noise",
+            "internal_force_step",
+        ):
+            low, high = getattr(self, name)
+            if not (math.isfinite(low) and math.isfinite(high) and 0 <= low <= high):
+                raise InputError(
+                    f"{name} range must be finite with 0 <= low <= high, got {low, high}"
+                )
+        if self.friction_scale[0] <= 0 or self.mass_scale[0] <= 0 or self.push_duration[0] <= 0:
+            raise InputError("friction_scale, mass_scale and push_duration ranges must be > 0")
+
+    def sample(self, rng: np.random.Generator) -> tuple[str, dict[str, Any]]:
+        """One episode's ``(family, env kwargs)``."""
+        family = self.families[int(rng.integers(len(self.families)))]
+
+        def uniform(bounds: tuple[float, float]) -> float:
+            return float(rng.uniform(bounds[0], bounds[1]))
+
+        kwargs: dict[str, Any]
+        if family == "nominal":
+            kwargs = {}
+        elif family == "friction":
+            kwargs = {"friction_scale": uniform(self.friction_scale)}
+        elif family == "mass":
+            kwargs = {"mass_scale": uniform(self.mass_scale)}
+        elif family == "push":
+            kwargs = {
+                "push_force": uniform(self.push_force),
+                "push_duration": uniform(self.push_duration),
+            }
+        elif family == "observation_noise":
+            scale = uniform(self.observation_noise_scale)
+            kwargs = {name: scale * sigma for name, sigma in OBSERVATION_NOISE.items()}
+        elif family == "action_delay":
+            low, high = self.action_delay
+            kwargs = {"action_delay": int(rng.integers(low, high + 1))}
+        elif family == "action_noise":
+            kwargs = {"action_noise": uniform(self.action_noise)}
+        else:
+            kwargs = {"internal_force_step": uniform(self.internal_force_step)}
+        return family, kwargs
+
+
+#: The default ranges (the module docstring's table).
+DEFAULT_RANDOMISATION = Randomisation()
+#: No randomisation: every episode nominal.
+NOMINAL = Randomisation(families=("nominal",))
+
+
+@dataclass(frozen=True)
+class EpisodeDynamics:
+    """What one training episode runs under.
+
+    Attributes:
+        family: the drawn family (a name of :data:`FAMILIES`).
+        env_kwargs: the env kwargs it was drawn as.
+        seed: the episode's reset seed (< :data:`HELD_OUT_SEED_START`).
+    """
+
+    family: str
+    env_kwargs: dict[str, Any]
+    seed: int
+
+
+def episode_dynamics(
+    seed: int, episode: int, randomisation: Randomisation = DEFAULT_RANDOMISATION
+) -> EpisodeDynamics:
+    """The dynamics and reset seed of training episode ``episode`` of the run ``seed``.
+
+    A function of ``(seed, episode)`` alone (its own generator), so a run is reproducible
+    and any episode can be recomputed.
+
+    Args:
+        seed: the run's seed (>= 0).
+        episode: the episode's index in the run (>= 0).
+        randomisation: the ranges.
+    """
+    rng = np.random.default_rng([seed, episode, 0xDA99E])
+    family, kwargs = randomisation.sample(rng)
+    return EpisodeDynamics(family, kwargs, int(rng.integers(HELD_OUT_SEED_START)))
+
+
+__all__ = [
+    "DEFAULT_RANDOMISATION",
+    "FAMILIES",
+    "HELD_OUT_SEED_START",
+    "NOMINAL",
+    "OBSERVATION_NOISE",
+    "EpisodeDynamics",
+    "Randomisation",
+    "episode_dynamics",
+]
