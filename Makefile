@@ -7,16 +7,20 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 OUT ?= out
 TORCH_PIN := torch==2.13.0
+# The LEAP hand's model (ias_gym.sim.leap_hand) comes from MuJoCo Playground's wheel, which
+# is installed without its dependencies (jax, brax, warp): the package reads only its MJCF.
+PLAYGROUND_PIN := playground==0.2.0
 
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= egl
 
 .PHONY: setup demo test test-perturbed lint docs browser-check bench clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml Makefile
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet $(TORCH_PIN)
 	$(BIN)/python -m pip install --quiet -e '.[all]'
+	$(BIN)/python -m pip install --quiet --no-deps $(PLAYGROUND_PIN)
 	touch $(STAMP)
 
 setup: $(STAMP)

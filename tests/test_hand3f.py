@@ -34,7 +34,7 @@ def hand(request: pytest.FixtureRequest) -> tuple[HandSpec, PenHandPhysics]:
 
 # --- the model and its grasp ---------------------------------------------------------------
 def test_registry_names_the_hands_and_ias3f_differs_from_ias4f() -> None:
-    assert hand_names() == ["ias3f", "ias4f", "shadow"]
+    assert hand_names() == ["ias3f", "ias4f", "leap", "shadow"]
     three, four = get_hand("ias3f"), get_hand("ias4f")
     assert (three.n_fingers, three.n_dofs) == (3, 9)
     assert (four.n_fingers, four.n_dofs) == (4, 12)
@@ -123,7 +123,10 @@ def test_place_grasp_reaches_a_tilted_pen_on_ias3f() -> None:
 
 
 def _touches_at(p: PenHandPhysics, rpy: list[float], contact_x: np.ndarray) -> bool:
-    """Whether IK puts every tip on the pen at ``contact_x`` with no link touching it."""
+    """Whether IK from the ``grasp`` keyframe puts every tip on the pen at ``contact_x`` with
+    no link touching it (from the keyframe: where an earlier query left the fingers must not
+    decide, the IK is local)."""
+    p.reset()
     err = place_grasp(p, np.zeros(3), rpy, contact_x, iterations=100, tolerance=1e-9)
     return err < 1e-6 and bool(p.fingertip_contacts().active.all()) and p.n_link_contacts() == 0
 

@@ -116,6 +116,7 @@ class ControllerGains:
     finger_inertia: bool = True  # include the M J+ {...} terms of eq. (45)
     lead: float = 0.0  # evaluate the reference this far ahead [s]
     damping_feedforward: bool = True  # add the joints' damping along the reference motion
+    coulomb_speed: float = 0.005  # [rad/s] their Coulomb friction's smoothed sign (0: none)
 
 
 @dataclass
@@ -240,8 +241,9 @@ class GripTransformController:
 
     def _damping(self, env: PenHandEnv) -> FloatArray:
         """The hand joints' damping coefficients [N m s/rad] (looked up once)."""
-        if self._joint_damping is None:
-            self._joint_damping = env.physics.hand_damping()
+        if self._joint_damping is None:  # viscous and Coulomb, (2, n)
+            p = env.physics
+            self._joint_damping = np.stack([p.hand_damping(), p.hand_damping(coulomb=True)])
         return self._joint_damping
 
     def action(
@@ -479,7 +481,14 @@ def _control_step(
         # would cancel the damping, see above): fingers that follow the object drag on
         # it otherwise (measured: a 23 ms lag of the pen's tilt behind its reference).
         v_ref = ref.twist
-        feedforward = law.damping_feedforward_torques(x.damping, J_pinv, W, v_ref, touching)
+        feedforward = law.damping_feedforward_torques(x.damping[:, 0], J_pinv, W, v_ref, touching)
+        if g.coulomb_speed > 0 and np.any(x.damping[:, 1]):  # the error's correction too
+            e_p, e_r = ref.position - state.position, np.cross(state.axis, ref.axis)
+            v_d = v_ref + np.concatenate([g.kp / g.kv * e_p, g.kp_rot / g.kv_rot * e_r], -1)
+            friction = law.coulomb_feedforward_torques(
+                x.damping[:, 1], J_pinv, W, v_d, touching, g.coulomb_speed
+            )
+            feedforward = feedforward + friction
     tau = law.joint_torques(J, f, x.coriolis, inertia, feedforward)
 
     for i, ctrl in enumerate(controllers):

@@ -69,7 +69,7 @@ class Gathered:
     tip_x: FloatArray  # (n, k)
     M: FloatArray  # (n, dofs, dofs) (only with finger_inertia)
     coriolis: FloatArray  # (n, dofs)
-    damping: FloatArray  # (n, dofs)
+    damping: FloatArray  # (n, 2, dofs) viscous [N m s/rad] and Coulomb [N m]
     inertia: FloatArray  # (n, 3, 3)
     gravity: FloatArray  # (n, 3)
     mass: FloatArray  # (n,)

@@ -397,6 +397,40 @@ def damping_feedforward_torques(
     return result
 
 
+def coulomb_feedforward_torques(
+    coulomb: FloatArray,
+    J_pinv_blocks: FloatArray,
+    W: FloatArray,
+    v_d: FloatArray,
+    touching: BoolArray,
+    speed: float,
+) -> FloatArray:
+    """The joints' Coulomb friction along a desired object twist, ``F tanh(q'_d / speed)``
+    with ``q'_d = J+ W^T v_d`` (beyond the paper).
+
+    A joint with dry friction ``F`` (MuJoCo's ``frictionloss``) sticks until its torque
+    exceeds ``F``; the feed-forward pays it in the direction the fingers are to move (its
+    sign made smooth by ``tanh`` where the motion reverses). ``v_d`` is the reference twist
+    plus the error's own correction (the controller's), so that a small tracking error is
+    corrected too instead of stuck.
+
+    Args:
+        coulomb: ``(n,)`` the joints' Coulomb friction [N m].
+        J_pinv_blocks: ``(k, 3, 3)`` blocks of ``J+`` [rad/m].
+        W: ``(6, 3 k)`` wrench matrix.
+        v_d: ``(6,)`` the desired twist ``[v; omega]`` [m/s, rad/s].
+        touching: ``(3 k,)`` rows of touching fingers.
+        speed: the joint speed at which the feed-forward reaches ``tanh(1)`` of ``F``
+            [rad/s].
+
+    Returns:
+        ``(n,)`` joint torques [N m].
+    """
+    qvel = apply_blocks(J_pinv_blocks, np.where(touching, _matvec_t(W, v_d), 0.0))
+    result: FloatArray = coulomb * np.tanh(qvel / speed)
+    return result
+
+
 def joint_torques(
     J: FloatArray,
     f: FloatArray,

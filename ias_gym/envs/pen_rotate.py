@@ -72,7 +72,11 @@ class PenRotateEnv(PenHandEnv):
     ``IAS-PenRotate-Shadow-v0`` runs it on the Shadow Dexterous Hand of Gymnasium-Robotics
     (``hand="shadow"``: first and little finger above the pen at -3.5 and +4 cm, the thumb
     below, ``amplitude`` 0.15 rad, the largest tilt the expert tracks on it from 2 to
-    12 rad/s; needs ``pip install 'ias-gym[hands]'``).
+    12 rad/s; needs ``pip install 'ias-gym[hands]'``). ``IAS-PenRotate-LEAP-v0`` runs it on
+    the LEAP hand of MuJoCo Playground (``hand="leap"``: index and middle finger above the
+    pen at -2.25 and +2.25 cm, the thumb below, ``amplitude`` 0.075 rad, the largest tilt the
+    expert tracks on it from 2 to 12 rad/s; needs ``pip install --no-deps
+    playground==0.2.0``, which ``make setup`` runs).
 
     ## Action Space
     ``Box(-1, 1, (3k,))`` for a hand of k fingers: joint torques of its fingers in order
@@ -80,7 +84,8 @@ class PenRotateEnv(PenHandEnv):
     1-4, 0.5 N m motors; ``"ias3f"``: ``(9,)``, fingers 1 (top left), 2 (the thumb, 0.8 N m
     motors) and 3 (top right; 0.35 N m motors on fingers 1 and 3); ``"shadow"``: ``(9,)``,
     the first finger, the thumb and the little finger, each motor's range that of the
-    model's own actuator (0.72-2.37 N m). Values outside [-1, 1] are clipped; NaN/inf
+    model's own actuator (0.72-2.37 N m); ``"leap"``: ``(9,)``, the index, the thumb and the
+    middle finger, 0.22 N m motors (the model's). Values outside [-1, 1] are clipped; NaN/inf
     raise ValueError.
 
     ## Observation Space
@@ -152,20 +157,22 @@ class PenRotateEnv(PenHandEnv):
       the measurement noise; ``action_noise`` [0, -] the sigma of the noise on the
       normalised action; ``action_delay`` [0 control steps] delays every action;
       ``internal_force_step`` [0 N] steps the internal-force reference by +- this.
-    - ``hand`` [``"ias4f"``; ``"ias3f"``; ``"shadow"``]: the robot hand
+    - ``hand`` [``"ias4f"``; ``"ias3f"``; ``"shadow"``; ``"leap"``]: the robot hand
       (:mod:`ias_gym.sim.hands`); an unknown name raises InputError listing the known ones,
-      and ``"shadow"`` without its package (the ``hands`` extra) one naming the extra.
+      and ``"shadow"`` or ``"leap"`` without its package one naming how to install it.
     - PenRotate's own: ``duration`` [4.0 s]; ``amplitude`` A [0.2 rad; 0.15 rad on
-      ``IAS-PenRotate-Shadow-v0``; at most the hand's ``max_tilt``: 0.35 rad for ``"ias4f"``,
-      0.4 rad for ``"ias3f"``, 0.15 rad for ``"shadow"``];
+      ``IAS-PenRotate-Shadow-v0``, 0.075 rad on ``IAS-PenRotate-LEAP-v0``; at most the
+      hand's ``max_tilt``: 0.35 rad for ``"ias4f"``, 0.4 rad for ``"ias3f"``, 0.15 rad for
+      ``"shadow"``, 0.075 rad for ``"leap"``];
       ``frequency`` w [2.0 rad/s]; ``initial_error`` [(0.03, 0.08) rad]: the range of the
       reset's tilt error; ``settle_time`` [1.0 s] and ``max_rms_error`` [0.05, fraction of
       A]: the success test ignores the first ``settle_time``; ``track_weight`` [1.0] and
       ``position_weight`` [1.0]: reward weights [-].
 
     ## Version History
-    - v0: initial release; the ``hand`` argument, ``IAS-PenRotate3F-v0`` and
-      ``IAS-PenRotate-Shadow-v0`` added later (the four-finger default is unchanged).
+    - v0: initial release; the ``hand`` argument, ``IAS-PenRotate3F-v0``,
+      ``IAS-PenRotate-Shadow-v0`` and ``IAS-PenRotate-LEAP-v0`` added later (the four-finger
+      default is unchanged).
     """
 
     config_class: ClassVar[type[PenHandConfig]] = PenRotateConfig

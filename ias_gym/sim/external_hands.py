@@ -8,7 +8,7 @@ the package's ``LICENSE.md``) is read from the installed ``gymnasium-robotics``
 (:func:`build_shadow_scene`, with :class:`mujoco.MjSpec`) as a pen hand of the conventions
 of :mod:`ias_gym.sim.pen_hand`:
 
-- the hand is fixed to the world at a placement solved once (``train/place_shadow_hand.py``:
+- the hand is fixed to the world at a placement solved once (``train/place_hand.py --hand shadow``:
   the palm faces the pen, the fingers point up and curl over it); its wrist joints are
   removed, as are the joints of the fingers that do not touch the pen (middle and ring
   finger, the little finger's metacarpal joint), which stay straight;
@@ -42,6 +42,8 @@ import mujoco
 import numpy as np
 
 from ias_gym.errors import InputError
+from ias_gym.sim.leap_hand import build_leap_scene
+from ias_gym.sim.pen_sensors import EXTRA, add_pen_sensors
 
 __all__ = [
     "BUILDERS",
@@ -54,9 +56,6 @@ __all__ = [
     "shadow_package_dir",
     "shadow_spec",
 ]
-
-#: The pip extra that installs the external hands' packages.
-EXTRA = "hands"
 
 
 @dataclass(frozen=True)
@@ -86,7 +85,7 @@ SHADOW_FINGERS: tuple[ShadowFinger, ...] = (
 #: ``T_FFJ1c`` holds ``0.00705 J0 - 0.00805 J1`` within +-1 mm, so J0 = 1.142 J1.
 SHADOW_COUPLING = 0.00805 / 0.00705
 #: The hand's placement: the model's ``hand mount`` body's position [m] and orientation
-#: (w, x, y, z) in MuJoCo's world, solved by ``train/place_shadow_hand.py``.
+#: (w, x, y, z) in MuJoCo's world, solved by ``train/place_hand.py --hand shadow``.
 SHADOW_MOUNT: tuple[tuple[float, float, float], tuple[float, float, float, float]] = (
     (0.122254662, -0.146767647, -0.161410413),
     (0.040476884, -0.151935972, 0.122124468, 0.979980967),
@@ -255,37 +254,7 @@ def _dress(scene: mujoco.MjSpec, ranges: dict[str, float]) -> None:
             rgba=[0.9, 0.2, 0.2, 0.3],
             group=4,
         )
-    for finger in SHADOW_FINGERS:
-        scene.add_sensor(
-            name=f"{finger.name}_touch",
-            type=mujoco.mjtSensor.mjSENS_TOUCH,
-            objtype=mujoco.mjtObj.mjOBJ_SITE,
-            objname=f"{finger.name}_tip",
-        )
-    for finger in SHADOW_FINGERS:
-        _contact_sensor(scene, f"{finger.name}_pen_contact", finger.name, detail=True)
-    for finger in SHADOW_FINGERS:
-        _contact_sensor(scene, f"{finger.name}_pen_force", finger.name, detail=False)
-
-
-def _contact_sensor(scene: mujoco.MjSpec, name: str, finger: str, *, detail: bool) -> None:
-    """A contact sensor of the finger's tip geom with the pen, as scene_pen.xml's: the
-    deepest contact's found, force, dist, pos, normal, tangent (``detail``), or the net
-    force of all of them."""
-    fields = (
-        ("FOUND", "FORCE", "DIST", "POS", "NORMAL", "TANGENT") if detail else ("FOUND", "FORCE")
-    )
-    data = sum(1 << int(getattr(mujoco.mjtConDataField, f"mjCONDATA_{f}")) for f in fields)
-    reduce = 1 if detail else 3  # MJCF's reduce="mindist" / "netforce"
-    scene.add_sensor(
-        name=name,
-        type=mujoco.mjtSensor.mjSENS_CONTACT,
-        objtype=mujoco.mjtObj.mjOBJ_GEOM,
-        objname=f"{finger}_tip_collision",
-        reftype=mujoco.mjtObj.mjOBJ_GEOM,
-        refname="pen",
-        intprm=[data, reduce, 1],
-    )
+    add_pen_sensors(scene, [finger.name for finger in SHADOW_FINGERS])
 
 
 def build_shadow_scene() -> mujoco.MjModel:
@@ -294,4 +263,7 @@ def build_shadow_scene() -> mujoco.MjModel:
 
 
 #: Scene builders by the name a :class:`~ias_gym.sim.hands.HandSpec` gives as its scene.
-BUILDERS: dict[str, Callable[[], mujoco.MjModel]] = {"shadow": build_shadow_scene}
+BUILDERS: dict[str, Callable[[], mujoco.MjModel]] = {
+    "shadow": build_shadow_scene,
+    "leap": build_leap_scene,
+}

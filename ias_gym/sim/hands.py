@@ -14,7 +14,10 @@ the nominal contacts, how far the tips reach and the largest tilt the expert han
   (``ias_gym/assets/README.md``, docs/DESIGN.md "The second hand");
 - ``"shadow"``: the Shadow Dexterous Hand of Gymnasium-Robotics, loaded from that installed
   package (:mod:`ias_gym.sim.external_hands`, the ``hands`` extra): its first and little
-  finger above the pen at -3.5 and +4 cm, its thumb below the centre.
+  finger above the pen at -3.5 and +4 cm, its thumb below the centre;
+- ``"leap"``: the LEAP hand of MuJoCo Playground, loaded from that installed package
+  (:mod:`ias_gym.sim.leap_hand`): its index and middle finger above the pen at -2.25 and
+  +2.25 cm, its thumb below the centre.
 
 Paper frame (x along the pen, y up, z lateral), SI units.
 """
@@ -33,7 +36,7 @@ class HandSpec:
     """The layout of one robot hand holding the pen (paper frame, SI units).
 
     Attributes:
-        name: the registry key (``"ias4f"``, ``"ias3f"``, ``"shadow"``).
+        name: the registry key (``"ias4f"``, ``"ias3f"``, ``"shadow"``, ``"leap"``).
         scene: the MJCF scene in ``ias_gym.assets`` (hand + pen + sensors + keyframe), or
             the name of a builder in :data:`ias_gym.sim.external_hands.BUILDERS`.
         fingers: finger name prefixes in the MJCF, in the hand's order.
@@ -127,6 +130,21 @@ HANDS: dict[str, HandSpec] = {
         # 6 (the contacts creep around the pen until the internal-force LP is infeasible).
         max_tilt=0.15,
         description="the Shadow hand (Gymnasium-Robotics' model): first and little finger "
+        "above the pen, the thumb below",
+    ),
+    "leap": HandSpec(
+        name="leap",
+        scene="leap",
+        fingers=("f1", "f2", "f3"),
+        joints=("abd", "mcp", "pip"),
+        sides=(1.0, -1.0, 1.0),
+        contact_x=(-0.0225, 0.0, 0.0225),
+        reach=0.005,
+        contact_range=((-0.0495, 0.0055), (-0.031, 0.005), (-0.044, 0.0435)),
+        # 3 / 3 seeds at A = 0.075 rad for w = 2, 7, 12 rad/s; 0.1 rad fails at 12 rad/s
+        # (its joints' damping, 0.2 N m s, takes the 0.22 N m motors' torque at 1 rad/s)
+        max_tilt=0.075,
+        description="the LEAP hand (MuJoCo Playground's model): index and middle finger "
         "above the pen, the thumb below",
     ),
 }

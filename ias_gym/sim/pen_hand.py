@@ -327,13 +327,17 @@ class PenHandPhysics(FreePenPhysics):
         coupled: FloatArray = self._coupling.T @ qfrc[self._all_dofs]
         return coupled
 
-    def hand_damping(self) -> FloatArray:
+    def hand_damping(self, coulomb: bool = False) -> FloatArray:
         """The hand coordinates' viscous damping [N m s/rad], ``(n_hand_dofs,)`` (a coupled
-        joint's adds ``ratio**2`` times its own to its leader's: ``diag(S^T D S)``)."""
-        damping = self.model.dof_damping[self._all_dofs]
+        joint's adds ``ratio**2`` times its own to its leader's: ``diag(S^T D S)``); with
+        ``coulomb``, their Coulomb friction (MuJoCo's ``frictionloss``) [N m], a coupled
+        joint's added ``|ratio|`` times."""
+        damping = (self.model.dof_frictionloss if coulomb else self.model.dof_damping)[
+            self._all_dofs
+        ]
         if self._coupling is None:
             return damping.copy()
-        out: FloatArray = (self._coupling**2).T @ damping
+        out: FloatArray = (np.abs(self._coupling) ** (1 if coulomb else 2)).T @ damping
         return out
 
     def tip_positions(self) -> FloatArray:

@@ -1,11 +1,13 @@
-"""Solve the Shadow hand's placement and grasp as a pen hand; print the constants.
+"""Solve an external hand's placement and grasp as a pen hand; print the constants.
 
-The hand (``ias_gym.sim.external_hands``) is fixed to the world; this script finds where:
-the hand mount's pose and the nine driven joints such that
+The Shadow hand (``ias_gym.sim.external_hands``) and the LEAP hand
+(``ias_gym.sim.leap_hand``) are fixed to the world; this script finds where: the hand
+mount's pose and the nine driven joints such that
 
-- the first finger's and little finger's tips touch the top of the pen at x = -3.5 and +4 cm
-  and the thumb's its bottom at x = 0 (every tip 0.3 mm inside the pen, as the other hands'
-  ``grasp`` keyframes), which fixes 9 coordinates;
+- the two top fingers' tips touch the top of the pen (Shadow: first and little finger at
+  x = -3.5 and +4 cm; LEAP: index and middle finger at -2.25 and +2.25 cm) and the thumb's its
+  bottom at x = 0 (every tip 0.3 mm inside the pen, as the other hands' ``grasp``
+  keyframes), which fixes 9 coordinates;
 - every other geom of the hand keeps ``--clearance`` from the pen (a link touching the pen is
   a contact the grasp model does not have);
 - among the many placements that do both, the one whose joints lie nearest their ranges'
@@ -14,14 +16,19 @@ the hand mount's pose and the nine driven joints such that
 
 It is a nonlinear least-squares problem (``scipy.optimize.least_squares`` within the joint
 ranges) solved from ``--starts`` random starts; the best is printed as the module's
-``SHADOW_MOUNT`` and ``SHADOW_GRASP``. Deterministic in ``--seed``.
+``SHADOW_MOUNT`` and ``SHADOW_GRASP`` (``LEAP_MOUNT``, ``LEAP_GRASP``). Deterministic in
+``--seed``.
 
-    python train/place_shadow_hand.py
+    python train/place_hand.py --hand shadow
+    python train/place_hand.py --hand leap
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -29,17 +36,64 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
-from ias_gym.sim.external_hands import SHADOW_COUPLING, SHADOW_FINGERS, shadow_spec
+from ias_gym.sim import external_hands, leap_hand
 from ias_gym.sim.grasp_pose import place_grasp
 from ias_gym.sim.pen_hand import PenHandPhysics
 
-#: Contact targets per finger: x along the pen [m] and side (+1 top, -1 bottom).
-TARGETS = ((-0.035, 1.0), (0.0, -1.0), (0.04, 1.0))
+
+@dataclass(frozen=True)
+class External:
+    """What differs between the hands: the scene, the fingers, the coupling, the mount."""
+
+    spec: Callable[..., mujoco.MjSpec]
+    fingers: tuple[Any, ...]
+    coupling: float
+    mount: str
+    #: The palm upright: its fingers along world +z, its palm facing +y, the first finger
+    #: at -x.
+    upright: Rotation
+    #: Contact targets per finger: x along the pen [m] and side (+1 top, -1 bottom).
+    targets: tuple[tuple[float, float], ...]
+    #: The mean of the random starts' mount positions [m].
+    start: tuple[float, float, float]
+    prefix: str
+
+
+HANDS = {
+    "shadow": External(
+        external_hands.shadow_spec,
+        external_hands.SHADOW_FINGERS,
+        external_hands.SHADOW_COUPLING,
+        "shadow/robot0:hand mount",
+        Rotation.from_euler("z", np.pi),
+        ((-0.035, 1.0), (0.0, -1.0), (0.04, 1.0)),
+        (0.0, -0.06, 0.1),
+        "SHADOW",
+    ),
+    "leap": External(
+        leap_hand.leap_spec,
+        leap_hand.LEAP_FINGERS,
+        leap_hand.LEAP_COUPLING,
+        "leap/leap_mount",
+        # the model's fingers point along its mount's +x, its palm faces +z
+        Rotation.from_matrix([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]),
+        ((-0.0225, 1.0), (0.0, -1.0), (0.0225, 1.0)),
+        (0.0, -0.08, 0.0),
+        "LEAP",
+    ),
+}
 PEN_CENTRE = np.array([0.0, 0.0, 0.2])
 PEN_RADIUS = 0.01
 PENETRATION = 3e-4
-#: The palm upright: its fingers along world +z, its palm facing +y, the first finger at -x.
-UPRIGHT = Rotation.from_euler("z", np.pi)
+
+
+def _within(m: mujoco.MjModel, body: int, root: int) -> bool:
+    """Whether ``body`` is ``root`` or below it in the kinematic tree."""
+    while body > 0:
+        if body == root:
+            return True
+        body = int(m.body_parentid[body])
+    return False
 
 
 def main() -> None:
@@ -47,6 +101,7 @@ def main() -> None:
         description=__doc__.splitlines()[0],
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
+    parser.add_argument("--hand", choices=sorted(HANDS), default="shadow", help="the hand")
     parser.add_argument("--starts", type=int, default=25, help="random starts")
     parser.add_argument("--seed", type=int, default=0, help="seed of the starts")
     parser.add_argument("--margin", type=float, default=0.05, help="joints from their limits [rad]")
@@ -74,28 +129,32 @@ def main() -> None:
         "--contact-x",
         type=float,
         nargs=3,
-        default=[x for x, _ in TARGETS],
-        help="contact positions along the pen per finger [m]",
+        default=None,
+        help="contact positions along the pen per finger [m] (default: the hand's)",
     )
     args = parser.parse_args()
-    sides = [side for _, side in TARGETS]
+    hand = HANDS[args.hand]
+    if args.contact_x is None:
+        args.contact_x = [x for x, _ in hand.targets]
+    sides = [side for _, side in hand.targets]
+    fingers, coupling, UPRIGHT = hand.fingers, hand.coupling, hand.upright
 
-    scene = shadow_spec(grasp=None)
-    scene.body("shadow/robot0:hand mount").add_freejoint(name="mount")
+    scene = hand.spec(grasp=None)
+    scene.body(hand.mount).add_freejoint(name="mount")
     m = scene.compile()
     d = mujoco.MjData(m)
     mount = m.joint("mount").qposadr[0]
     pen = m.joint("pen").qposadr[0]
-    names = [f"{f.name}_{j}" for f in SHADOW_FINGERS for j in ("abd", "mcp", "pip")]
+    names = [f"{f.name}_{j}" for f in fingers for j in ("abd", "mcp", "pip")]
     qadr = np.array([m.joint(n).qposadr[0] for n in names])
     lo, hi = m.jnt_range[[m.joint(n).id for n in names]].T
     dips = [
         (m.joint(f"{f.name}_dip").qposadr[0], m.joint(f"{f.name}_pip").qposadr[0])
-        for f in SHADOW_FINGERS
+        for f in fingers
         if f.dip is not None
     ]
-    tips = [m.site(f"{f.name}_tip").id for f in SHADOW_FINGERS]
-    tip_geoms = {m.geom(f"{f.name}_tip_collision").id for f in SHADOW_FINGERS}
+    tips = [m.site(f"{f.name}_tip").id for f in fingers]
+    tip_geoms = {m.geom(f"{f.name}_tip_collision").id for f in fingers}
     pen_geom = m.geom("pen").id
     hand_geoms = [
         g
@@ -104,7 +163,7 @@ def main() -> None:
         and m.geom_bodyid[g] not in (0, m.geom_bodyid[pen_geom])
         and g not in tip_geoms
     ]
-    order = [m.geom(f"{f.name}_tip_collision").id for f in SHADOW_FINGERS]
+    order = [m.geom(f"{f.name}_tip_collision").id for f in fingers]
     radius = m.geom_size[order, 0]
     # the pen's poses the grasp must reach: at rest and tilted about the paper's z (MuJoCo
     # -y) by each of --tilts, one set of finger joints per pose, one hand placement for all
@@ -119,6 +178,15 @@ def main() -> None:
     pen_quats = [Rotation.from_euler("y", -t).as_quat()[[3, 0, 1, 2]] for t in tilts]
     # the model's finger-finger contact pairs (a finger held still stands beside one moving)
     pairs = list(zip(m.pair_geom1, m.pair_geom2, strict=True))
+    if not pairs:  # no explicit pairs (LEAP): every geom of one finger against the others'
+        chains = []
+        for f in fingers:
+            base = min(m.jnt_bodyid[m.joint(f"{f.name}_{j}").id] for j in ("abd", "mcp", "pip"))
+            inside = {b for b in range(m.nbody) if _within(m, b, base)}
+            chains.append([g for g in hand_geoms + sorted(tip_geoms) if m.geom_bodyid[g] in inside])
+        pairs = [
+            (a, b) for i, c in enumerate(chains) for c2 in chains[i + 1 :] for a in c for b in c2
+        ]
     fromto = np.zeros(6)
     n = len(names)
 
@@ -129,11 +197,11 @@ def main() -> None:
         d.qpos[mount + 3 : mount + 7] = [w[3], w[0], w[1], w[2]]
         d.qpos[qadr] = x[6 + n * i : 6 + n * (i + 1)]
         for dip, pip in dips:
-            d.qpos[dip] = SHADOW_COUPLING * d.qpos[pip]
+            d.qpos[dip] = coupling * d.qpos[pip]
         d.qpos[pen : pen + 7] = [*PEN_CENTRE, *pen_quats[i]]
         mujoco.mj_kinematics(m, d)
 
-    distal = [m.geom(f"{f.name}_tip_collision").bodyid[0] for f in SHADOW_FINGERS]
+    distal = [m.geom(f"{f.name}_tip_collision").bodyid[0] for f in fingers]
     push = -np.array(sides)  # the world z component of the direction each tip pushes in
 
     def residual(x: np.ndarray) -> np.ndarray:
@@ -159,7 +227,7 @@ def main() -> None:
     best = None
     for _ in tqdm(range(args.starts), desc="starts"):
         x0 = np.r_[
-            np.clip(np.array([0.0, -0.06, 0.1]) + rng.normal(0, 0.05, 3), -0.29, 0.29),
+            np.clip(np.array(hand.start) + rng.normal(0, 0.05, 3), -0.29, 0.29),
             np.clip(rng.normal(0, 0.4, 3), -1.3, 1.3),
             np.tile(rng.uniform(lo + args.margin, hi - args.margin), k),
         ]
@@ -194,17 +262,15 @@ def main() -> None:
         f"tip error {err:.2e} m, smallest link gap {gap * 1e3:.2f} mm, smallest finger-pair "
         f"gap {inner * 1e3:.2f} mm, other contacts {others}, cost {best.cost:.3e}"
     )
-    print("SHADOW_MOUNT = (")
+    print(f"{hand.prefix}_MOUNT = (")
     print(f"    ({best.x[0]:.9f}, {best.x[1]:.9f}, {best.x[2]:.9f}),")
     print(f"    ({w[3]:.9f}, {w[0]:.9f}, {w[1]:.9f}, {w[2]:.9f}),")
     print(")")
     # the keyframe exactly on the targets: the grasp's own inverse kinematics from there
     placed = (tuple(best.x[:3]), (w[3], w[0], w[1], w[2]))
-    start = tuple(tuple(best.x[6 + 3 * f : 9 + 3 * f]) for f in range(len(SHADOW_FINGERS)))
-    final = shadow_spec(mount=placed, grasp=start).compile()  # type: ignore[arg-type]
-    physics = PenHandPhysics(
-        final, mujoco.MjData(final), [f.name for f in SHADOW_FINGERS], sides=sides
-    )
+    start = tuple(tuple(best.x[6 + 3 * f : 9 + 3 * f]) for f in range(len(fingers)))
+    final = hand.spec(mount=placed, grasp=start).compile()  # type: ignore[arg-type]
+    physics = PenHandPhysics(final, mujoco.MjData(final), [f.name for f in fingers], sides=sides)
     physics.reset()
     err = place_grasp(
         physics,
@@ -217,8 +283,8 @@ def main() -> None:
     )
     print(f"keyframe by the grasp's inverse kinematics: tip error {err:.1e} m")
     polished = physics.hand_qpos()
-    print("SHADOW_GRASP = (")
-    for f in range(len(SHADOW_FINGERS)):
+    print(f"{hand.prefix}_GRASP = (")
+    for f in range(len(fingers)):
         a = polished[3 * f : 3 * f + 3]
         print(f"    ({a[0]:.9f}, {a[1]:.9f}, {a[2]:.9f}),")
     print(")")
