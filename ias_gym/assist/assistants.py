@@ -79,7 +79,7 @@ from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from ias_gym.assist.sessions import LIFT_END, MAX_TIME_SHIFT
 from ias_gym.assist.stream import frames_from_env
-from ias_gym.envs.glove_grasp import OBSERVATION
+from ias_gym.envs.glove_world import OBSERVATION
 from ias_gym.errors import InputError
 from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS, joint_index
 from ias_gym.glove.impairments import TREMOR_JOINTS, pinch_direction
@@ -332,7 +332,7 @@ def live_margin(env: Any) -> float:
     Args:
         env: an unwrapped glove env after ``reset`` or ``step``.
     """
-    from ias_gym.sim.glove_contacts import pinch_null_basis  # MuJoCo scene code
+    from ias_gym.sim.soft_finger import pinch_null_basis  # MuJoCo scene code
 
     if env.contact_pass is None:
         return math.nan

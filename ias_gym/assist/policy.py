@@ -53,7 +53,7 @@ from numpy.typing import NDArray
 from ias_gym.assist.recognition import METHODS, make_recogniser
 from ias_gym.assist.sessions import LIFT_END
 from ias_gym.assist.stream import SessionFrame
-from ias_gym.envs.glove_grasp import OBSERVATION
+from ias_gym.envs.glove_world import OBSERVATION
 from ias_gym.errors import InputError
 from ias_gym.glove.hand import N_JOINTS
 from ias_gym.glove.skills import SKILLS
