@@ -33,7 +33,7 @@ from ias_gym.assist.recognition import (
 )
 from ias_gym.assist.stream import frames_from_skill
 from ias_gym.cli import main
-from ias_gym.envs.glove_grasp import GloveGraspConfig
+from ias_gym.envs.glove_grasp_config import GloveGraspConfig
 from ias_gym.errors import InputError
 from ias_gym.glove.population import population_ids
 from ias_gym.skills import SkillDB

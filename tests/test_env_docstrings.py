@@ -11,7 +11,8 @@ import gymnasium as gym
 import pytest
 
 import ias_gym  # noqa: F401  (registers the ids)
-from ias_gym.envs.glove_grasp import GloveGraspConfig, GloveGraspEnv
+from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.envs.glove_grasp_config import GloveGraspConfig
 from ias_gym.registration import ENV_SPECS, HARDWARE_ENV_SPECS
 
 #: Gymnasium v5's env docstring sections (e.g. its MuJoCo envs), in their order.
@@ -102,7 +103,7 @@ def test_env_docstring_tables_the_observation_layout(env_id: str) -> None:
         return
     assert table, f"{env_id}'s ## Observation Space has no table of the observation's parts"
     if env_id == "IAS-GloveHardware-v0":  # needs a CAN bus; its layout is the glove world's
-        from ias_gym.envs.glove_grasp import OBSERVATION_PARTS
+        from ias_gym.envs.glove_world import OBSERVATION_PARTS
 
         parts, fingers = OBSERVATION_PARTS, 0
     else:

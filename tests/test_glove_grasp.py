@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from ias_gym.envs.glove_grasp import REWARD_TERMS, GloveGraspEnv
+from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.envs.glove_grasp_rewards import REWARD_TERMS
 from ias_gym.glove import JOINT_NAMES, PersonParams, fit_linear, record_session
 from ias_gym.glove.calibration import Calibration, GroupModel
 from ias_gym.glove.device import ACTUATED_JOINTS

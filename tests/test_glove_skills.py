@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from ias_gym.assist.sessions import HELD_FROM
-from ias_gym.envs.glove_grasp import REWARD_TERMS, GloveGraspEnv
+from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.envs.glove_grasp_rewards import REWARD_TERMS
 from ias_gym.errors import InputError
 from ias_gym.glove import skills as glove_skills
 from ias_gym.glove.device import ReachPinchLift, ReachPinchLiftTimings, SimulatedGlove
@@ -30,14 +31,14 @@ from ias_gym.glove.skills import (
     skill_start_time,
 )
 from ias_gym.grasp.wrench_matrix import wrench_matrix
-from ias_gym.sim.glove_contacts import (
+from ias_gym.sim.scene_constants import glove_pen_radius
+from ias_gym.sim.soft_finger import (
     FingerContacts,
     pinch_null_basis,
     soft_contact_intensities,
     soft_finger_cone_margin,
     soft_wrench_matrix,
 )
-from ias_gym.sim.scene_constants import glove_pen_radius
 from ias_gym.skills import SkillDB
 from ias_gym.skills.glove_session import GloveSkillModelRecorder
 from ias_gym.skills.record import record_skills_spec

@@ -96,7 +96,7 @@ def test_a_named_read_is_the_former_column_read() -> None:
         np.testing.assert_array_equal(obs[layout[name]], obs[columns])
     pen_skill.close()
     from ias_gym.envs.glove_assist import OBSERVATION_PARTS as ASSIST_PARTS
-    from ias_gym.envs.glove_grasp import OBSERVATION
+    from ias_gym.envs.glove_world import OBSERVATION
 
     glove = np.arange(49.0)[None, :]  # a stand-in (T, 49) block: only the columns matter
     assist = observation_layout(ASSIST_PARTS)

@@ -13,8 +13,8 @@ from ias_gym.sim.contacts import (
     cross,
     masked_wrench_matrix,
 )
-from ias_gym.sim.glove_contacts import FingerContacts
 from ias_gym.sim.pen_hand import FingertipContacts
+from ias_gym.sim.soft_finger import FingerContacts
 
 
 def test_both_scenes_contacts_are_point_contacts() -> None:

@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 
 from ias_gym.cli.skills_commands import add_skills_commands
-from ias_gym.envs.glove_grasp import OBSERVATION, GloveGraspEnv
+from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.envs.glove_world import OBSERVATION
 from ias_gym.errors import InputError
 from ias_gym.glove.profile import DEFAULT_GLOVE_ID
 from ias_gym.grasp.wrench_matrix import wrench_matrix
-from ias_gym.sim.glove_contacts import FingerContacts, GlovePenPhysics, squeeze_null_vector
+from ias_gym.sim.glove_contacts import GlovePenPhysics
 from ias_gym.sim.glove_scene import (
     FINGER_ABOVE,
     FINGER_GEOMS,
@@ -26,6 +27,7 @@ from ias_gym.sim.glove_scene import (
     load_glove_scene,
 )
 from ias_gym.sim.pen_hand import mj_to_paper
+from ias_gym.sim.soft_finger import FingerContacts, squeeze_null_vector
 from ias_gym.skills import (
     SkillDB,
     SkillDBError,

@@ -27,7 +27,7 @@ def live_margin(env: Any) -> float:
     Args:
         env: an unwrapped glove env after ``reset`` or ``step``.
     """
-    from ias_gym.sim.glove_contacts import pinch_null_basis  # MuJoCo scene code
+    from ias_gym.sim.soft_finger import pinch_null_basis
 
     if env.contact_pass is None:
         return math.nan

@@ -40,7 +40,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.envs.glove_grasp import OBSERVATION
+from ias_gym.envs.glove_world import OBSERVATION
 from ias_gym.glove.hand import N_JOINTS
 from ias_gym.glove.skills import SKILL_TIMINGS
 from ias_gym.rollout import rollout

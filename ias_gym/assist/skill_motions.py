@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.envs.glove_grasp import OBSERVATION
+from ias_gym.envs.glove_world import OBSERVATION
 from ias_gym.errors import InputError
 from ias_gym.glove.hand import N_JOINTS
 from ias_gym.glove.skills import SKILLS

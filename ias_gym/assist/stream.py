@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.envs.glove_grasp import OBSERVATION
+from ias_gym.envs.glove_world import OBSERVATION
 from ias_gym.errors import InputError
 from ias_gym.glove.device import GloveDevice, GloveReading, GloveWrapper
 from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS

@@ -25,8 +25,8 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from ias_gym.envs.glove_grasp import OBSERVATION_PARTS as GLOVE_PARTS
 from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.envs.glove_world import OBSERVATION_PARTS as GLOVE_PARTS
 from ias_gym.envs.layout import observation_layout
 from ias_gym.errors import InputError
 from ias_gym.glove.device import GloveDevice, ReachPinchLiftTimings, SimulatedGlove
@@ -137,7 +137,7 @@ class GloveAssistEnv(GloveGraspEnv):
     time]; ``hand_scale`` [None]: the person with their hand resized to this scale
     (:func:`~ias_gym.glove.impairments.resized_person`), the operator planning for that
     hand (``hand_size`` with the same scale runs the stock plan on it instead); and the
-    fields of :class:`~ias_gym.envs.glove_grasp.GloveGraspConfig`
+    fields of :class:`~ias_gym.envs.glove_grasp_config.GloveGraspConfig`
     (``person_id``, ``skill``, ``control_dt``, ``duration``, ``action_scale``, ...).
 
     ## Version History
@@ -172,7 +172,7 @@ class GloveAssistEnv(GloveGraspEnv):
             switch_time: episode time of the switch [s] (needed with ``switch_to``).
             hand_scale: resize the person's hand to this scale [-], the operator's plan
                 made for it (None: the person's own hand).
-            **config: fields of :class:`~ias_gym.envs.glove_grasp.GloveGraspConfig`.
+            **config: fields of :class:`~ias_gym.envs.glove_grasp_config.GloveGraspConfig`.
 
         Raises:
             InputError: an unknown impairment family, key or skill, a value out of range,

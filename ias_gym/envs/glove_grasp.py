@@ -19,41 +19,30 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-import gymnasium as gym
 import mujoco
 import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from ias_gym.envs.layout import ObservationParts, layout_size, observation_layout
+from ias_gym.envs.glove_grasp_config import GloveGraspConfig
+from ias_gym.envs.glove_grasp_rewards import PLACE_TOLERANCE, REWARD_TERMS, reward_terms
+from ias_gym.envs.glove_readings import default_glove, read_theta
+from ias_gym.envs.glove_world import OBSERVATION, OBSERVATION_SIZE, GloveWorldEnv
+from ias_gym.envs.mujoco_state import set_state_from_options
 from ias_gym.errors import InputError
 from ias_gym.glove.calibration import Calibration
 from ias_gym.glove.closed_loop import ClosedLoopOperator, pen_tilt
-from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, SimulatedGlove, WorldView
+from ias_gym.glove.device import GloveDevice, WorldView
 from ias_gym.glove.hand import JOINT_HIGH, JOINT_LOW, JOINT_NAMES, PersonParams
-from ias_gym.glove.ids import check_id
-from ias_gym.glove.operator import FromPreShape, skill_operator
-from ias_gym.glove.operator import pen_operator as _pen_operator
+from ias_gym.glove.operator import FromPreShape
 from ias_gym.glove.profile_cache import default_calibration
 from ias_gym.glove.skills import (
     SkillStyle,
-    check_skill,
     skill_motion_time,
     skill_object_target,
     skill_start_time,
 )
-from ias_gym.sim.glove_contacts import GlovePenPhysics, PenContactPass
-from ias_gym.sim.glove_scene import (
-    FINGER_ABOVE,
-    FINGER_GEOMS,
-    FINGER_TIPS,
-    INDEX_GEOMS,
-    SUPPORT_GEOMS,
-    THUMB_DRIVER,
-    THUMB_GEOMS,
-    load_glove_scene,
-    thumb_coupling,
-)
+from ias_gym.sim.glove_scene import INDEX_GEOMS, THUMB_GEOMS, load_glove_scene
 from ias_gym.sim.glove_scene import scene_operator as pen_operator  # its older name here
 
 FloatArray = NDArray[np.float64]
@@ -62,75 +51,13 @@ FloatArray = NDArray[np.float64]
 __all__ = [
     "INDEX_GEOMS",
     "NONFINITE_THETA_FAULT",
-    "OBSERVATION",
-    "OBSERVATION_PARTS",
-    "OBSERVATION_SIZE",
-    "REWARD_TERMS",
     "THUMB_GEOMS",
     "FromPreShape",
-    "GloveGraspConfig",
     "GloveGraspEnv",
     "default_calibration",
     "load_glove_scene",
     "pen_operator",
 ]
-
-
-#: The glove world's observation, in order: each part's name and size. :data:`OBSERVATION`
-#: maps the names to their slices; consumers index by name, never by column number.
-OBSERVATION_PARTS: ObservationParts = (
-    ("joint_angles", len(JOINT_NAMES)),  # hand joint angles [rad], JOINT_NAMES order
-    ("joint_velocities", len(JOINT_NAMES)),  # [rad/s]
-    ("pen_position", 3),  # pen centre relative to its start, world frame [m]
-    ("pen_quat", 4),  # pen orientation quaternion (w, x, y, z), world frame
-    ("pen_velocity", 3),  # [m/s], world frame
-    ("pen_omega", 3),  # [rad/s], world frame
-    ("feedback_torques", len(ACTUATED_JOINTS)),  # force display on ACTUATED_JOINTS [N m]
-    ("time", 1),  # episode time [s]
-)
-
-
-#: Names to slices of the glove world's observation (:data:`OBSERVATION_PARTS`).
-OBSERVATION: dict[str, slice] = observation_layout(OBSERVATION_PARTS)
-#: Size of the glove world's observation.
-OBSERVATION_SIZE = layout_size(OBSERVATION_PARTS)
-
-
-#: The simulated persons: in the loop (:class:`~ias_gym.glove.closed_loop.ClosedLoopOperator`)
-#: or the open-loop script of the plan alone.
-OPERATORS: tuple[str, ...] = ("closed_loop", "script")
-
-
-@dataclasses.dataclass(frozen=True)
-class GloveGraspConfig:
-    """Settings of :class:`GloveGraspEnv` (units in the comments)."""
-
-    person_id: str = "p1"  # simulated person wearing the glove (PersonParams.sample)
-    skill: str | None = None  # object skill after the pinch-lift (glove.skills.SKILLS)
-    operator: str = "closed_loop"  # the simulated person: "closed_loop" or the open "script"
-    control_dt: float = 0.01  # one env step = one glove read [s]; a multiple of 1 ms
-    duration: float = 4.0  # episode length [s] (registered max_episode_steps = 400)
-    action_scale: float = 0.2  # joint offset of a full action [rad]
-    filter_tau: float = 0.05  # time constant of the low-pass on the calibrated Θ [s]; 0: off
-    lift_height: float = 0.03  # success: pen centre this much above its start [m]
-    drop_height: float = 0.05  # terminated: pen centre this far below its start [m]
-    max_distance: float = 0.15  # terminated: pen centre this far from its start [m]
-    lift_weight: float = 1.0  # weight of the lift term [-]
-    track_weight: float = 1.0  # weight of the skill's tilt-tracking term [-] (with a skill)
-    contact_weight: float = 0.5  # weight of the pinch-contact term [-]
-    effort_weight: float = 0.1  # weight of the action-effort penalty [-]
-
-    def __post_init__(self) -> None:
-        # person_id names the cached profile file: checked before anything is built.
-        check_id(self.person_id, "person_id")
-        if self.skill is not None:
-            check_skill(self.skill, "skill")
-        if self.operator not in OPERATORS:
-            raise InputError(
-                f"operator {self.operator!r} is not known; choose one of {', '.join(OPERATORS)}"
-            )
-        if self.control_dt <= 0 or self.duration <= 0:
-            raise ValueError("control_dt and duration must be positive [s]")
 
 
 #: Info keys of the person's intended object motion (:func:`skill_object_target`): the pen's
@@ -141,26 +68,8 @@ TARGET_INFO: tuple[str, str] = ("target_height", "target_tilt")
 #: broken calibration): the step keeps the last finite targets and ends the episode.
 NONFINITE_THETA_FAULT = "calibration gave non-finite joint angles (check the glove profile)"
 
-#: ``lift_place`` succeeds when the pen, lifted before, is back within this height of its
-#: start [m] (on its support) and both fingers still hold it.
-PLACE_TOLERANCE = 0.005
 
-#: Reward term names (info keys ``reward_<name>``).
-REWARD_TERMS = ("lift", "track", "pinch", "effort")
-#: Widths of the skill reward's kernels: the pen's height [m] and tilt [rad] at which a term
-#: falls to half its weight (a person's own repeatability: lifts end within about +-5 mm,
-#: tilts within about +-3 deg of each other).
-HEIGHT_TOLERANCE = 0.005
-TILT_TOLERANCE = 0.05
-
-
-def _tolerance(error: float, width: float) -> float:
-    """1 at no error, 1/2 at ``width``, towards 0 beyond (a bounded Cauchy kernel, as
-    dm_control's ``rewards.tolerance`` with a Lorentzian sigmoid)."""
-    return 1.0 / (1.0 + (error / width) ** 2)
-
-
-class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
+class GloveGraspEnv(GloveWorldEnv):
     """The glove-driven human hand pinches the pen and lifts it (``IAS-GloveGrasp-v0``).
 
     ## Description
@@ -191,7 +100,7 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
 
     ## Observation Space
     ``(39,)`` float64. By name: ``env.unwrapped.observation_layout[name]`` is the part's slice
-    (:data:`OBSERVATION_PARTS` in order):
+    (:data:`~ias_gym.envs.glove_world.OBSERVATION_PARTS` in order):
 
     | name | size | content |
     |---|---|---|
@@ -237,7 +146,8 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     state is then put back to the start, not terminated). ``info["is_success"]``: pen >=
     ``lift_height`` above its start and touching neither the support nor the floor; for
     the skill ``lift_place``: lifted so before, and now back within
-    :data:`PLACE_TOLERANCE` of its start with both fingers holding it.
+    :data:`~ias_gym.envs.glove_grasp_rewards.PLACE_TOLERANCE` of its start with both fingers
+    holding it.
     ``info["operator_failure"]`` says why the simulated person failed on their side (``""``:
     they did not; e.g. ``"dropped the pen"``: they saw it fall and gave up).
     ``info["skill_phase"]``: 0 before the skill's own motion (or without a skill), 1 during
@@ -249,7 +159,8 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
 
     ## Arguments
     ``render_mode`` (``None`` or ``"rgb_array"``), ``person``, ``calibration`` and
-    ``glove_factory`` (see :meth:`__init__`), and the fields of :class:`GloveGraspConfig`
+    ``glove_factory`` (see :meth:`__init__`), and the fields of
+    :class:`~ias_gym.envs.glove_grasp_config.GloveGraspConfig`
     (defaults in brackets): ``person_id`` [``"p1"``]: the simulated person wearing the
     glove, any valid id (:func:`~ias_gym.glove.ids.check_id`; a new id's calibration is
     trained once, seconds, and cached); ``skill`` [None]: the skill performed after the
@@ -298,10 +209,12 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             calibration: Θ = f(Ψ) of that person (default:
                 :func:`~ias_gym.glove.profile_cache.default_calibration`).
             glove_factory: ``seed -> GloveDevice`` called at every reset (a stream of
-                readings per episode). Default: a :class:`SimulatedGlove` (seeded noise) on
-                the person running :class:`~ias_gym.glove.operator.FromPreShape` of
+                readings per episode). Default: a
+                :class:`~ias_gym.glove.device.SimulatedGlove` (seeded noise) on the person
+                running :class:`~ias_gym.glove.operator.FromPreShape` of
                 :class:`~ias_gym.glove.device.ReachPinchLift`.
-            **config: fields of :class:`GloveGraspConfig` to override.
+            **config: fields of :class:`~ias_gym.envs.glove_grasp_config.GloveGraspConfig`
+                to override.
         """
         fields = {f.name for f in dataclasses.fields(GloveGraspConfig)}
         unknown = sorted(set(config) - fields)
@@ -320,8 +233,7 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self.calibration = (
             calibration if calibration is not None else default_calibration(self.person)
         )
-        m = self.model = load_glove_scene(self.person)
-        self.data = mujoco.MjData(m)
+        super().__init__(self.person, self.config.control_dt)  # the scene, the force display
         #: The simulated person of the episode when the default glove is used (None else).
         self.operator: ClosedLoopOperator | None = None
         if glove_factory is None:
@@ -338,38 +250,10 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             if self.skill_start is None or self.config.skill is None
             else self.skill_start + skill_motion_time(self.config.skill, self.style.speed)
         )
-        self.frame_skip = round(self.config.control_dt / m.opt.timestep)
-        if self.frame_skip < 1 or not math.isclose(
-            self.frame_skip * m.opt.timestep, self.config.control_dt
-        ):
-            raise ValueError(f"control_dt must be a multiple of {m.opt.timestep} s")
         self.max_steps = round(self.config.duration / self.config.control_dt)
         self.metadata = {**self.metadata, "render_fps": round(1.0 / self.config.control_dt)}
 
-        # Names looked up once (STYLE.md).
-        joints = [m.joint(n).id for n in JOINT_NAMES]
-        self._qadr = m.jnt_qposadr[joints].copy()
-        self._vadr = m.jnt_dofadr[joints].copy()
-        self._act = np.array([m.actuator(n).id for n in JOINT_NAMES])
-        self._ctrl_lo = m.actuator_ctrlrange[self._act, 0].copy()
-        self._ctrl_hi = m.actuator_ctrlrange[self._act, 1].copy()
-        # The thumb's passive hinges follow thumb_flexion by the model's equalities.
-        coupled, self._coupling = thumb_coupling(m)
-        self._coupled_q = m.jnt_qposadr[coupled].copy()
-        self._coupled_dofs = m.jnt_dofadr[coupled].copy()
-        self._flex = JOINT_NAMES.index(THUMB_DRIVER)
-        self._fb_dofs = np.array([m.jnt_dofadr[m.joint(n).id] for n in ACTUATED_JOINTS])
-        self._fb_flex = ACTUATED_JOINTS.index(THUMB_DRIVER)
-        self._pen_body = m.body("pen").id
-        self._pen_v = m.jnt_dofadr[m.joint("pen").id]
-        self._rest_geoms = frozenset(m.geom(n).id for n in SUPPORT_GEOMS)
-        # The pen and the fingers' contacts: one pass per step feeds the force display and
-        # (through contact_pass) the skill model's W and c.
-        self.physics = GlovePenPhysics(m, self.data, FINGER_GEOMS, FINGER_TIPS, FINGER_ABOVE)
-        self.contact_pass: PenContactPass | None = None  # of the last reset or step
-        self._pen_start = np.zeros(3)
         self._tilt_start = 0.0  # the pen's tilt at reset [rad]
-        self._warnings = self.data.warning.number  # a view: MuJoCo's warning counters
         self._unstable = False
         self._fault = ""  # latched for the episode: a broken calibration stays broken
 
@@ -377,45 +261,26 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self.observation_space = spaces.Box(
             -np.inf, np.inf, shape=(OBSERVATION_SIZE,), dtype=np.float64
         )
-        #: Names to slices of the observation (:data:`OBSERVATION`; subclasses extend it).
+        #: Names to slices of the observation (:data:`~ias_gym.envs.glove_world.OBSERVATION`;
+        #: subclasses extend it).
         self.observation_layout = dict(OBSERVATION)
-        self._steps = 0
         cfg = self.config
         self._alpha = cfg.control_dt / (cfg.filter_tau + cfg.control_dt)
         self._theta = np.zeros(len(JOINT_NAMES))
-        self._feedback = np.zeros(len(ACTUATED_JOINTS))
         self._touch = (False, False)
         self._pinch_force = 0.0
         self._lifted = False  # the pen was lifted off its support in this episode
-        self._renderer: Any = None
-
-    @property
-    def dt(self) -> float:
-        """Control period [s]: one ``step`` = one glove read (``frame_skip`` physics steps),
-        as Gymnasium's MuJoCo envs have it."""
-        return float(self.model.opt.timestep * self.frame_skip)
 
     # ------------------------------------------------------------------ glove
     def _default_glove(self, seed: int) -> GloveDevice:
         """The simulated person of ``config.person_id`` doing the pen's pinch-lift (and the
-        skill) on a :class:`SimulatedGlove`: in the loop or by the open script."""
-        m, person = self.model, self.person
-        # The operator pinches the scene's pen: its radius read from the compiled model.
-        pen_geom = m.geom("pen").id
-        radius = float(m.geom_size[pen_geom, 0])
-        skill = self.config.skill
-        plan = (
-            _pen_operator(person, radius)
-            if skill is None
-            else skill_operator(person, radius, skill)
-        )
-        if self.config.operator == "script":
-            return SimulatedGlove(person, FromPreShape(plan), seed)
-        weight = float(m.body_subtreemass[self._pen_body] * -m.opt.gravity[2])
-        self.operator = ClosedLoopOperator(
-            plan, person, object_weight=weight, friction=float(m.geom_friction[pen_geom, 0])
-        )
-        return SimulatedGlove(person, self.operator, seed)
+        skill) on a :class:`~ias_gym.glove.device.SimulatedGlove`: in the loop or by the
+        open script (:func:`~ias_gym.envs.glove_readings.default_glove`)."""
+        cfg = self.config
+        glove, operator = default_glove(self.model, self.person, cfg.skill, cfg.operator, seed)
+        if operator is not None:
+            self.operator = operator
+        return glove
 
     def _show(self) -> None:
         """Show the glove's wearer the pen as it is now (the virtual world's display)."""
@@ -439,76 +304,12 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         return glove
 
     def _read_theta(self, fallback: FloatArray) -> tuple[FloatArray, bool]:
-        """Calibrated joint angles Θ [rad] of a new reading, clipped to the joint ranges, and
-        whether the calibration gave finite numbers.
-
-        NaN passes ``np.clip`` and would reach MuJoCo's ``ctrl`` (which then warns and
-        zeroes it, so the hand goes limp without a word): non-finite entries are replaced
-        by ``fallback`` (the last finite targets) and reported.
-        """
+        """Θ [rad] of a new reading and whether it is finite
+        (:func:`~ias_gym.envs.glove_readings.read_theta`; ``fallback``: the last finite)."""
         assert self.glove is not None
-        theta = np.asarray(self.calibration.predict(self.glove.read().psi), dtype=np.float64)
-        finite = np.isfinite(theta)
-        ok = bool(finite.all())
-        if not ok:
-            theta = np.where(finite, theta, fallback)
-        return np.minimum(np.maximum(theta, JOINT_LOW), JOINT_HIGH), ok  # np.clip, cheaper
+        return read_theta(self.glove, self.calibration, fallback)
 
-    def _place_hand(self, theta: FloatArray) -> None:
-        """Reset MuJoCo's state: hand at ``theta`` [rad] and at rest, pen at its start."""
-        m, d = self.model, self.data
-        mujoco.mj_resetData(m, d)
-        d.qpos[self._qadr] = theta
-        d.qpos[self._coupled_q] = self._coupling * theta[self._flex]
-        d.ctrl[self._act] = theta
-        mujoco.mj_forward(m, d)
-
-    def _set_state(self, options: dict[str, Any]) -> None:
-        """Put MuJoCo's state to ``options["qpos"]`` and ``options.get("qvel", 0)``."""
-        m, d = self.model, self.data
-        qpos = np.asarray(options["qpos"], dtype=float)
-        qvel = np.asarray(options.get("qvel", np.zeros(m.nv)), dtype=float)
-        if qpos.shape != (m.nq,) or qvel.shape != (m.nv,):
-            raise ValueError(
-                f"options qpos/qvel need shapes ({m.nq},)/({m.nv},), got {qpos.shape}/{qvel.shape}"
-            )
-        if not (np.isfinite(qpos).all() and np.isfinite(qvel).all()):
-            raise ValueError("options qpos/qvel contain NaN or inf")
-        d.qpos[:] = qpos
-        d.qvel[:] = qvel
-        mujoco.mj_forward(m, d)
-
-    # ------------------------------------------------------------------ physics
-    def _force_display(self) -> tuple[FloatArray, tuple[bool, bool], float, bool]:
-        """(tau on ACTUATED_JOINTS [N m], (index, thumb) touch, pinch normal force [N],
-        pen touches the support or floor), from one pass over the contacts (kept in
-        :attr:`contact_pass`)."""
-        cp = self.contact_pass = self.physics.contact_pass()
-        tau = cp.qfrc[self._fb_dofs]  # a copy (fancy indexing)
-        # thumb_flexion drives the coupled MCP-share and IP hinges: virtual work.
-        tau[self._fb_flex] += float(self._coupling @ cp.qfrc[self._coupled_dofs])
-        touch = (bool(cp.count[0]), bool(cp.count[1]))
-        rest = not self._rest_geoms.isdisjoint(cp.other_geoms)
-        return tau, touch, float(np.add.reduce(cp.normal_force)), rest
-
-    def _observation(self) -> FloatArray:
-        d = self.data
-        pen_v = d.qvel[self._pen_v : self._pen_v + 6]
-        # Free joint: linear velocity in world, angular velocity in the body frame -> world.
-        omega = d.xmat[self._pen_body].reshape(3, 3) @ pen_v[3:6]
-        return np.concatenate(
-            [
-                d.qpos[self._qadr],
-                d.qvel[self._vadr],
-                d.xpos[self._pen_body] - self._pen_start,
-                d.xquat[self._pen_body],
-                pen_v[0:3],
-                omega,
-                self._feedback,
-                [self._steps * self.config.control_dt],
-            ]
-        )
-
+    # ------------------------------------------------------------------ task
     def _success(self, dz: float, rest: bool) -> bool:
         """The pen is lifted (``lift_height``, off the support); ``lift_place``: it was lifted
         and now rests within ``PLACE_TOLERANCE`` of its start, still pinched by both."""
@@ -558,22 +359,13 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         )
 
     def _rewards(self, action: FloatArray) -> dict[str, float]:
-        cfg = self.config
         dz = float(self.data.xpos[self._pen_body][2] - self._pen_start[2])
-        if cfg.skill is None:  # the pinch-lift alone: up to lift_height
-            lift, track = min(max(dz / cfg.lift_height, 0.0), 1.0), 0.0
-        else:  # the skill's intended object motion, as this person means to do it
+        errors = None
+        if self.config.skill is not None:  # the skill's intended motion, as this person means it
             height, target = self._target()
-            lift = _tolerance(dz - height, HEIGHT_TOLERANCE)
             tilt = pen_tilt(self.data.xquat[self._pen_body]) - self._tilt_start
-            track = _tolerance(tilt - target, TILT_TOLERANCE)
-        return {
-            "lift": cfg.lift_weight * lift,
-            "track": cfg.track_weight * track,
-            "pinch": cfg.contact_weight * float(all(self._touch)),
-            # np.mean's own sum and division, without its Python-level wrapper (hot path).
-            "effort": -cfg.effort_weight * (float(np.add.reduce(action * action)) / action.size),
-        }
+            errors = (dz - height, tilt - target)
+        return reward_terms(self.config, action, dz, all(self._touch), errors)
 
     def episode_metrics(self, info: dict[str, Any]) -> dict[str, float]:
         """The task's measures of a finished episode, from its last ``info``: the pen's
@@ -605,7 +397,7 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self._unstable = False
         self._place_hand(theta)
         if options and "qpos" in options:
-            self._set_state(options)
+            set_state_from_options(self.model, self.data, options)
         self._lifted = False
         self._pen_start = self.data.xpos[self._pen_body].copy()
         self._tilt_start = pen_tilt(self.data.xquat[self._pen_body])
@@ -659,16 +451,6 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         truncated = self._steps >= self.max_steps or bool(fault) or self._unstable
         return self._observation(), reward, terminated, truncated, self._info(terms, rest, fault)
 
-    def render(self) -> NDArray[np.uint8] | None:
-        """The scene from the ``perspective`` camera as ``(360, 480, 3)`` RGB, or ``None``
-        without ``render_mode="rgb_array"``."""
-        if self.render_mode != "rgb_array":
-            return None
-        if self._renderer is None:
-            self._renderer = mujoco.Renderer(self.model, 360, 480)
-        self._renderer.update_scene(self.data, camera="perspective")
-        return np.asarray(self._renderer.render())
-
     def __getstate__(self) -> dict[str, Any]:
         """Refuse clearly: the env holds a live glove device (simulated or real)."""
         raise TypeError(
@@ -680,6 +462,4 @@ class GloveGraspEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         if self.glove is not None:
             self.glove.close()
             self.glove = None
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
+        super().close()  # the renderer

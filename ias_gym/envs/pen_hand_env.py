@@ -5,8 +5,9 @@ what differs: its configuration, the reset distribution, its reference motion, o
 features, reward terms and success test (dm_control's Physics/Task split). The physics
 questions a controller asks (W, J, M, H, ...) are answered by :class:`PenHandPhysics`
 (``env.physics``); the env itself reads only what an observation needs, once per step, from
-MuJoCo's arrays and sensors (:class:`PenState`), because ``env.step`` should cost little
-more than the simulation it runs (``bench/bench_envs.py``).
+MuJoCo's arrays and sensors (:class:`PenState`, read by
+:class:`~ias_gym.envs.pen_observation.PenStateReader`), because ``env.step`` should cost
+little more than the simulation it runs (``bench/bench_envs.py``).
 """
 
 from __future__ import annotations
@@ -23,7 +24,18 @@ from numpy.typing import NDArray
 
 from ias_gym.envs.disturbances import DisturbanceSettings, DisturbanceState, SensorNoise
 from ias_gym.envs.layout import ObservationParts, layout_size, observation_layout
+from ias_gym.envs.mujoco_state import (
+    integration_state,
+    restore_integration_state,
+    set_state_from_options,
+)
 from ias_gym.envs.pen_hand_types import FloatArray, PenHandConfig, PenReference, PenState
+from ias_gym.envs.pen_observation import (
+    TO_PAPER_INDEX,
+    PenStateReader,
+    as_index,
+    pen_observation_parts,
+)
 from ias_gym.envs.window import check_window_possible
 from ias_gym.errors import InputError
 from ias_gym.sim.grasp_pose import place_grasp
@@ -36,34 +48,6 @@ NOMINAL_CONTACT_X = np.array(HANDS["ias4f"].contact_x)
 #: Shaping scales (reward terms are exp(-(error / scale)^2), bounded in [0, 1]).
 POSITION_SCALE = 0.005  # [m]
 ANGLE_SCALE = math.radians(5.0)  # [rad]
-#: MuJoCo world -> paper frame: paper (x, y, z) = MuJoCo (x, z, -y).
-_TO_PAPER_INDEX = np.array([0, 2, 1])  # and negate the last
-
-
-def pen_observation_parts(n_joints: int, n_fingers: int) -> ObservationParts:
-    """The parts every pen task's observation begins with, in order (paper frame, SI).
-
-    Args:
-        n_joints: the hand's joints (3 per finger).
-        n_fingers: its fingers.
-    """
-    return (
-        ("joint_angles", n_joints),  # hand joint angles [rad], the hand's joint order
-        ("joint_velocities", n_joints),  # [rad/s]
-        ("pen_position", 3),  # pen centre relative to its nominal position [m]
-        ("pen_axis", 3),  # unit vector along the pen's axis (its roll is free)
-        ("pen_velocity", 3),  # [m/s]
-        ("pen_omega", 3),  # angular velocity [rad/s]
-        ("tip_forces", 3 * n_fingers),  # net force of each fingertip on the pen [N], 3 each
-        ("time_fraction", 1),  # time since reset / episode duration [-]
-    )
-
-
-def _as_index(ids: NDArray[np.integer[Any]]) -> slice | NDArray[np.integer[Any]]:
-    """``ids`` as a slice when they are consecutive (indexing then gives a view)."""
-    if len(ids) and np.array_equal(ids, np.arange(ids[0], ids[0] + len(ids))):
-        return slice(int(ids[0]), int(ids[0]) + len(ids))
-    return ids
 
 
 class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
@@ -75,8 +59,8 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
     Contacts are sampled once per step (``control_dt``): a contact gap is measured in whole
     control periods.
 
-    Observation: the parts of :func:`pen_observation_parts`, then the task's
-    (:meth:`_task_observation_parts`); by name in :attr:`observation_layout`
+    Observation: the parts of :func:`~ias_gym.envs.pen_observation.pen_observation_parts`,
+    then the task's (:meth:`_task_observation_parts`); by name in :attr:`observation_layout`
     (``obs[env.observation_layout["pen_position"]]``).
     """
 
@@ -162,34 +146,17 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         self._pen_v = p.pen_dof_adr
         self._pen_body = p.pen_body_id
         self._tip_sites = p.tip_site_ids
-        # fN_pen_force sensors: number of contacts, net force of the tip on the pen (world).
-        adr = np.array([self.model.sensor(f"{f}_pen_force").adr[0] for f in p.fingers])
-        self._found_adr = adr
-        self._force_adr = (adr[:, None] + np.arange(1, 4)).ravel()
         self._key = self.model.key("grasp").id
         self._nominal_contact_x = np.array(self.hand.contact_x)
-        self._rot = np.zeros(9)
-        self._rows = np.zeros((4 + p.n_fingers, 3))
         self._warnings = self.data.warning.number  # a view: MuJoCo's warning counters
         # Views into MjData's fixed buffers, made once: each attribute access of the
         # bindings builds a new array (about 0.3 us, several per step).
         d = self.data
         self._qpos, self._qvel, self._ctrl = d.qpos, d.qvel, d.ctrl
-        self._sensordata, self._site_xpos = d.sensordata, d.site_xpos
-        self._pen_xpos = d.xpos[self._pen_body]
-        self._pen_pos = d.qpos[self._pen_q : self._pen_q + 3]
-        self._pen_quat = d.qpos[self._pen_q + 3 : self._pen_q + 7]
-        self._pen_lin = d.qvel[self._pen_v : self._pen_v + 3]
-        self._pen_ang = d.qvel[self._pen_v + 3 : self._pen_v + 6]
-        self._axis = self._rot[0::3]  # the pen's axis: column 0 of the rotation, a view
         # Contiguous indices as slices (views instead of fancy-indexed copies).
-        self._hand_q_ix, self._hand_v_ix = _as_index(self._hand_q), _as_index(self._hand_v)
-        self._act_ix, self._tip_ix = _as_index(self._act_ids), _as_index(self._tip_sites)
-        # The force sensors as views when they sit back to back (count, fx, fy, fz each).
-        self._sensor_block: NDArray[np.float64] | None = None
-        if np.all(np.diff(adr) == 4):
-            block = d.sensordata[adr[0] : adr[0] + 4 * len(adr)].reshape(len(adr), 4)
-            self._sensor_block = block
+        self._hand_q_ix, self._hand_v_ix = as_index(self._hand_q), as_index(self._hand_v)
+        self._act_ix = as_index(self._act_ids)
+        self._reader = PenStateReader(self.model, d, p)  # the pen, the tips, their sensors
         self.disturbances = self._build_disturbances()
         self._reward_keys: tuple[str, ...] | None = None
 
@@ -305,18 +272,7 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         mujoco.mj_resetDataKeyframe(self.model, self.data, self._key)
         options = options or {}
         if "qpos" in options:
-            qpos = np.asarray(options["qpos"], dtype=float)
-            qvel = np.asarray(options.get("qvel", np.zeros(self.model.nv)), dtype=float)
-            if qpos.shape != (self.model.nq,) or qvel.shape != (self.model.nv,):
-                raise ValueError(
-                    f"options qpos/qvel need shapes ({self.model.nq},)/({self.model.nv},), "
-                    f"got {qpos.shape}/{qvel.shape}"
-                )
-            if not (np.all(np.isfinite(qpos)) and np.all(np.isfinite(qvel))):
-                raise ValueError("options qpos/qvel contain NaN or inf")
-            self.data.qpos[:] = qpos
-            self.data.qvel[:] = qvel
-            mujoco.mj_forward(self.model, self.data)
+            set_state_from_options(self.model, self.data, options)
         else:
             position, rpy, contact_x = self._sample_initial_pose()
             place_grasp(self.physics, position, rpy, contact_x, self.config.penetration)
@@ -350,7 +306,7 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         if dist is not None:
             a = dist.actuate(a)
             push = dist.push(self.time)
-            d.xfrc_applied[self._pen_body, :3] = push[_TO_PAPER_INDEX] * (1.0, -1.0, 1.0)
+            d.xfrc_applied[self._pen_body, :3] = push[TO_PAPER_INDEX] * (1.0, -1.0, 1.0)
         self._ctrl[self._act_ix] = a * self._ctrl_max
         warnings_before = int(self._warnings.sum())
         mujoco.mj_step(m, d, nstep=self.frame_skip)
@@ -388,29 +344,12 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
 
     # ------------------------------------------------------------------ pieces
     def _measure(self) -> None:
-        """Read the step's measurements into ``self.state`` (one pass over MuJoCo's arrays).
+        """Read the step's measurements into ``self.state`` (:class:`PenStateReader`).
 
         The pen's and hand's state come from ``qpos``/``qvel`` (now); fingertip positions
         and contact sensors from the last forward pass, one physics step (1 ms) earlier.
         """
-        mujoco.mju_quat2Mat(self._rot, self._pen_quat)
-        rot = self._rot.reshape(3, 3)
-        rows = self._rows  # (4 + k, 3) in MuJoCo's frame
-        np.subtract(self._pen_pos, self.physics.origin_mj, out=rows[0])
-        rows[1] = self._axis
-        rows[2] = self._pen_lin
-        np.dot(rot, self._pen_ang, out=rows[3])  # body -> world
-        block = self._sensor_block
-        if block is not None:
-            rows[4:] = block[:, 1:]
-            found = block[:, 0]
-        else:
-            rows[4:] = self._sensordata[self._force_adr].reshape(-1, 3)
-            found = self._sensordata[self._found_adr]
-        paper = rows[:, _TO_PAPER_INDEX]
-        paper[:, 2] *= -1.0
-        tips = self._site_xpos[self._tip_ix] - self._pen_xpos
-        self.state = PenState(paper.ravel(), found > 0, tips @ self._axis)
+        self.state = self._reader.read()
 
     def _start_episode(self) -> None:
         """Zero the episode's statistics for the current (just reset) state."""
@@ -520,13 +459,10 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickle the configuration, the full MuJoCo state and the episode's statistics."""
-        spec = mujoco.mjtState.mjSTATE_INTEGRATION
-        buf = np.empty(mujoco.mj_stateSize(self.model, spec))
-        mujoco.mj_getState(self.model, self.data, buf, spec)
         return {
             "config": dataclasses.asdict(self.config),
             "render_mode": self.render_mode,
-            "mj_state": buf,
+            "mj_state": integration_state(self.model, self.data),
             "episode": {k: getattr(self, k) for k in self._episode_fields},
             "np_random": self._np_random,
         }
@@ -534,9 +470,7 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
     def __setstate__(self, state: dict[str, Any]) -> None:
         """Rebuild the env from its configuration and restore the pickled state."""
         type(self).__init__(self, render_mode=state["render_mode"], **state["config"])
-        spec = mujoco.mjtState.mjSTATE_INTEGRATION
-        mujoco.mj_setState(self.model, self.data, state["mj_state"], spec)
-        mujoco.mj_forward(self.model, self.data)
+        restore_integration_state(self.model, self.data, state["mj_state"])
         for key, value in state["episode"].items():
             setattr(self, key, value)
         self._np_random = state["np_random"]

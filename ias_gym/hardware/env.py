@@ -45,7 +45,7 @@ class GloveHardwareEnv(GloveGraspEnv):
 
     ## Observation Space
     As IAS-GloveGrasp-v0: ``(39,)`` float64. By name: ``env.unwrapped.observation_layout[name]``
-    is the part's slice (:data:`~ias_gym.envs.glove_grasp.OBSERVATION_PARTS` in order):
+    is the part's slice (:data:`~ias_gym.envs.glove_world.OBSERVATION_PARTS` in order):
 
     | name | size | content |
     |---|---|---|
@@ -71,7 +71,7 @@ class GloveHardwareEnv(GloveGraspEnv):
     ``watchdog_timeout``).
 
     ## Arguments
-    ``render_mode``, the fields of :class:`~ias_gym.envs.glove_grasp.GloveGraspConfig` (as
+    ``render_mode``, the fields of :class:`~ias_gym.envs.glove_grasp_config.GloveGraspConfig` (as
     IAS-GloveGrasp-v0), and (see :meth:`__init__`): ``interface`` [``"virtual"``],
     ``channel`` [``"ias-glove"``] and ``bus_kwargs``: the python-can bus; ``profile``: the
     wearer's calibration profile (JSON); ``fd`` [False]: CAN FD sensor frames;
@@ -119,7 +119,7 @@ class GloveHardwareEnv(GloveGraspEnv):
             overwrite: let ``record`` replace an existing file.
             realtime: pace steps at ``control_dt`` in wall-clock time (default: live yes,
                 replay no).
-            **config: fields of :class:`~ias_gym.envs.glove_grasp.GloveGraspConfig`.
+            **config: fields of :class:`~ias_gym.envs.glove_grasp_config.GloveGraspConfig`.
 
         Raises:
             InputError: both ``record`` and ``replay``; a ``record`` file that exists (without

@@ -13,10 +13,10 @@ paper frame and units (see :mod:`ias_gym.sim.glove_contacts`):
   (the pads are MuJoCo condim-4 contacts): [normal, t1, t2] [N] at the finger's point and
   the torsion about the normal [N m] (eq. 16's columns and ``[0; n]``), 8 values;
 - ``f_ext = W c`` (eq. 3), the fingers' net wrench on the pen, force and moment exactly,
-  with W of :func:`ias_gym.sim.glove_contacts.soft_wrench_matrix` (6 x 8);
+  with W of :func:`ias_gym.sim.soft_finger.soft_wrench_matrix` (6 x 8);
 - ``f_int = N^T c`` (eq. 10, two columns) and ``c_h = N N^T c`` (eq. 7): while both
   fingers touch W has rank 6, so G (eq. 8) exists and null(W) is two-dimensional; N is the
-  named basis of :func:`~ias_gym.sim.glove_contacts.pinch_null_basis`, the squeeze
+  named basis of :func:`~ias_gym.sim.soft_finger.pinch_null_basis`, the squeeze
   (positive when squeezing) and the opposed torsions; NaN unless both fingers touch.
 
 Skills (:mod:`ias_gym.glove.skills`): an env made with ``skill=NAME`` performs that skill
@@ -82,7 +82,7 @@ class GloveSkillModelRecorder(SkillModelSamples):
         """
         # MuJoCo scene code: imported on first use, so that importing the skills package
         # (the database) does not load MuJoCo.
-        from ias_gym.sim.glove_contacts import pinch_null_basis
+        from ias_gym.sim.soft_finger import pinch_null_basis
 
         if env.contact_pass is None:
             raise RuntimeError("sample the glove env after reset() or step()")

@@ -151,12 +151,12 @@ class SkillModel:
     four intensities per finger: normal, t1, t2 [N] and the torsion about the normal
     [N m]; n = 8): W (eq. 16 with the torsion column ``[0; n]``) is 6 x 8 of rank 6 while
     both touch, G exists, and ``f_int`` has two columns, the squeeze and the opposed
-    torsions (:func:`ias_gym.sim.glove_contacts.pinch_null_basis`). The one exception is
+    torsions (:func:`ias_gym.sim.soft_finger.pinch_null_basis`). The one exception is
     the hard-finger pinch stored by older versions (k = 2 point contacts with friction,
     n = 6, :attr:`is_pinch`): its W has rank 5 at best, G (eq. 8) never exists, and null(W)
     is the one squeeze along the line between the contacts; ``f_int`` is then
     ``(T + 1, 1)`` and ``c_h``, ``f_int`` are NaN where rank W < 5 (see
-    :func:`ias_gym.sim.glove_contacts.squeeze_null_vector`).
+    :func:`ias_gym.sim.soft_finger.squeeze_null_vector`).
     """
 
     time: NDArray[np.float64]
