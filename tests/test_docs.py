@@ -95,6 +95,7 @@ def test_every_results_table_is_made_from_its_json() -> None:
         "pen_skill_bc.md",
         "completion.md",
         "robustness_shadow.md",
+        "robustness_leap.md",
     }
     for name, table in tables.items():
         assert table.count("\n|") >= 3, f"{name} has no rows"

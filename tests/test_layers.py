@@ -96,3 +96,26 @@ def test_importing_baselines_loads_neither_envs_nor_mujoco() -> None:
         """
     )
     assert out == "[]"
+
+
+def _modules() -> list[Path]:
+    return sorted((ROOT / "ias_gym").rglob("*.py"))
+
+
+def test_no_module_is_over_500_lines() -> None:
+    """A module a newcomer reads in one sitting: none of the package's is over 500 lines."""
+    long = {
+        str(p.relative_to(ROOT)): n
+        for p in _modules()
+        if (n := len(p.read_text().splitlines())) > 500
+    }
+    assert not long, long
+
+
+def test_module_names_are_unique() -> None:
+    """No two modules share a name (``__init__.py`` aside): a name says which module it is."""
+    seen: dict[str, list[str]] = {}
+    for p in _modules():
+        if p.name != "__init__.py":
+            seen.setdefault(p.name, []).append(str(p.relative_to(ROOT)))
+    assert not {name: paths for name, paths in seen.items() if len(paths) > 1}

@@ -14,6 +14,7 @@ JSON in ``docs/``                      written by                          table
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
 ``robustness_shadow.json``             ``ias-gym robustness --json``       ``robustness_shadow.md``
+``robustness_leap.json``               ``ias-gym robustness --json``       ``robustness_leap.md``
 =====================================  ==================================  =================
 
     python docs/_scripts/result_tables.py   # print every table
@@ -274,6 +275,7 @@ def tables(docs: Path) -> dict[str, str]:
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "completion.md": completion(load("completion_table.json")),
         "robustness_shadow.md": robustness(load("robustness_shadow.json")),
+        "robustness_leap.md": robustness(load("robustness_leap.json")),
     }
 
 

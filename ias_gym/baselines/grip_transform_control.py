@@ -58,6 +58,7 @@ import numpy as np
 
 from ias_gym.baselines import law
 from ias_gym.baselines.grip_transform_terms import (
+    ControlStep,
     Gathered,
     MotionRows,
     ReferenceRows,
@@ -117,21 +118,6 @@ class ControllerGains:
     lead: float = 0.0  # evaluate the reference this far ahead [s]
     damping_feedforward: bool = True  # add the joints' damping along the reference motion
     coulomb_speed: float = 0.005  # [rad/s] their Coulomb friction's smoothed sign (0: none)
-
-
-@dataclass
-class ControlStep:
-    """What one control step computed (for diagnostics, figures and tests; paper frame)."""
-
-    tau: FloatArray  # joint torques [N m]
-    wrench: FloatArray  # net contact wrench the object needs [N, N m]
-    c_h_desired: FloatArray  # internal-force reference c_h^d [N]
-    c_h_measured: FloatArray  # measured internal forces c_h [N]
-    c_command: FloatArray  # commanded intensities c_p + c_h_cmd [N]
-    active: NDArrayBool  # fingers in contact
-    feasible: bool  # the internal-force problem had a solution this step
-    offset_scale: float = 1.0  # fraction of the requested internal-force offset the cones allowed
-    error_scale: float = 1.0  # fraction of eq. (44)'s step of e_f the cones allowed
 
 
 @dataclass

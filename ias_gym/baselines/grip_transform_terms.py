@@ -3,15 +3,17 @@
 :func:`~ias_gym.baselines.grip_transform_control.batch_torques` reads ``n`` envs into one
 :class:`Gathered` (a row per env, paper frame) and computes the control step on the rows;
 the pieces it needs beyond the law's pure terms (:mod:`ias_gym.baselines.law`) live here:
-the reference extrapolated by the controller's lead (:func:`ahead`), the rows as the law's
-motion and reference (:class:`MotionRows`, :class:`ReferenceRows`), the batched right inverse
-``W+`` of eq. (5) (:func:`right_inverses`) and the two servos beyond the paper that hold the
-tips on the pen (:func:`lateral_servo`) and move sliding tips along their schedule
-(:func:`slide_servo`).
+what a step computed (:class:`ControlStep`), the reference extrapolated by the controller's
+lead (:func:`ahead`), the rows as the law's motion and reference (:class:`MotionRows`,
+:class:`ReferenceRows`), the batched right inverse ``W+`` of eq. (5) (:func:`right_inverses`),
+the two servos beyond the paper that hold the tips on the pen (:func:`lateral_servo`) and
+move sliding tips along their schedule (:func:`slide_servo`), and the estimate of the pen's
+mass (:func:`estimated_masses`).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -22,6 +24,21 @@ from ias_gym.grasp.grip_transform import pseudo_inverse
 from ias_gym.grasp.wrench_matrix import cross3
 
 NDArrayBool = np.ndarray
+
+
+@dataclass
+class ControlStep:
+    """What one control step computed (for diagnostics, figures and tests; paper frame)."""
+
+    tau: FloatArray  # joint torques [N m]
+    wrench: FloatArray  # net contact wrench the object needs [N, N m]
+    c_h_desired: FloatArray  # internal-force reference c_h^d [N]
+    c_h_measured: FloatArray  # measured internal forces c_h [N]
+    c_command: FloatArray  # commanded intensities c_p + c_h_cmd [N]
+    active: NDArrayBool  # fingers in contact
+    feasible: bool  # the internal-force problem had a solution this step
+    offset_scale: float = 1.0  # fraction of the requested internal-force offset the cones allowed
+    error_scale: float = 1.0  # fraction of eq. (44)'s step of e_f the cones allowed
 
 
 def ahead(ref: PenReference, lead: float) -> PenReference:

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import importlib.resources
 import importlib.util
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -53,6 +53,7 @@ __all__ = [
     "SHADOW_MOUNT",
     "ShadowFinger",
     "build_shadow_scene",
+    "coupled_joints",
     "shadow_package_dir",
     "shadow_spec",
 ]
@@ -260,6 +261,33 @@ def _dress(scene: mujoco.MjSpec, ranges: dict[str, float]) -> None:
 def build_shadow_scene() -> mujoco.MjModel:
     """Compile the Shadow hand's pen scene (:func:`shadow_spec`)."""
     return shadow_spec().compile()
+
+
+def coupled_joints(model: mujoco.MjModel, joints: Sequence[int]) -> list[tuple[int, int, float]]:
+    """The joints tied to a hand joint by an active linear joint equality (a distal joint
+    coupled to its middle one, as the Shadow and LEAP scenes have).
+
+    Returns ``(follower dof, index of the leader in joints, ratio)`` per joint equality
+    ``follower = ratio * leader`` whose leader is one of ``joints`` and whose follower is
+    not (MuJoCo's ``mjEQ_JOINT`` with ``polycoef = [0, ratio, 0, 0, 0]``).
+
+    Raises:
+        ValueError: such an equality is not linear through zero (not supported).
+    """
+    index = {int(j): i for i, j in enumerate(joints)}
+    out = []
+    for e in range(model.neq):
+        if model.eq_type[e] != mujoco.mjtEq.mjEQ_JOINT or not model.eq_active0[e]:
+            continue
+        follower, leader = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
+        if leader not in index or follower in index:
+            continue
+        coef = model.eq_data[e, :5]
+        if coef[0] != 0.0 or np.any(coef[2:] != 0.0):
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, follower)
+            raise ValueError(f"joint {name!r}: only a linear coupling through zero is supported")
+        out.append((int(model.jnt_dofadr[follower]), index[leader], float(coef[1])))
+    return out
 
 
 #: Scene builders by the name a :class:`~ias_gym.sim.hands.HandSpec` gives as its scene.

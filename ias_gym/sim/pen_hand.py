@@ -40,7 +40,7 @@ from ias_gym.sim.contacts import (
     cross,
     masked_wrench_matrix,
 )
-from ias_gym.sim.external_hands import BUILDERS
+from ias_gym.sim.external_hands import BUILDERS, coupled_joints
 from ias_gym.sim.hands import DEFAULT_HAND, get_hand
 from ias_gym.sim.pen import (
     R_PAPER_TO_MJ,
@@ -223,7 +223,7 @@ class PenHandPhysics(FreePenPhysics):
                 raise ValueError(f"sides needs one entry per finger ({k}), got {len(sides)}")
             self._t2_sign = -np.asarray(sides, dtype=float)
         self.finger_sides = -self._t2_sign
-        self.coupled = _coupled_joints(model, joints)
+        self.coupled = coupled_joints(model, joints)
         self._all_dofs = self.hand_dof_ids
         self._coupling: FloatArray | None = None  # S, when some joint follows another
         if self.coupled:
@@ -474,29 +474,3 @@ class PenHandPhysics(FreePenPhysics):
         other = np.where(geom[:, 0] == self.pen_geom_id, geom[:, 1], geom[:, 0])
         pen_pair = (geom[:, 0] == self.pen_geom_id) | (geom[:, 1] == self.pen_geom_id)
         return int(np.count_nonzero(pen_pair & self._hand_geom[other]))
-
-
-def _coupled_joints(model: mujoco.MjModel, joints: Sequence[int]) -> list[tuple[int, int, float]]:
-    """The joints tied to a hand joint by an active linear joint equality.
-
-    Returns ``(follower dof, index of the leader in joints, ratio)`` per joint equality
-    ``follower = ratio * leader`` whose leader is one of ``joints`` and whose follower is
-    not (MuJoCo's ``mjEQ_JOINT`` with ``polycoef = [0, ratio, 0, 0, 0]``).
-
-    Raises:
-        ValueError: such an equality is not linear through zero (not supported).
-    """
-    index = {int(j): i for i, j in enumerate(joints)}
-    out = []
-    for e in range(model.neq):
-        if model.eq_type[e] != mujoco.mjtEq.mjEQ_JOINT or not model.eq_active0[e]:
-            continue
-        follower, leader = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
-        if leader not in index or follower in index:
-            continue
-        coef = model.eq_data[e, :5]
-        if coef[0] != 0.0 or np.any(coef[2:] != 0.0):
-            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, follower)
-            raise ValueError(f"joint {name!r}: only a linear coupling through zero is supported")
-        out.append((int(model.jnt_dofadr[follower]), index[leader], float(coef[1])))
-    return out
