@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -455,11 +456,11 @@ def test_minari_export_of_robot_executions_of_human_skills(
     pytest.importorskip("minari")
     import minari
 
-    from ias_gym.skills.minari_export import PEN_SKILL_DATASET_ID, export_pen_skill_dataset
+    from ias_gym.skills.minari_export import export_pen_skill_dataset, pen_skill_dataset_id
 
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
     export_pen_skill_dataset(hand="ias3f", skill_ids=[2, 9], db_path=tmp_path / "runs.db")
-    dataset = minari.load_dataset(PEN_SKILL_DATASET_ID)
+    dataset = minari.load_dataset(pen_skill_dataset_id("ias3f"))
     assert dataset.total_episodes == 2  # each chosen skill once
     episodes = list(dataset.iterate_episodes())
     assert {int(e.infos["skill_id"][0]) for e in episodes} == {2, 9}
@@ -475,6 +476,66 @@ def test_minari_export_of_robot_executions_of_human_skills(
     env = dataset.recover_environment()
     assert env.unwrapped.config.hand == "ias3f"
     assert [r.skill_id for r in env.unwrapped.references] == [2, 9]
+
+
+def _export_cli(minari_path: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "ias_gym.cli", "skills", "export-pen-skill", *args],
+        capture_output=True,
+        text=True,
+        check=False,
+        env={**os.environ, "MINARI_DATASETS_PATH": str(minari_path)},
+    )
+
+
+def test_the_pen_skill_datasets_cover_every_hand(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``skills export-pen-skill --hand all``: one dataset per registered hand, each with its
+    hand's action size and a recoverable env on that hand."""
+    pytest.importorskip("minari")
+    import minari
+
+    from ias_gym.sim.hands import HANDS
+    from ias_gym.skills.minari_export import PEN_SKILL_DATASET_ID, pen_skill_dataset_id
+
+    done = _export_cli(tmp_path, "--hand", "all", "--skill-ids", "2")
+    assert done.returncode == 0, done.stderr
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
+    assert pen_skill_dataset_id("ias4f") == PEN_SKILL_DATASET_ID
+    for name, spec in HANDS.items():
+        dataset = minari.load_dataset(pen_skill_dataset_id(name))
+        assert dataset.total_episodes == 1
+        episode = next(iter(dataset.iterate_episodes()))
+        assert episode.actions.shape[1] == spec.n_dofs
+        assert dataset.recover_environment().unwrapped.config.hand == name
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--hand", "allegro"], "unknown hand 'allegro'"),
+        (["--hand", "all", "--dataset-id", "ias/x/y-v0"], "--dataset-id is for one hand"),
+        (["--hand", "ias3f", "--skill-ids", "2,x"], "--skill-ids takes comma-separated"),
+        (["--hand", "ias3f", "--episodes-per-skill", "0"], "--episodes-per-skill must be >= 1"),
+    ],
+)
+def test_a_bad_export_is_one_line_and_exit_2(tmp_path: Path, args: list[str], message: str) -> None:
+    pytest.importorskip("minari")
+    done = _export_cli(tmp_path, *args)
+    assert done.returncode == 2 and message in done.stderr, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr
+    assert not (tmp_path / "ias").exists()
+
+
+def test_an_existing_dataset_is_not_overwritten(tmp_path: Path) -> None:
+    pytest.importorskip("minari")
+    kept = tmp_path / "ias" / "pen-skill-leap" / "human-v0"
+    kept.mkdir(parents=True)
+    (kept / "mine").write_text("keep")
+    done = _export_cli(tmp_path, "--hand", "leap", "--skill-ids", "2")
+    assert done.returncode == 2 and "exists already" in done.stderr, done.stderr
+    assert (kept / "mine").read_text() == "keep"
 
 
 def test_the_shipped_human_skills_hold_with_a_margin_of_at_least_one() -> None:

@@ -1,4 +1,5 @@
-"""The ``ias-gym skills`` command group: record, merge, list, show, export, check, delete,
+"""The ``ias-gym skills`` command group: record, merge, list, show, export, export-pen-skill
+(the expert's executions of the human skills on each hand, as Minari), check, delete,
 migrate.
 
 :func:`add_skills_commands` adds the group to the ``ias-gym`` parser's sub-commands; each
@@ -187,6 +188,53 @@ def _export(args: argparse.Namespace) -> int:
         )
     print(f"wrote Minari dataset {args.dataset_id} to {path}")
     return 0
+
+
+def _export_pen_skill(args: argparse.Namespace) -> int:
+    from ias_gym.sim.hands import get_hand, hand_names
+    from ias_gym.skills.minari_export import (
+        export_pen_skill_dataset,
+        pen_skill_dataset_exists,
+        pen_skill_dataset_id,
+    )
+
+    hands = hand_names() if args.hand == "all" else [get_hand(args.hand).name]
+    for option, value in (("--dataset-id", args.dataset_id), ("--db", args.db)):
+        if value is not None and len(hands) > 1:
+            raise InputError(f"{option} is for one hand's executions: give one --hand with it")
+    if args.episodes_per_skill < 1:
+        raise InputError(f"--episodes-per-skill must be >= 1, got {args.episodes_per_skill}")
+    skill_ids = None if args.skill_ids is None else _parse_ids(args.skill_ids, "--skill-ids")
+    with _as_package_errors():
+        ids = {hand: args.dataset_id or pen_skill_dataset_id(hand) for hand in hands}
+        for dataset_id in ids.values():  # every output checked before any work
+            if pen_skill_dataset_exists(dataset_id):
+                raise InputError(
+                    f"a Minari dataset {dataset_id!r} exists already; remove it "
+                    "(minari delete ID) or give another --dataset-id"
+                )
+        for hand, dataset_id in ids.items():
+            path = export_pen_skill_dataset(
+                dataset_id,
+                hand=hand,
+                episodes_per_skill=args.episodes_per_skill,
+                db_path=args.db,
+                skill_ids=skill_ids,
+            )
+            print(f"wrote Minari dataset {dataset_id} ({hand}) to {path}", flush=True)
+    return 0
+
+
+def _parse_ids(text: str, option: str) -> list[int]:
+    """Comma-separated skill ids (``"1,4,9"``); a bad one is an :class:`InputError`."""
+    try:
+        ids = [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        message = f"{option} takes comma-separated skill ids, e.g. 1,4,9; got {text!r}"
+        raise InputError(message) from None
+    if not ids or min(ids) < 1:
+        raise InputError(f"{option} takes skill ids >= 1, e.g. 1,4,9; got {text!r}")
+    return ids
 
 
 def _check(args: argparse.Namespace) -> int:
@@ -380,6 +428,37 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
     )
     export.add_argument("--success-only", action="store_true", help="only successful skills")
     export.set_defaults(run=_export)
+
+    pen_skill = commands.add_parser(
+        "export-pen-skill",
+        help="record the expert executing every human skill on a robot hand, as Minari",
+        description="Execute every skill of the shipped human-skill library on "
+        "IAS-PenSkill-v0 with the grip-transform expert (Theorem 1 with the skill's grasp "
+        "margin) and write the executions as a Minari dataset per hand under "
+        "MINARI_DATASETS_PATH: ias/pen-skill/human-v0 on the default hand, "
+        "ias/pen-skill-HAND/human-v0 on another; every episode is kept, held or dropped "
+        "(its infos say). Needs the [datasets] extra; every dataset id is checked before "
+        "any work.",
+        formatter_class=HelpFormatter,
+    )
+    pen_skill.add_argument(
+        "--hand", default="all", metavar="NAME|all", help="the robot hand, or every hand"
+    )
+    pen_skill.add_argument(
+        "--episodes-per-skill", type=int, default=1, metavar="N", help="executions per skill"
+    )
+    pen_skill.add_argument(
+        "--skill-ids", metavar="N,N,...", help="only these skills of the library (default: all)"
+    )
+    pen_skill.add_argument(
+        "--dataset-id", metavar="ID", help="the Minari id (one hand only; default: the hand's)"
+    )
+    pen_skill.add_argument(
+        "--db",
+        metavar="PATH",
+        help="also keep the executions in this new skill database (one hand only)",
+    )
+    pen_skill.set_defaults(run=_export_pen_skill)
 
     check = commands.add_parser(
         "check",

@@ -29,6 +29,7 @@ import gymnasium as gym
 
 import ias_gym
 from ias_gym.glove.ids import check_id
+from ias_gym.sim.hands import DEFAULT_HAND, get_hand
 from ias_gym.skills.db import SkillDB
 
 #: The install hint of a missing Minari.
@@ -168,14 +169,38 @@ def export_minari(
     return path
 
 
-#: The Minari id of the robot executions of the shipped human skills (the counterpart of
-#: D4RL's/Minari's Adroit ``pen-human`` dataset).
+#: The Minari id of the robot executions of the shipped human skills on the default hand
+#: (the counterpart of D4RL's/Minari's Adroit ``pen-human`` dataset).
 PEN_SKILL_DATASET_ID = "ias/pen-skill/human-v0"
 
 
+def pen_skill_dataset_id(hand: str = DEFAULT_HAND) -> str:
+    """The Minari id of the executions on ``hand``: :data:`PEN_SKILL_DATASET_ID` on the
+    default hand, ``ias/pen-skill-<hand>/human-v0`` on another (one dataset per hand: their
+    observation and action spaces differ).
+
+    Raises:
+        InputError: an unknown hand (the message lists the known ones).
+    """
+    get_hand(hand)
+    return PEN_SKILL_DATASET_ID if hand == DEFAULT_HAND else f"ias/pen-skill-{hand}/human-v0"
+
+
+def pen_skill_dataset_exists(dataset_id: str) -> bool:
+    """Whether a Minari dataset of that id is stored already (``MINARI_DATASETS_PATH``).
+
+    Raises:
+        ImportError: minari is not installed (the message names the extra).
+    """
+    _import_minari()
+    from minari.storage import get_dataset_path
+
+    return Path(get_dataset_path(dataset_id)).exists()
+
+
 def export_pen_skill_dataset(
-    dataset_id: str = PEN_SKILL_DATASET_ID,
-    hand: str = "ias4f",
+    dataset_id: str | None = None,
+    hand: str = DEFAULT_HAND,
     episodes_per_skill: int = 1,
     db_path: str | Path | None = None,
     skill_ids: list[int] | None = None,
@@ -191,7 +216,7 @@ def export_pen_skill_dataset(
     its reference, and the tracking errors.
 
     Args:
-        dataset_id: the Minari id.
+        dataset_id: the Minari id (default: :func:`pen_skill_dataset_id` of the hand).
         hand: the robot hand (``ias_gym.sim.hands``).
         episodes_per_skill: executions of every skill (>= 1).
         db_path: keep the recorded executions in this new skill database (default: a
@@ -214,10 +239,10 @@ def export_pen_skill_dataset(
 
     if episodes_per_skill < 1:
         raise ValueError(f"episodes_per_skill must be >= 1, got {episodes_per_skill}")
-    _import_minari()  # before the work: a missing extra must not cost the recording
-    from minari.storage import get_dataset_path
-
-    if Path(get_dataset_path(dataset_id)).exists():
+    if dataset_id is None:
+        dataset_id = pen_skill_dataset_id(hand)
+    # before the work: a missing extra must not cost the recording
+    if pen_skill_dataset_exists(dataset_id):
         raise FileExistsError(f"a Minari dataset {dataset_id!r} exists already")
     if db_path is not None and Path(db_path).exists():
         raise FileExistsError(f"{db_path} exists already; give a new file")
