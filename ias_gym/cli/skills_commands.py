@@ -453,11 +453,7 @@ def add_skills_commands(subparsers: argparse._SubParsersAction[Any]) -> argparse
     pen_skill.add_argument(
         "--dataset-id", metavar="ID", help="the Minari id (one hand only; default: the hand's)"
     )
-    pen_skill.add_argument(
-        "--db",
-        metavar="PATH",
-        help="also keep the executions in this new skill database (one hand only)",
-    )
+    pen_skill.add_argument("--db", metavar="PATH", help="also keep them in this new database")
     pen_skill.set_defaults(run=_export_pen_skill)
 
     check = commands.add_parser(
