@@ -3,7 +3,8 @@ meshes, its distal joints coupled, its joint friction paid by the law's Coulomb 
 the Theorem-1 expert on it unchanged.
 
 The spec-driven checks every hand shares (keyframe, shapes, contact ranges) are in
-tests/test_hand3f.py, parametrised over the registry."""
+tests/test_hand3f.py, parametrised over the registry; what the external hands share in
+tests/test_external_hands.py."""
 
 from __future__ import annotations
 
@@ -19,13 +20,9 @@ import pytest
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.baselines.expert import ExpertPolicy
 from ias_gym.baselines.grip_transform_control import ControllerGains
-from ias_gym.errors import InputError
 from ias_gym.rollout import rollout
-from ias_gym.sim import leap_hand
-from ias_gym.sim.hands import get_hand
 from ias_gym.sim.leap_hand import LEAP_COUPLING, leap_model_path
 from ias_gym.sim.pen_hand import PenHandPhysics
-from tests.closed_loop import perturbed_starts
 
 
 @pytest.fixture
@@ -44,17 +41,6 @@ def test_the_model_comes_from_the_installed_package_without_meshes(leap: PenHand
     tips = [m.geom(f"{f}_tip_collision") for f in ("f1", "f2", "f3")]
     assert all(int(t.type[0]) == mujoco.mjtGeom.mjGEOM_CAPSULE for t in tips)
     assert m.opt.timestep == 0.001  # the scene's options, not the model's 10 ms
-
-
-def test_a_missing_package_says_how_to_install_it(monkeypatch: pytest.MonkeyPatch) -> None:
-    real = importlib.util.find_spec
-    monkeypatch.setattr(
-        leap_hand.importlib.util,
-        "find_spec",
-        lambda name, *a: None if name == "mujoco_playground" else real(name, *a),
-    )
-    with pytest.raises(InputError, match=r"pip install --no-deps playground==0\.2\.0"):
-        gym.make("IAS-PenRotate-LEAP-v0")
 
 
 def test_driven_joints_keep_the_models_torque_damping_and_friction(leap: PenHandPhysics) -> None:
@@ -97,27 +83,3 @@ def test_without_the_coulomb_feedforward_the_joint_friction_stalls_the_tilt() ->
     plain = _rms_tilt_error(dataclasses.replace(ControllerGains(), coulomb_speed=0.0), 3)
     assert plain > 0.2
     assert _rms_tilt_error(ControllerGains(), 3) < 0.05
-
-
-@pytest.mark.closed_loop
-@pytest.mark.parametrize("frequency", [2.0, 12.0])
-def test_expert_tracks_the_registered_largest_tilt_on_leap(frequency: float) -> None:
-    """``HandSpec.max_tilt`` (0.075 rad) is measured: the expert succeeds there from nearby
-    starts at the slowest and the fastest frequency, with no finger link on the pen."""
-    env = gym.make("IAS-PenRotate-LEAP-v0", frequency=frequency)
-    assert env.unwrapped.config.amplitude == get_hand("leap").max_tilt
-    policy = ExpertPolicy(env)
-    physics = env.unwrapped.physics
-    links: list[int] = []
-    for start, options in enumerate(perturbed_starts(env, 51, n=2)):
-        trajectory = rollout(
-            env,
-            policy,
-            51,
-            reset_options=options,
-            keep_infos=False,
-            on_step=lambda *_: links.append(physics.n_link_contacts()),
-        )
-        assert trajectory.final_info["is_success"], (start, trajectory.final_info)
-        assert policy.controller.infeasible_count == 0, start
-    assert sum(links) == 0 and len(links) > 0

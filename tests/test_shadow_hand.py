@@ -2,7 +2,8 @@
 distal joints honoured in the grasp model's coordinates, the Theorem-1 expert on it unchanged.
 
 The spec-driven checks every hand shares (keyframe, shapes, contact ranges) are in
-tests/test_hand3f.py, parametrised over the registry."""
+tests/test_hand3f.py, parametrised over the registry; what the external hands share in
+tests/test_external_hands.py."""
 
 from __future__ import annotations
 
@@ -16,12 +17,9 @@ import pytest
 
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.baselines.expert import ExpertPolicy
-from ias_gym.errors import InputError
 from ias_gym.rollout import FunctionPolicy, rollout
-from ias_gym.sim import external_hands
 from ias_gym.sim.external_hands import SHADOW_COUPLING, shadow_package_dir
 from ias_gym.sim.grasp_pose import place_grasp
-from ias_gym.sim.hands import get_hand
 from ias_gym.sim.pen_hand import PenHandPhysics
 from tests.closed_loop import perturbed_starts
 
@@ -54,17 +52,6 @@ def test_the_model_comes_from_the_installed_package() -> None:
     assets = Path(importlib.util.find_spec("ias_gym.assets").origin).parent  # type: ignore[arg-type, union-attr]
     assert not list(assets.glob("**/*.stl"))
     assert not (assets / "robot.xml").exists()
-
-
-def test_a_missing_package_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
-    real = importlib.util.find_spec
-    monkeypatch.setattr(
-        external_hands.importlib.util,
-        "find_spec",
-        lambda name, *a: None if name == "gymnasium_robotics" else real(name, *a),
-    )
-    with pytest.raises(InputError, match=r"ias-gym\[hands\]"):
-        gym.make("IAS-PenRotate-Shadow-v0")
 
 
 def test_driven_joints_have_the_models_force_ranges(shadow: PenHandPhysics) -> None:
@@ -162,30 +149,6 @@ def test_expert_rotates_the_pen_on_shadow_from_nearby_starts(seed: int) -> None:
         assert info["is_success"], (start, info)
         assert info["max_position_error"] < 0.002, start
         assert policy.controller.infeasible_count == 0, start
-
-
-@pytest.mark.closed_loop
-@pytest.mark.parametrize("frequency", [2.0, 12.0])
-def test_expert_reaches_the_registered_largest_tilt_on_shadow(frequency: float) -> None:
-    """``HandSpec.max_tilt`` (0.15 rad) is measured: there the expert succeeds from nearby
-    starts at the slowest and the fastest frequency of the envelope, and no finger link
-    touches the pen (the straight middle and ring fingers stand beside it)."""
-    env = gym.make("IAS-PenRotate-Shadow-v0", frequency=frequency)
-    assert env.unwrapped.config.amplitude == get_hand("shadow").max_tilt
-    policy = ExpertPolicy(env)
-    physics = env.unwrapped.physics
-    links: list[int] = []  # per step, over every start
-    for start, options in enumerate(perturbed_starts(env, 41, n=2)):
-        trajectory = rollout(
-            env,
-            policy,
-            41,
-            reset_options=options,
-            keep_infos=False,
-            on_step=lambda *_: links.append(physics.n_link_contacts()),
-        )
-        assert trajectory.final_info["is_success"], (start, trajectory.final_info)
-    assert sum(links) == 0 and len(links) > 0
 
 
 def test_the_pen_falls_without_the_law() -> None:

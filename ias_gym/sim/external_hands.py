@@ -42,6 +42,13 @@ import mujoco
 import numpy as np
 
 from ias_gym.errors import InputError
+from ias_gym.sim.hand_dressing import (
+    DRIVEN,
+    add_grasp_key,
+    add_tip_site,
+    couple_distal,
+    drive_joint,
+)
 from ias_gym.sim.leap_hand import build_leap_scene
 from ias_gym.sim.pen_sensors import EXTRA, add_pen_sensors
 
@@ -191,16 +198,7 @@ def shadow_spec(
     scene.assets = dict(hand.assets)  # the meshes, read from the package
     _dress(scene, ranges)
     if grasp is not None:
-        angles = {}
-        for finger, (abd, mcp, pip) in zip(SHADOW_FINGERS, grasp, strict=True):
-            angles.update({f"{finger.name}_abd": abd, f"{finger.name}_mcp": mcp})
-            angles[f"{finger.name}_pip"] = pip
-            if finger.dip is not None:
-                angles[f"{finger.name}_dip"] = SHADOW_COUPLING * pip
-        pen = [0.0, 0.0, 0.2, 1.0, 0.0, 0.0, 0.0]
-        # qpos in the order of the compiled model's joints (the spec's, depth first)
-        qpos = [v for j in scene.joints for v in (pen if j.name == "pen" else [angles[j.name]])]
-        scene.add_key(name="grasp", qpos=qpos)
+        add_grasp_key(scene, SHADOW_FINGERS, grasp, SHADOW_COUPLING)
     return scene
 
 
@@ -208,17 +206,9 @@ def _dress(scene: mujoco.MjSpec, ranges: dict[str, float]) -> None:
     """Rename the holding fingers' joints, add their motors (``ranges``: force range per
     source joint [N m]), couplings, sites and sensors."""
     for finger in SHADOW_FINGERS:
-        for suffix, source in zip(("abd", "mcp", "pip"), finger.joints, strict=True):
-            joint = scene.joint(_SCENE_PREFIX + _PREFIX + source)
-            joint.name = f"{finger.name}_{suffix}"
-            force = ranges[source]
-            scene.add_actuator(
-                name=f"{finger.name}_{suffix}_motor",
-                target=joint.name,
-                trntype=mujoco.mjtTrn.mjTRN_JOINT,
-                gear=[1.0, 0, 0, 0, 0, 0],
-                ctrllimited=True,
-                ctrlrange=[-force, force],
+        for suffix, source in zip(DRIVEN, finger.joints, strict=True):
+            drive_joint(
+                scene, _SCENE_PREFIX + _PREFIX + source, f"{finger.name}_{suffix}", ranges[source]
             )
         # the finger's base moves against the palm, now fixed to the world: MuJoCo's
         # filter of parent-child contacts leaves out bodies on the world, so the model's
@@ -226,18 +216,7 @@ def _dress(scene: mujoco.MjSpec, ranges: dict[str, float]) -> None:
         base = scene.joint(f"{finger.name}_abd").parent
         scene.add_exclude(bodyname1=base.parent.name, bodyname2=base.name)
         if finger.dip is not None:
-            dip = scene.joint(_SCENE_PREFIX + _PREFIX + finger.dip)
-            dip.name = f"{finger.name}_dip"
-            # the pip's range shrinks to where the coupled dip stays within its own
-            pip = scene.joint(f"{finger.name}_pip")
-            pip.range = [pip.range[0], min(pip.range[1], dip.range[1] / SHADOW_COUPLING)]
-            scene.add_equality(
-                type=mujoco.mjtEq.mjEQ_JOINT,
-                name1=dip.name,
-                name2=pip.name,
-                objtype=mujoco.mjtObj.mjOBJ_JOINT,
-                data=[0.0, SHADOW_COUPLING, 0.0, 0.0, 0.0] + [0.0] * 7,
-            )
+            couple_distal(scene, _SCENE_PREFIX + _PREFIX + finger.dip, finger.name, SHADOW_COUPLING)
         capsule = scene.geom(_SCENE_PREFIX + _PREFIX + f"C_{finger.distal}")
         old, capsule.name = capsule.name, f"{finger.name}_tip_collision"
         for pair in scene.pairs:  # the model's finger-finger contact pairs name it
@@ -246,15 +225,7 @@ def _dress(scene: mujoco.MjSpec, ranges: dict[str, float]) -> None:
         distal = scene.body(_SCENE_PREFIX + _PREFIX + finger.distal)
         radius, half = float(capsule.size[0]), float(capsule.size[1])
         centre = np.asarray(capsule.pos, dtype=float) + np.array([0.0, 0.0, half])
-        distal.add_site(
-            name=f"{finger.name}_tip",
-            type=mujoco.mjtGeom.mjGEOM_SPHERE,
-            pos=centre,
-            # the touch sensor's volume: the end's hemisphere and a margin around it
-            size=[1.5 * radius, 0, 0],
-            rgba=[0.9, 0.2, 0.2, 0.3],
-            group=4,
-        )
+        add_tip_site(distal, finger.name, centre, radius)
     add_pen_sensors(scene, [finger.name for finger in SHADOW_FINGERS])
 
 

@@ -45,6 +45,13 @@ import mujoco
 import numpy as np
 
 from ias_gym.errors import InputError
+from ias_gym.sim.hand_dressing import (
+    DRIVEN,
+    add_grasp_key,
+    add_tip_site,
+    couple_distal,
+    drive_joint,
+)
 from ias_gym.sim.pen_sensors import EXTRA, add_pen_sensors
 
 __all__ = [
@@ -196,32 +203,10 @@ def leap_spec(
         setattr(hand.option, option, getattr(scene.option, option))
     scene.worldbody.add_frame().attach_body(body, _SCENE_PREFIX, "")
     for finger in LEAP_FINGERS:
-        for suffix, source in zip(("abd", "mcp", "pip"), finger.joints, strict=True):
-            joint = scene.joint(_SCENE_PREFIX + source)
-            joint.name = f"{finger.name}_{suffix}"
-            scene.add_actuator(
-                name=f"{finger.name}_{suffix}_motor",
-                target=joint.name,
-                trntype=mujoco.mjtTrn.mjTRN_JOINT,
-                gear=[1.0, 0, 0, 0, 0, 0],
-                ctrllimited=True,
-                ctrlrange=[-force[source], force[source]],
-            )
+        for suffix, source in zip(DRIVEN, finger.joints, strict=True):
+            drive_joint(scene, _SCENE_PREFIX + source, f"{finger.name}_{suffix}", force[source])
         if finger.dip is not None:
-            dip = scene.joint(_SCENE_PREFIX + finger.dip)
-            dip.name = f"{finger.name}_dip"
-            pip = scene.joint(f"{finger.name}_pip")
-            pip.range = [
-                max(pip.range[0], dip.range[0] / LEAP_COUPLING),
-                min(pip.range[1], dip.range[1] / LEAP_COUPLING),
-            ]
-            scene.add_equality(
-                type=mujoco.mjtEq.mjEQ_JOINT,
-                name1=dip.name,
-                name2=pip.name,
-                objtype=mujoco.mjtObj.mjOBJ_JOINT,
-                data=[0.0, LEAP_COUPLING, 0.0, 0.0, 0.0] + [0.0] * 7,
-            )
+            couple_distal(scene, _SCENE_PREFIX + finger.dip, finger.name, LEAP_COUPLING)
         box = scene.geom(_SCENE_PREFIX + finger.tip)
         friction, solref, solimp = list(box.friction), list(box.solref), list(box.solimp)
         scene.delete(box)
@@ -238,27 +223,10 @@ def leap_spec(
             solimp=solimp,
             rgba=[0.5, 0.5, 0.5, 1.0],
         )
-        distal.add_site(
-            name=f"{finger.name}_tip",
-            type=mujoco.mjtGeom.mjGEOM_SPHERE,
-            pos=[x, y - half, z],  # the centre of the tip's end
-            size=[1.5 * TIP_RADIUS, 0, 0],
-            rgba=[0.9, 0.2, 0.2, 0.3],
-            group=4,
-        )
+        add_tip_site(distal, finger.name, [x, y - half, z], TIP_RADIUS)  # the end's centre
     add_pen_sensors(scene, [finger.name for finger in LEAP_FINGERS])
     if grasp is not None:
-        angles = {}
-        for finger, (abd, mcp, pip) in zip(LEAP_FINGERS, grasp, strict=True):
-            angles.update({f"{finger.name}_abd": abd, f"{finger.name}_mcp": mcp})
-            angles[f"{finger.name}_pip"] = pip
-            if finger.dip is not None:
-                angles[f"{finger.name}_dip"] = LEAP_COUPLING * pip
-        pen = [0.0, 0.0, 0.2, 1.0, 0.0, 0.0, 0.0]
-        qpos = [
-            v for j in scene.joints for v in (pen if j.name == "pen" else [angles.get(j.name, 0.0)])
-        ]
-        scene.add_key(name="grasp", qpos=qpos)
+        add_grasp_key(scene, LEAP_FINGERS, grasp, LEAP_COUPLING)
     return scene
 
 
