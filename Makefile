@@ -84,7 +84,7 @@ test-perturbed: setup
 		$(BIN)/python -m pytest -q -n auto --dist loadfile -m "closed_loop and not realtime"
 
 bench: setup
-	$(BIN)/python bench/run_all.py
+	$(BIN)/python bench/run_all.py --out docs/benchmarks --overwrite
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache .mypy_cache .ruff_cache .import_linter_cache \

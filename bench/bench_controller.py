@@ -1,9 +1,10 @@
 """The grip-transform controller's cost per control step, and expert vs random rollout rates.
 
-Run: ``python bench/bench_controller.py``. For each pen task: the controller's compute per
-control step (median and p90 [us], and the fraction of the 10 ms control period), then
-rollout rates in env steps per second, measured side by side in the same run: the expert
-(env step + controller) against uniform random actions (env step only; resets included).
+Run: ``python bench/bench_controller.py [--steps N] [--json FILE]``. For each pen task: the
+controller's compute per control step (median and p90 [us], and the fraction of the 10 ms
+control period), then rollout rates in env steps per second, measured side by side in the
+same run: the expert (env step + controller) against uniform random actions (env step only;
+resets included).
 
 Then the controller's time per env and step for 1 and 8 envs in this process: ``serial``
 (one :class:`ExpertPolicy` per env, called in turn) against ``batched`` (one
@@ -13,12 +14,11 @@ Then the controller's time per env and step for 1 and 8 envs in this process: ``
 from __future__ import annotations
 
 import argparse
-import platform
 import time
 
 import gymnasium as gym
-import mujoco
 import numpy as np
+from report import Report, Table
 
 import ias_gym  # noqa: F401
 from ias_gym.baselines.expert import BatchedExpert, ExpertPolicy
@@ -91,7 +91,9 @@ class Fleet:
             env.reset(seed=i)
         self.batched = BatchedExpert(self.envs) if batched else None
         self.serial = [ExpertPolicy(env) for env in self.envs]
-        self.obs_shape = self.envs[0].observation_space.shape
+        shape = self.envs[0].observation_space.shape
+        assert shape is not None
+        self.obs_shape = shape
         self.times: list[float] = []
 
     def actions(self) -> list[np.ndarray]:
@@ -117,8 +119,15 @@ class Fleet:
                         self.serial[i].reset()
 
 
-def batch_rows(env_id: str, steps: int, sizes: tuple[int, ...] = (1, 8), blocks: int = 10) -> None:
-    """Print per-env controller time, serial vs batched, for each number of envs."""
+#: The goal for the batched controller at 8 envs [us per env and step].
+GOAL_BATCHED_US = 300.0
+
+
+def batch_rows(
+    table: Table, env_id: str, steps: int, sizes: tuple[int, ...] = (1, 8), blocks: int = 10
+) -> float:
+    """Add per-env controller time, serial vs batched, for each number of envs to ``table``;
+    returns the batched median at the largest size [us]."""
     for n in sizes:
         serial, batched = Fleet(env_id, n, False), Fleet(env_id, n, True)
         per_block = max(1, steps // (blocks * n))
@@ -126,38 +135,73 @@ def batch_rows(env_id: str, steps: int, sizes: tuple[int, ...] = (1, 8), blocks:
             serial.block(per_block)
             batched.block(per_block)
         s, b = np.array(serial.times) * 1e6, np.array(batched.times) * 1e6
-        print(
-            f"{env_id:<18}{n:>6}{np.median(s):>15.0f}{np.percentile(s, 90):>10.0f}"
-            f"{np.median(b):>16.0f}{np.percentile(b, 90):>10.0f}"
-            f"{np.median(s) / np.median(b):>18.2f}"
+        table.row(
+            env_id,
+            str(n),
+            f"{np.median(s):.0f}",
+            f"{np.percentile(s, 90):.0f}",
+            f"{np.median(b):.0f}",
+            f"{np.percentile(b, 90):.0f}",
+            f"{np.median(s) / np.median(b):.2f}",
         )
+    return float(np.median(b))
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2000, help="control steps per measurement")
-    args = parser.parse_args()
-    machine = platform.processor() or platform.machine()
-    print(f"machine: {machine}, python {platform.python_version()}, mujoco {mujoco.__version__}")
-    header = ("env", "ctrl median [us]", "p90 [us]", "of 10 ms", "expert [st/s]", "random [st/s]")
-    print(f"{header[0]:<18}" + "".join(f"{h:>17}" for h in header[1:]) + f"{'ratio':>8}")
+    report, args = Report.start(parser)
+    table = report.table(
+        f"The expert's controller per control step along its own episodes ({args.steps} "
+        "steps, the env steps not timed), then rollouts in 10 alternating blocks of "
+        f"{args.steps // 10} steps: the expert (env step + controller) against random actions, "
+        "resets included",
+        [
+            "env",
+            "controller median [us]",
+            "controller p90 [us]",
+            "of the control period",
+            "expert [steps/s]",
+            "random [steps/s]",
+            "expert / random",
+        ],
+    )
     for env_id in ENV_IDS:
         t = controller_times(env_id, args.steps)
         period = gym.make(env_id).unwrapped.config.control_dt  # type: ignore[attr-defined]
         expert, random = rollout_rates(env_id, args.steps)
         median = float(np.median(t))
-        print(
-            f"{env_id:<18}{median * 1e6:>17.0f}{np.percentile(t, 90) * 1e6:>17.0f}"
-            f"{median / period:>17.1%}{expert:>17.0f}{random:>17.0f}{expert / random:>8.2f}"
+        table.row(
+            env_id,
+            f"{median * 1e6:.0f}",
+            f"{np.percentile(t, 90) * 1e6:.0f}",
+            f"{median / period:.1%}",
+            f"{expert:.0f}",
+            f"{random:.0f}",
+            f"{expert / random:.2f}",
         )
-    print("\ncontroller time per env and step [us], serial vs batched (alternating blocks):")
-    header = ("env", "envs", "serial median", "p90", "batched median", "p90", "serial / batched")
-    print(
-        f"{header[0]:<18}{header[1]:>6}{header[2]:>15}{header[3]:>10}{header[4]:>16}"
-        f"{header[5]:>10}{header[6]:>18}"
+    table = report.table(
+        "The controller's time per env and step in this process: serial (one ExpertPolicy "
+        "per env, called in turn) against batched (one BatchedExpert for every env), "
+        f"10 alternating blocks of {args.steps} / (10 x envs) control steps each",
+        [
+            "env",
+            "envs",
+            "serial median [us]",
+            "serial p90 [us]",
+            "batched median [us]",
+            "batched p90 [us]",
+            "serial / batched",
+        ],
     )
     for env_id in ENV_IDS:
-        batch_rows(env_id, args.steps)
+        batched = batch_rows(table, env_id, args.steps)
+        report.check(
+            f"{env_id}: batched controller <= {GOAL_BATCHED_US:.0f} us per env at 8 envs",
+            batched <= GOAL_BATCHED_US,
+            f"{batched:.0f} us",
+        )
+    report.finish()
 
 
 if __name__ == "__main__":

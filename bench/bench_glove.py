@@ -1,10 +1,10 @@
 """Glove calibration over five simulated persons: accuracy, training time, inference cost.
 
-Run: ``python bench/bench_glove.py [--persons p1 p2 p3 p4 p5] [--readings 2000]``. For each
-person (:meth:`PersonParams.sample`) one calibration session is recorded and split 80/20,
-the shipped ANN calibration, the paper's index 2-10-3 variant and the linear least-squares
-baseline are trained on the same readings (:func:`calibrate_person`) and evaluated on the
-held-out ones. Prints, measured in this one run:
+Run: ``python bench/bench_glove.py [--persons p1 p2 p3 p4 p5] [--readings 2000]
+[--json FILE]``. For each person (:meth:`PersonParams.sample`) one calibration session is
+recorded and split 80/20, the shipped ANN calibration, the paper's index 2-10-3 variant and
+the linear least-squares baseline are trained on the same readings (:func:`calibrate_person`)
+and evaluated on the held-out ones. The tables and goals, measured in this one run:
 
 1. per person: held-out joint RMS [deg] over all joints and over pinch poses only, and the
    thumb-index fingertip gap error in pinch [mm], for ANN / paper ANN / linear; the ANN's
@@ -19,13 +19,13 @@ held-out ones. Prints, measured in this one run:
 from __future__ import annotations
 
 import argparse
-import platform
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from report import Report
 
 from ias_gym.glove.calibration import DEFAULT_READINGS, Calibration
 from ias_gym.glove.hand import PersonParams
@@ -56,22 +56,26 @@ def main() -> int:
     parser.add_argument("--persons", nargs="+", default=["p1", "p2", "p3", "p4", "p5"])
     parser.add_argument("--readings", type=int, default=DEFAULT_READINGS)
     parser.add_argument("--calls", type=int, default=20000, help="single-reading predictions")
-    args = parser.parse_args()
+    report, args = Report.start(parser)
 
     from ias_gym.glove.training import calibrate_person
 
-    print(f"python {platform.python_version()}, numpy {np.__version__}, {platform.machine()}")
-    header = (
-        f"{'person':<7} {'scale':>5} | {'all RMS [deg]':^20} | {'pinch RMS [deg]':^20} | "
-        f"{'pinch gap [mm]':^20} | {'ratio':>5} {'train':>6}"
+    models = ("ANN", "2-10-3", "linear")
+    table = report.table(
+        f"Calibration per simulated person, one session of {args.readings} readings split "
+        "80/20, on the held-out readings: joint RMS over all of them and over pinch poses "
+        "only, and the thumb-index fingertip gap error in pinch; the shipped ANN, the "
+        "paper's 2-10-3 index network and linear least squares, trained on the same readings",
+        [
+            "person",
+            "hand scale",
+            *(f"all RMS, {k} [deg]" for k in models),
+            *(f"pinch RMS, {k} [deg]" for k in models),
+            *(f"pinch gap, {k} [mm]" for k in models),
+            "pinch RMS linear / ANN",
+            "ANN training [s]",
+        ],
     )
-    sub = (
-        f"{'':<7} {'':>5} | "
-        + " | ".join([f"{'ANN':>6} {'2-10-3':>6} {'lin':>6}"] * 3)
-        + f" | {'lin/ANN':>5} {'[s]':>6}"
-    )
-    print(header)
-    print(sub)
     rows = []
     last = None
     for pid in args.persons:
@@ -86,20 +90,10 @@ def main() -> int:
             + [m[k].pinch_gap_mm for k in keys]
             + [ratio, run.report.seconds]
         )
-        r = rows[-1]
-        print(
-            f"{pid:<7} {person.hand_scale:>5.2f} | {r[0]:>6.2f} {r[1]:>6.2f} {r[2]:>6.2f} | "
-            f"{r[3]:>6.2f} {r[4]:>6.2f} {r[5]:>6.2f} | {r[6]:>6.2f} {r[7]:>6.2f} {r[8]:>6.2f} | "
-            f"{r[9]:>5.1f} {r[10]:>6.2f}",
-            flush=True,
-        )
+        table.row(pid, f"{person.hand_scale:.2f}", *_cells(rows[-1]))
         last = run
     a = np.array(rows).mean(axis=0)
-    print(
-        f"{'mean':<7} {'':>5} | {a[0]:>6.2f} {a[1]:>6.2f} {a[2]:>6.2f} | "
-        f"{a[3]:>6.2f} {a[4]:>6.2f} {a[5]:>6.2f} | {a[6]:>6.2f} {a[7]:>6.2f} {a[8]:>6.2f} | "
-        f"{a[9]:>5.1f} {a[10]:>6.2f}"
-    )
+    table.row("mean", "", *_cells(list(a)))
     assert last is not None
 
     # Inference: the ANN and linear calibrations of the last person, through a profile file.
@@ -117,34 +111,53 @@ def main() -> int:
                 calibration.predict(psi)
             batch = (time.perf_counter() - t0) / (20 * len(psi)) * 1e6
             timings[name] = (float(np.median(us)), float(np.percentile(us, 90)), batch)
-    print()
-    print(
-        f"numpy inference, one (10,) reading per call, {args.calls} calls ({last.person.person_id})"
+    table = report.table(
+        f"numpy inference of {last.person.person_id}'s calibrations loaded from a saved "
+        f"profile: one (10,) reading per call, {args.calls} calls after 2000 to warm up; "
+        f"batch: the {len(psi)} held-out readings in one call, 20 times",
+        ["model", "median [us]", "p90 [us]", "batch [us/reading]"],
     )
-    print(f"{'model':<8} {'median [us]':>12} {'p90 [us]':>9} {'batch [us/reading]':>19}")
     for name, (med, p90, batch) in timings.items():
-        print(f"{name:<8} {med:>12.2f} {p90:>9.2f} {batch:>19.3f}")
+        table.row(name, f"{med:.2f}", f"{p90:.2f}", f"{batch:.3f}")
 
-    checks = {
-        f"ANN held-out RMS, mean over persons {a[0]:.2f} deg <= {TARGET_RMS_DEG}": a[0]
-        <= TARGET_RMS_DEG,
-        f"linear/ANN pinch RMS >= {TARGET_PINCH_RATIO} for every person (min "
-        f"{min(r[9] for r in rows):.1f})": min(r[9] for r in rows) >= TARGET_PINCH_RATIO,
-        f"ANN pinch gap error, mean {a[6]:.2f} mm (max {max(r[6] for r in rows):.2f}) "
-        f"<= {TARGET_GAP_MM}": a[6] <= TARGET_GAP_MM,
-        f"training <= {TARGET_TRAIN_S} s per person (max {max(r[10] for r in rows):.2f} s)": max(
-            r[10] for r in rows
-        )
-        <= TARGET_TRAIN_S,
-        f"ANN inference median {timings['ann'][0]:.1f} us <= {TARGET_INFERENCE_US}": timings["ann"][
-            0
-        ]
-        <= TARGET_INFERENCE_US,
-    }
     print()
-    for text, ok in checks.items():
-        print(f"[{'ok' if ok else 'MISSED'}] {text}")
-    return 0 if all(checks.values()) else 1
+    min_ratio = min(r[9] for r in rows)
+    max_gap = max(r[6] for r in rows)
+    max_train = max(r[10] for r in rows)
+    met = [
+        report.check(
+            f"ANN held-out RMS, mean over persons <= {TARGET_RMS_DEG} deg",
+            a[0] <= TARGET_RMS_DEG,
+            f"{a[0]:.2f} deg",
+        ),
+        report.check(
+            f"linear / ANN pinch RMS >= {TARGET_PINCH_RATIO} for every person",
+            min_ratio >= TARGET_PINCH_RATIO,
+            f"min {min_ratio:.1f}",
+        ),
+        report.check(
+            f"ANN pinch gap error, mean over persons <= {TARGET_GAP_MM} mm",
+            a[6] <= TARGET_GAP_MM,
+            f"mean {a[6]:.2f} mm, max {max_gap:.2f} mm",
+        ),
+        report.check(
+            f"ANN training <= {TARGET_TRAIN_S} s per person",
+            max_train <= TARGET_TRAIN_S,
+            f"max {max_train:.2f} s",
+        ),
+        report.check(
+            f"ANN inference median <= {TARGET_INFERENCE_US} us",
+            timings["ann"][0] <= TARGET_INFERENCE_US,
+            f"{timings['ann'][0]:.1f} us",
+        ),
+    ]
+    report.finish()
+    return 0 if all(met) else 1
+
+
+def _cells(r: list[float]) -> list[str]:
+    """A person's (or the mean's) formatted cells: the nine errors, the ratio, the seconds."""
+    return [*(f"{v:.2f}" for v in r[:9]), f"{r[9]:.1f}", f"{r[10]:.2f}"]
 
 
 if __name__ == "__main__":

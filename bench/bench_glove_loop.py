@@ -1,8 +1,9 @@
 """The glove's host loop on python-can's virtual bus at 500 Hz and 1 kHz, and the bus load.
 
-Run: ``python bench/bench_glove_loop.py [--seconds 10] [--repeats 3] [--priority 10]``.
-Against the in-process :class:`~ias_gym.hardware.GloveEmulator`, side by side in this one
-run (:func:`~ias_gym.hardware.bench.run_glove_bench`, the runs alternating):
+Run: ``python bench/bench_glove_loop.py [--seconds 10] [--repeats 3] [--priority 10]
+[--json FILE]``. Against the in-process :class:`~ias_gym.hardware.GloveEmulator`, side by
+side in this one run (:func:`~ias_gym.hardware.bench.run_glove_bench`, the runs
+alternating):
 
 1. *plain python-can loop*: drain the received frames, encode and send one torque command,
    sleep to the next deadline (no decoding, no calibration, no world): what python-can and
@@ -20,19 +21,18 @@ other users would).
 Then the host watchdog: ``--silences`` times the emulator goes quiet for 100 ms at 1 kHz, and
 the time from the last valid sample to the trip is measured.
 
-Prints per loop and rate the medians over ``--repeats`` runs of: period median / p99 / max
-[ms], overrun fraction (periods > 1.5 x nominal), frames dropped, watchdog trips; the ratio
-host / plain of the p99 period (the median of the runs' pairs) and the goal at 1 kHz
-(p99 ratio <= 1.15, overruns <= 1.5 x the plain loop's);
-the watchdog's trip delay (median, max); and the protocol's bus load at both rates (classic
-CAN 1 Mbit/s; CAN FD 1/5 Mbit/s).
+The first table gives per loop and rate the medians over ``--repeats`` runs of: period
+median / p99 / max [ms], overrun fraction (periods > 1.5 x nominal), frames dropped,
+watchdog trips; then the goal per rate on the ratios host / plain of the p99 period (the
+median of the runs' pairs, <= 1.15) and of the overrun fraction (<= 1.5). Then the
+watchdog's trip delay (median, max), and the protocol's bus load at each rate (classic CAN
+1 Mbit/s; CAN FD 1/5 Mbit/s).
 """
 
 from __future__ import annotations
 
 import argparse
 import itertools
-import os
 import platform
 import subprocess
 import sys
@@ -40,6 +40,8 @@ import time
 
 import can
 import numpy as np
+from numpy.typing import ArrayLike
+from report import Report
 
 from ias_gym.envs.glove_grasp import GloveGraspEnv
 from ias_gym.glove.device import ACTUATED_JOINTS, GloveDevice, GloveReading
@@ -72,7 +74,7 @@ class FixedGlove(GloveDevice):
     def read(self) -> GloveReading:
         return GloveReading(psi=self.psi.copy(), timestamp=0.0)
 
-    def write_feedback(self, torques: object) -> None:
+    def write_feedback(self, torques: ArrayLike) -> None:
         encode_torque(torques, 1, 0)  # the encoding the CAN glove would do
 
     def close(self) -> None:
@@ -89,7 +91,9 @@ def world_loop(rate_hz: float, seconds: float) -> LoopStats:
     )
     env.reset(seed=0)
     clock = LoopClock(period)
-    action = np.zeros(env.action_space.shape, dtype=np.float32)  # type: ignore[arg-type]
+    shape = env.action_space.shape
+    assert shape is not None
+    action = np.zeros(shape, dtype=np.float32)
     for _ in range(round(seconds * rate_hz)):
         clock.wait()
         env.step(action)
@@ -127,33 +131,52 @@ def main() -> int:
     parser.add_argument("--priority", type=int, help="SCHED_FIFO priority of the loops")
     parser.add_argument("--load", type=int, default=0, help="busy processes during the run")
     parser.add_argument("--rates", default="500,1000", help="comma-separated loop rates [Hz]")
-    args = parser.parse_args()
-    print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, load average "
-          f"{os.getloadavg()[0]:.1f}, {platform.python_implementation()} "
-          f"{platform.python_version()}, python-can {can.__version__}; priority "
-          f"{args.priority or 'default'}, {args.load} busy processes")  # fmt: skip
+    report, args = Report.start(parser)
+    report.note(
+        f"{platform.python_implementation()} {platform.python_version()}, python-can "
+        f"{can.__version__}"
+    )
     load = busy_load(args.load)
     try:
-        run(args)
+        run(args, report)
     finally:
         for process in load:
             process.kill()
             process.wait()
+    report.finish()
     return 0
 
 
-def run(args: argparse.Namespace) -> None:
-    """The table, the watchdog delays and the bus load."""
+def run(args: argparse.Namespace, report: Report) -> None:
+    """The loops' table and goals, the watchdog delays and the bus load."""
     fields = ("period_median_ms", "period_p99_ms", "period_max_ms", "overrun_fraction")
-    header = f"{'loop':<7} {'rate':>6} " + " ".join(f"{f:>17}" for f in fields)
-    print(header + f" {'dropped':>8} {'trips':>6}")
     rates = [float(r) for r in args.rates.split(",")]
+    priority = f"priority {args.priority}" if args.priority else "default priority"
+    table = report.table(
+        "The glove's host loop against a plain python-can loop at the same rate, on "
+        "python-can's virtual bus with the in-process emulator, runs alternating, and the "
+        f"world's env step alone on a fixed reading; medians of {args.repeats} runs of "
+        f"{args.seconds:g} s per loop and rate, {priority}, {args.load} busy processes; "
+        "overrun: a period > 1.5 x nominal",
+        [
+            "loop",
+            "rate [Hz]",
+            "period median [ms]",
+            "period p99 [ms]",
+            "period max [ms]",
+            "overrun fraction",
+            "frames dropped",
+            "watchdog trips",
+        ],
+    )
 
     def row(name: str, rate: float, stats: LoopStats) -> None:
-        values = " ".join(f"{getattr(stats, f):>17.3f}" for f in fields)
-        print(f"{name:<7} {rate:>6.0f} {values} {stats.frames_dropped:>8} "
-              f"{stats.watchdog_trips:>6}", flush=True)  # fmt: skip
+        values = [f"{getattr(stats, f):.3f}" for f in fields]
+        table.row(
+            name, f"{rate:.0f}", *values, str(stats.frames_dropped), str(stats.watchdog_trips)
+        )
 
+    goals = []
     for rate in rates:
         result = run_glove_bench(
             channel=f"bench-{next(_channels)}",
@@ -163,29 +186,47 @@ def run(args: argparse.Namespace) -> None:
             priority=args.priority,
         )
         assert result.plain is not None and result.p99_ratio is not None
-        row("plain", rate, result.plain)
-        row("host", rate, result.stats)
+        row("plain python-can loop", rate, result.plain)
+        row("host loop", rate, result.stats)
         with realtime_priority(args.priority):
             worlds = [world_loop(rate, args.seconds) for _ in range(args.repeats)]
         world = {f: float(np.median([getattr(w, f) for w in worlds])) for f in fields}
-        print(f"{'world':<7} {rate:>6.0f} " + " ".join(f"{world[f]:>17.3f}" for f in fields))
-        overruns = result.stats.overrun_fraction / max(result.plain.overrun_fraction, 1e-9)
-        ok = result.p99_ratio <= GOAL_P99_RATIO and (
-            result.stats.overrun_fraction <= GOAL_OVERRUN_RATIO * result.plain.overrun_fraction
+        table.row("world only", f"{rate:.0f}", *(f"{world[f]:.3f}" for f in fields), "", "")
+        host, plain = result.stats.overrun_fraction, result.plain.overrun_fraction
+        ok = result.p99_ratio <= GOAL_P99_RATIO and host <= GOAL_OVERRUN_RATIO * plain
+        measured = (
+            f"p99 ratio {result.p99_ratio:.2f}; overrun fraction host {host:.3f}, plain {plain:.3f}"
         )
-        print(f"        p99 ratio host / plain {result.p99_ratio:.2f}, overruns host / plain "
-              f"{overruns:.2f}: goal (<= {GOAL_P99_RATIO}, <= {GOAL_OVERRUN_RATIO}) "
-              f"{'met' if ok else 'NOT met'}", flush=True)  # fmt: skip
+        goals.append((rate, ok, measured))
+    print()
+    for rate, ok, measured in goals:
+        report.check(
+            f"at {rate:.0f} Hz, host / plain: p99 period <= {GOAL_P99_RATIO}, overrun fraction "
+            f"<= {GOAL_OVERRUN_RATIO}",
+            ok,
+            measured,
+        )
     with realtime_priority(args.priority):
         delays = watchdog_delays(args.silences)
-    print(f"watchdog trip after the last valid sample ({args.silences} silences at 1 kHz, "
-          f"limit 20 ms): median {np.median(delays):.2f} ms, "
-          f"max {delays.max():.2f} ms")  # fmt: skip
+    table = report.table(
+        "The host watchdog: time from the last valid sample to the trip, the emulator going "
+        f"quiet for 100 ms at 1 kHz, {args.silences} times (the watchdog's limit: 20 ms)",
+        ["silences", "median [ms]", "max [ms]"],
+    )
+    table.row(str(args.silences), f"{np.median(delays):.2f}", f"{delays.max():.2f}")
+    table = report.table(
+        "The protocol's bus load: classic CAN at 1 Mbit/s, CAN FD at 1/5 Mbit/s",
+        [
+            "rate [Hz]",
+            "classic, no stuff bits [%]",
+            "classic, worst case [%]",
+            "CAN FD, worst case [%]",
+        ],
+    )
     for rate in rates:
         classic, fd = bus_load(rate)["total"], bus_load(rate, fd=True)["total"]
         nominal = bus_load(rate, worst_case=False)["total"]
-        print(f"bus load at {rate:.0f} Hz: classic {nominal:.1%} (no stuff bits) to "
-              f"{classic:.1%} (worst case), CAN FD {fd:.1%} (worst case)")  # fmt: skip
+        table.row(f"{rate:.0f}", f"{100 * nominal:.1f}", f"{100 * classic:.1f}", f"{100 * fd:.1f}")
 
 
 if __name__ == "__main__":

@@ -1,9 +1,9 @@
 """The glove world's speed: IAS-GloveGrasp-v0 steps/s and the 1 kHz CAN host loop, each
 against a reference measured in the same run; optionally against a base revision, side by side.
 
-Run: ``python bench/bench_glove_speed.py [--base REV] [--rounds 3]``. Per round, in one
-process per source tree (this checkout, and with ``--base`` the tree of git revision
-``REV`` extracted with ``git archive``; the trees alternate round by round):
+Run: ``python bench/bench_glove_speed.py [--base REV] [--rounds 3] [--json FILE]``. Per
+round, in one process per source tree (this checkout, and with ``--base`` the tree of git
+revision ``REV`` extracted with ``git archive``; the trees alternate round by round):
 
 1. *env*: random-action steps/s of ``gym.make("IAS-GloveGrasp-v0")`` (one env, resets
    included, as an RL library sees it), the median of ``--blocks`` blocks; the reference
@@ -16,8 +16,8 @@ process per source tree (this checkout, and with ``--base`` the tree of git revi
    overrun fraction, the plain loop's p99, and ``p99_ratio`` = host p99 / plain p99 (the
    goal: <= 1.15).
 
-Prints the medians over the rounds per tree, and with ``--base`` the ratio this tree /
-base. The machine's load moves every absolute number: compare the ratios to the in-run
+The table gives the medians over the rounds per tree, and with ``--base`` the ratio this
+tree / base. The machine's load moves every absolute number: compare the ratios to the in-run
 references (``env/raw``, ``p99_ratio``) and this tree against the base in the same run.
 """
 
@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 import tarfile
@@ -151,15 +150,15 @@ def run_round(tree: Path, args: argparse.Namespace) -> dict[str, float]:
 
 
 ROWS = (
-    ("env_steps_per_s", "env random steps/s", "{:.0f}"),
-    ("raw_steps_per_s", "raw physics steps/s (ref)", "{:.0f}"),
+    ("env_steps_per_s", "env, random actions [steps/s]", "{:.0f}"),
+    ("raw_steps_per_s", "raw physics, the same controls (ref) [steps/s]", "{:.0f}"),
     ("env_over_raw_time", "env / raw time per step", "{:.2f}"),
     ("rate_hz", "host loop rate [Hz]", "{:.0f}"),
     ("step_median_ms", "host step median [ms]", "{:.3f}"),
     ("period_p99_ms", "host p99 period [ms]", "{:.2f}"),
     ("overrun_fraction", "host overrun fraction", "{:.3f}"),
-    ("plain_p99_ms", "plain p99 period [ms] (ref)", "{:.2f}"),
-    ("p99_ratio", f"p99 ratio host/plain (<= {GOAL_P99_RATIO})", "{:.2f}"),
+    ("plain_p99_ms", "plain p99 period (ref) [ms]", "{:.2f}"),
+    ("p99_ratio", f"p99 ratio host / plain (goal <= {GOAL_P99_RATIO})", "{:.2f}"),
 )
 
 
@@ -172,13 +171,16 @@ def main() -> int:
     parser.add_argument("--loop-seconds", type=float, default=3.0, help="per loop run; 0: skip")
     parser.add_argument("--loop-repeats", type=int, default=2, help="loop runs per round")
     parser.add_argument("--measure", action="store_true", help=argparse.SUPPRESS)
-    args = parser.parse_args()
-    if args.measure:
+    if "--measure" in sys.argv[1:]:  # one round, in a process of run_round: JSON, no report
+        args = parser.parse_args()
         print(json.dumps(measure(args)))
         return 0
 
-    print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, load average "
-          f"{os.getloadavg()[0]:.1f}, python {platform.python_version()}")  # fmt: skip
+    # Imported here, not at the top: a --measure process imports ias_gym from the tree it
+    # measures, and a base revision may predate the modules report.py imports.
+    from report import Report
+
+    report, args = Report.start(parser)
     with tempfile.TemporaryDirectory() as tmp:
         trees = {"this": ROOT}
         if args.base:
@@ -193,17 +195,34 @@ def main() -> int:
         for name, runs in results.items()
     }
     names = list(trees)
-    header = f"{'median over ' + str(args.rounds) + ' rounds':<36}" + "".join(
-        f"{n:>10}" for n in names
+    title = (
+        f"{ENV_ID} against its raw physics: {args.blocks} blocks of {args.block_steps} "
+        "random-action steps (resets included) beside mj_step replaying the same controls"
     )
-    print(header + (f"{'this/base':>11}" if args.base else ""))
+    if args.loop_seconds > 0:
+        title += (
+            f"; the 1 kHz CAN host loop beside a plain python-can loop, {args.loop_repeats} "
+            f"runs of {args.loop_seconds:g} s each"
+        )
+    title += f"; medians over {args.rounds} rounds, each round in its own process"
+    if args.base:
+        title += f", this tree and base (git revision {args.base}) alternating"
+    table = report.table(
+        title,
+        [
+            f"median over {args.rounds} rounds",
+            *(f"base ({args.base})" if n == "base" else "this tree" for n in names),
+            *(["this / base"] if args.base else []),
+        ],
+    )
     for key, label, fmt in ROWS:
         if key not in medians["this"]:
             continue
-        cells = "".join(f"{fmt.format(medians[n][key]):>10}" for n in names)
+        cells = [fmt.format(medians[n][key]) for n in names]
         if args.base:
-            cells += f"{medians['this'][key] / medians['base'][key]:>11.2f}"
-        print(f"{label:<36}{cells}")
+            cells.append(f"{medians['this'][key] / medians['base'][key]:.2f}")
+        table.row(label, *cells)
+    report.finish()
     return 0
 
 

@@ -7,7 +7,7 @@ honest. Also timed, as the alternatives we did not ship (built here from the mod
 friction rows): DAQP called cold each time, and a persistent HiGHS model whose W
 coefficients are changed in place and warm-started.
 
-Run: ``python bench/bench_internal_forces.py [--reps N]``.
+Run: ``python bench/bench_internal_forces.py [--reps N] [--json FILE]``.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from collections.abc import Callable
 import daqp
 import highspy
 import numpy as np
+from report import Report
 
 from ias_gym.grasp.internal_forces import (
     InternalForceSettings,
@@ -113,28 +114,35 @@ def time_solver(solve: Callable[[np.ndarray], float], ws: list[np.ndarray]) -> n
 
 
 def main() -> None:
-    """Print the table: solver, median and p90 per solve [us], linprog's median / its median."""
+    """The table: solver, median and p90 per solve [us], linprog's median / its median."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--reps", type=int, default=2000, help="solves per solver")
-    reps = parser.parse_args().reps
-    phis = np.linspace(0.03, 0.04, reps)
+    report, args = Report.start(parser)
+    phis = np.linspace(0.03, 0.04, args.reps)
     ws = [pen_w(np.array([p, 0.02, 0.02, 0.03])) for p in phis]
     fast = InternalForceSolver(4, SETTINGS)
     highs = PersistentHighs(ws[0])
     solvers: dict[str, Callable[[np.ndarray], float]] = {
-        "linprog(highs) [reference]": lambda W: solve_lp(W, W_EXT, SLIDING, SETTINGS).objective,
-        "clarabel SOCP (exact cone)": lambda W: solve_socp(W, W_EXT, SLIDING).objective,
-        "InternalForceSolver (daqp, warm)": lambda W: fast.solve(W, W_EXT, SLIDING).objective,
-        "daqp.solve cold (alternative)": daqp_cold,
-        "persistent highspy (alternative)": highs.solve,
+        "`solve_lp`: linprog, HiGHS (paper-faithful, box cones)": lambda W: (
+            solve_lp(W, W_EXT, SLIDING, SETTINGS).objective
+        ),
+        "`solve_socp`: Clarabel (exact cones)": lambda W: solve_socp(W, W_EXT, SLIDING).objective,
+        "`InternalForceSolver`: warm DAQP QP (control loops)": lambda W: (
+            fast.solve(W, W_EXT, SLIDING).objective
+        ),
+        "daqp cold, for comparison": daqp_cold,
+        "persistent highspy, coefficients updated in place, for comparison": highs.solve,
     }
     stats = {name: time_solver(solve, ws) for name, solve in solvers.items()}
-    ref = float(np.median(stats["linprog(highs) [reference]"]))
-    print(f"pen, phase 1 (finger 1 sliding), {reps} solves each")
-    print(f"{'solver':36s} {'median us':>10s} {'p90 us':>10s} {'speed-up':>9s}")
+    ref = float(np.median(next(iter(stats.values()))))
+    table = report.table(
+        f"The pen in phase 1 (finger 1 sliding), {args.reps} solves per solver",
+        ["solver", "median [us]", "p90 [us]", "speed-up"],
+    )
     for name, t in stats.items():
-        median, p90 = np.median(t), np.percentile(t, 90)
-        print(f"{name:36s} {median:10.1f} {p90:10.1f} {ref / median:9.1f}")
+        median, p90 = float(np.median(t)), float(np.percentile(t, 90))
+        table.row(name, f"{median:.1f}", f"{p90:.1f}", f"{ref / median:.1f}")
+    report.finish()
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """The Shadow hand's pen task against Gymnasium-Robotics' AdroitHandPen-v1, side by side.
 
-Run: ``python bench/bench_shadow_adroit.py`` (needs the ``hands`` extra). Both envs hold a
-pen in the Shadow hand's model on MuJoCo with a 10 ms control period: ours
+Run: ``python bench/bench_shadow_adroit.py [--json FILE]`` (needs the ``hands`` extra).
+Both envs hold a pen in the Shadow hand's model on MuJoCo with a 10 ms control period: ours
 (``IAS-PenRotate-Shadow-v0``) torque-drives nine joints of a fixed hand with a 1 ms physics
 step; Adroit position-drives the 24 actuators of a hand on an arm with a 2 ms step. Rounds
 of random-action steps (resets included, as an RL library sees them) alternate between the
@@ -14,13 +14,13 @@ that the env's own overhead is visible.
 from __future__ import annotations
 
 import argparse
-import platform
 import time
 from typing import Any
 
 import gymnasium as gym
 import mujoco
 import numpy as np
+from report import Report
 
 import ias_gym  # noqa: F401  (registers the IAS-* ids)
 
@@ -83,30 +83,44 @@ def main() -> None:
     )
     parser.add_argument("--rounds", type=int, default=15, help="alternating rounds per env")
     parser.add_argument("--steps", type=int, default=2000, help="random steps per round")
-    args = parser.parse_args()
-    print(
-        f"machine: {platform.processor() or platform.machine()}, python "
-        f"{platform.python_version()}, mujoco {mujoco.__version__}"
-    )
+    report, args = Report.start(parser)
     envs = {env_id: make(env_id) for env_id in (OURS, ADROIT)}
     rates: dict[str, list[float]] = {env_id: [] for env_id in envs}
     for r in range(args.rounds):
         for env_id, env in envs.items():
             rates[env_id].append(random_round(env, args.steps, seed=r))
-    print(f"\n{'env':<26}{'random [steps/s]':>18}{'min':>8}{'max':>8}{'/ Adroit':>10}")
+    table = report.table(
+        f"{OURS} against {ADROIT}, random actions, resets included: {args.rounds} rounds of "
+        f"{args.steps} steps per env, the envs alternating; medians over the rounds, and "
+        "/ Adroit the median of each round's rate over the Adroit round beside it",
+        ["env", "random actions [steps/s]", "min [steps/s]", "max [steps/s]", "/ Adroit"],
+    )
     adroit = np.array(rates[ADROIT])
     for env_id, values in rates.items():
         ratio = float(np.median(np.array(values) / adroit))
-        print(
-            f"{env_id:<26}{np.median(values):>18.0f}{min(values):>8.0f}{max(values):>8.0f}"
-            f"{ratio:>10.2f}"
+        table.row(
+            env_id,
+            f"{np.median(values):.0f}",
+            f"{min(values):.0f}",
+            f"{max(values):.0f}",
+            f"{ratio:.2f}",
         )
-    print(f"\n{'env':<26}{'env.step [us]':>15}{'mj_step x frame_skip [us]':>27}{'ratio':>8}")
+        if env_id == OURS:
+            report.check(
+                f"{OURS} random-action steps/s >= {ADROIT}'s", ratio >= 1.0, f"{ratio:.2f} x"
+            )
+    table = report.table(
+        "env.step alone from one reset (seed 0), random actions for 400 steps or to the "
+        "episode's end, beside mj_step(nstep=frame_skip) replaying its controls from the same "
+        "state (medians per step)",
+        ["env", "env.step [us]", "`mj_step(nstep=frame_skip)` [us]", "env.step / mj_step"],
+    )
     for env_id, env in envs.items():
         t_env, t_raw = step_vs_raw(env, 400)
-        print(f"{env_id:<26}{t_env * 1e6:>15.0f}{t_raw * 1e6:>27.0f}{t_env / t_raw:>8.2f}")
+        table.row(env_id, f"{t_env * 1e6:.0f}", f"{t_raw * 1e6:.0f}", f"{t_env / t_raw:.2f}")
     for env in envs.values():
         env.close()
+    report.finish()
 
 
 if __name__ == "__main__":

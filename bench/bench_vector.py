@@ -1,6 +1,6 @@
 """Vector envs against the cores: random-action steps/s, resets included.
 
-Run: ``python bench/bench_vector.py`` (options: ``--help``). For ``num_envs`` x
+Run: ``python bench/bench_vector.py [--json FILE]`` (options: ``--help``). For ``num_envs`` x
 ``num_workers``, the env steps per second of random actions (episodes end after a few
 steps, so resets count) in Gymnasium's ``SyncVectorEnv`` and ``AsyncVectorEnv``, SB3's
 ``SubprocVecEnv`` and the batched vector env of ``ias_gym.runtime.vector_env``; each as a ratio to
@@ -17,15 +17,14 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import time
 import warnings
 from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
-import mujoco
 import numpy as np
+from report import Report
 
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.runtime.vector_env import make_batched_vec
@@ -133,6 +132,10 @@ def configurations(envs: list[int], workers: list[int]) -> list[tuple[str, int, 
     return out
 
 
+#: The goal for our batched vector env: this fraction of linear scaling over the cores.
+GOAL_LINEAR = 0.8
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__.splitlines()[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
@@ -142,7 +145,7 @@ def main() -> None:
     parser.add_argument("--workers", default="1,2", help="num_workers values of ours")
     parser.add_argument("--seconds", type=float, default=0.5, help="per measurement [s]")
     parser.add_argument("--repeats", type=int, default=5, help="measurements per row")
-    args = parser.parse_args()
+    report, args = Report.start(parser)
     try:
         import torch
 
@@ -152,10 +155,7 @@ def main() -> None:
     cores = os.cpu_count() or 1
     envs = [int(v) for v in args.envs.split(",")]
     workers = [int(v) for v in args.workers.split(",")]
-    print(
-        f"machine: {platform.processor() or platform.machine()}, {cores} cores, python "
-        f"{platform.python_version()}, mujoco {mujoco.__version__}, gymnasium {gym.__version__}"
-    )
+    report.note(f"gymnasium {gym.__version__}")
 
     # One plain env, the unit of the ratios, is measured right before every vector row (the
     # ratio of each pair, then the median over the repeats: load that changes between
@@ -177,20 +177,33 @@ def main() -> None:
         runner.close()
     base = float(np.median(single_rates))
 
-    print(f"\n{args.env}, random actions, resets included; one plain env: {base:.0f} steps/s\n")
-    print("| vector env | envs | processes | steps/s | x one env | / linear |")
-    print("|---|---:|---:|---:|---:|---:|")
+    table = report.table(
+        f"{args.env} in vector envs: random actions, resets included; torch on 1 thread, "
+        f"processes started by fork; medians of {args.repeats} measurements of "
+        f"{args.seconds:g} s per row, each right after one plain env ({base:.0f} steps/s); "
+        f"/ linear = (x one env) / min(processes, envs, {cores} cores)",
+        ["vector env", "envs", "processes", "random actions [steps/s]", "x one env", "/ linear"],
+    )
     for c, values in rates.items():
         kind, n, procs = c
         ratio = float(np.median(ratios[c]))
         linear = min(procs, cores, n)
-        print(
-            f"| {kind} | {n} | {procs} | {np.median(values):.0f} | {ratio:.2f} "
-            f"| {ratio / linear:.2f} |"
+        table.row(
+            kind,
+            str(n),
+            str(procs),
+            f"{np.median(values):.0f}",
+            f"{ratio:.2f}",
+            f"{ratio / linear:.2f}",
         )
+        batched = [k for k in rates if k[0] == kind]
+        if kind.startswith("batched") and c == max(batched, key=lambda k: (k[1], k[2])):
+            report.check(
+                f"batched, {n} envs on {procs} processes: >= {GOAL_LINEAR} x linear",
+                ratio / linear >= GOAL_LINEAR,
+                f"{ratio / linear:.2f}",
+            )
 
-    print("\n| env | reset [ms] | one env, random [steps/s] |")
-    print("|---|---:|---:|")
     ids = ["IAS-PenSlide-v0", "IAS-PenRotate-v0"]
     try:
         import gymnasium_robotics
@@ -198,9 +211,9 @@ def main() -> None:
         gym.register_envs(gymnasium_robotics)
         ids += [SHADOW, ADROIT]
     except ImportError:
-        print(
-            f"({SHADOW} and {ADROIT} skipped: gymnasium-robotics is not installed; "
-            "pip install -e .[hands])"
+        report.note(
+            f"{SHADOW} and {ADROIT} skipped: gymnasium-robotics is not installed "
+            "(pip install -e .[hands])"
         )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -211,13 +224,23 @@ def main() -> None:
         for e, s in singles.items():
             resets[e].append(s.reset_ms())
             randoms[e].append(_rate(s.step, args.seconds))
+    table = report.table(
+        f"One env's reset (200 in a row, no new seed) and its random actions "
+        f"({args.seconds:g} s, resets included), the envs in turn, {args.repeats} times "
+        "(medians)",
+        ["env", "reset [ms]", "one env, random actions [steps/s]"],
+    )
     for e in ids:
-        print(f"| {e} | {np.median(resets[e]):.3f} | {np.median(randoms[e]):.0f} |")
+        table.row(e, f"{np.median(resets[e]):.3f}", f"{np.median(randoms[e]):.0f}")
         singles[e].close()
     if ADROIT in ids:  # the same hand model and engine: the pen task's wrapping against theirs
         ratio = np.median(randoms[SHADOW]) / np.median(randoms[ADROIT])
-        print(f"\n{SHADOW} / {ADROIT}, random steps/s: {ratio:.2f}x")
+        report.note(
+            f"{SHADOW} / {ADROIT} (the same hand model and engine), random-action steps/s: "
+            f"{ratio:.2f} x"
+        )
     single.close()
+    report.finish()
 
 
 if __name__ == "__main__":

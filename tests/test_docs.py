@@ -94,8 +94,13 @@ def test_every_results_table_is_made_from_its_json() -> None:
         "assistance.md",
         "pen_skill_bc.md",
         "completion.md",
+        "evaluation_pen.md",
+        "learning.md",
+        "robustness_pen.md",
         "robustness_shadow.md",
         "robustness_leap.md",
+        "dagger.md",
+        *(f"{name}.md" for name in result_tables.BENCHMARKS),
     }
     for name, table in tables.items():
         assert table.count("\n|") >= 3, f"{name} has no rows"
@@ -182,7 +187,45 @@ def test_the_robustness_table_follows_its_numbers() -> None:
             {"disturbance": "all", "success_rate": 0.75},
         ],
     }
-    table = result_tables.robustness(result)
+    table = result_tables.robustness([result, {**result, "policy": "random"}])
     assert "held-out seeds 7-8" in table
-    assert "| `push` | 50 % [10, 90] (1/2) |" in table
-    assert "| **minimum** | 50 % |" in table and "`all`" not in table
+    assert "| `push` | 50 % [10, 90] (1/2) | 50 % [10, 90] (1/2) |" in table
+    assert "| **minimum** | 50 % | 50 % |" in table and "`all`" not in table
+    assert "| disturbance | expert `E` | random `E` |" in table
+
+
+def test_the_evaluation_table_pairs_each_error_with_its_unit() -> None:
+    run = {
+        "success_rate": 0.5,
+        "episodes": 2,
+        "mean_return": 3.0,
+        "mean_length": 4.0,
+        "tilt_mean_deg": 1.0,
+        "tilt_max_deg": 2.0,
+        "drift_mean_mm": 0.5,
+    }
+    result = {"env": "E", "policy": "expert", "seed": 3, "episodes": 2, "command": "c"}
+    table = result_tables.evaluation([{**result, "rows": [run]}])
+    assert "| `E` | expert | 3-4 | 50 % [9, 91] | 3.0 | 4 | tilt 1.00 / 2.00 deg |" in table
+
+
+def test_a_benchmark_table_is_its_run_and_refuses_a_foreign_file() -> None:
+    result = {
+        "schema": "ias-gym/bench-v1",
+        "script": "bench_x.py",
+        "command": "python bench/bench_x.py --steps 3",
+        "date_utc": "2026-01-01 00:00",
+        "machine": dict.fromkeys(
+            ("cpu", "cores", "load_average_1min", "python", "mujoco", "numpy"), "m"
+        ),
+        "tables": [{"title": "T", "header": ["a", "b [us]"], "rows": [["x", "1.0"]]}],
+        "checks": [{"goal": "b <= 2 us", "met": True, "measured": "1.0"}],
+        "notes": [],
+    }
+    text = result_tables.benchmark(result)
+    assert "`python bench/bench_x.py --steps 3`" in text and "| x | 1.0 |" in text
+    assert "- met: b <= 2 us (1.0)" in text
+    with pytest.raises(ValueError, match="another width"):
+        result_tables.benchmark({**result, "tables": [{**result["tables"][0], "rows": [["x"]]}]})
+    with pytest.raises(ValueError, match="not a benchmark"):
+        result_tables.benchmark({**result, "schema": "other"})

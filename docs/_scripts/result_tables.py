@@ -13,8 +13,17 @@ JSON in ``docs/``                      written by                          table
 ``assist_table_oracle.json``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
-``robustness_shadow.json``             ``ias-gym robustness --json``       ``robustness_shadow.md``
-``robustness_leap.json``               ``ias-gym robustness --json``       ``robustness_leap.md``
+``robustness_{penslide,penrotate}_     ``ias-gym robustness --json`` kept   ``robustness_pen.md``
+{expert,bc,random}.json``              by ``train/keep_run.py``
+``evaluation_{penslide,penrotate}_     ``ias-gym evaluate --json``, the     ``evaluation_pen.md``
+{expert,random}.json``                 same
+``learning_{penslide,penrotate}_       the same                            ``learning.md``
+{bc,bc_ppo,ppo}.json``
+``robustness_shadow.json``             the same                            ``robustness_shadow.md``
+``robustness_leap.json``               the same                            ``robustness_leap.md``
+``dagger_results.json``                ``train/dagger.py`` (runs)          ``dagger.md``
+``benchmarks/NAME.json``               ``bench/NAME.py --json``            ``NAME.md``
+                                       (``make bench``: all of them)
 =====================================  ==================================  =================
 
     python docs/_scripts/result_tables.py   # print every table
@@ -237,26 +246,166 @@ def completion(result: Mapping[str, Any]) -> str:
     return intro + rows(header, body)
 
 
-def robustness(result: Mapping[str, Any]) -> str:
-    """Success with its 95 % Wilson interval per disturbance class (``ias-gym robustness
-    --json``'s lines, kept with the command and the seed set)."""
-    body = [
-        [
-            f"`{r['disturbance']}`",
+def robustness(results: Sequence[Mapping[str, Any]]) -> str:
+    """Success with its 95 % Wilson interval per disturbance class, one column per run of
+    ``ias-gym robustness --json`` (kept by ``train/keep_run.py`` with the command and
+    the seed set)."""
+
+    def cell(r: Mapping[str, Any]) -> str:
+        return (
             f"{percent(r['success_rate'])} [{100 * r['ci95_low']:.0f}, "
-            f"{100 * r['ci95_high']:.0f}] ({r['successes']}/{r['trials']})",
-        ]
-        for r in result["rows"]
-        if r["disturbance"] != "all"
+            f"{100 * r['ci95_high']:.0f}] ({r['successes']}/{r['trials']})"
+        )
+
+    per_run = [
+        {r["disturbance"]: r for r in result["rows"] if r["disturbance"] != "all"}
+        for result in results
     ]
-    worst = min(r["success_rate"] for r in result["rows"] if r["disturbance"] != "all")
-    body.append(["**minimum**", percent(worst)])
-    intro = (
-        f"`{result['env']}`, policy `{result['policy']}`, {result['set']} seeds "
-        f"{result['seed']}-{result['seed'] + result['episodes'] - 1}, {result['episodes']} "
-        f"episodes per class: `{result['command']}`; success [95 % interval].\n\n"
+    classes = list(per_run[0])
+    body = [
+        [f"`{name}`", *(cell(run[name]) if name in run else "-" for run in per_run)]
+        for name in classes
+    ]
+    body.append(
+        ["**minimum**", *(percent(min(r["success_rate"] for r in run.values())) for run in per_run)]
     )
-    return intro + rows(["disturbance", "success"], body)
+    header = ["disturbance", *(f"{r['policy']} `{r['env']}`" for r in results)]
+    intro = "".join(
+        f"- `{r['policy']}` on `{r['env']}`: {r['set']} seeds {r['seed']}-"
+        f"{r['seed'] + r['episodes'] - 1}, {r['episodes']} episodes per class: "
+        f"`{r['command']}`\n"
+        for r in results
+    )
+    return intro + "\nSuccess [95 % interval] (successes/episodes).\n\n" + rows(header, body)
+
+
+def evaluation(results: Sequence[Mapping[str, Any]]) -> str:
+    """One row per run of ``ias-gym evaluate --json`` (kept by ``train/keep_run.py``): success
+    with its 95 % interval, mean return and length, and each task error's mean / max over
+    the episodes, its unit from its key (``..._mean_mm``, ``..._max_mm``)."""
+    body = []
+    for result in results:
+        r = result["rows"][0]
+        errors = []
+        for key in r:
+            stem, _, unit = key.rpartition("_")
+            if stem.endswith("_mean") and f"{stem[:-5]}_max_{unit}" in r:
+                name = stem[:-5].replace("_", " ")
+                worst = r[f"{stem[:-5]}_max_{unit}"]
+                errors.append(f"{name} {number(r[key], 2)} / {number(worst, 2)} {unit}")
+        body.append(
+            [
+                f"`{result['env']}`",
+                result["policy"],
+                f"{result['seed']}-{result['seed'] + result['episodes'] - 1}",
+                _with_interval(r["success_rate"], r["episodes"]),
+                number(r["mean_return"], 1),
+                number(r["mean_length"], 0),
+                "; ".join(errors),
+            ]
+        )
+    header = [
+        "env",
+        "policy",
+        "seeds",
+        "success [95 %]",
+        "mean return",
+        "mean length [steps]",
+        "task errors, mean / max over episodes",
+    ]
+    commands = "".join(f"- `{result['command']}`\n" for result in results)
+    return commands + "\n" + rows(header, body)
+
+
+def dagger(result: Mapping[str, Any]) -> str:
+    """Each DAgger run beside its behaviour-cloning baseline, per disturbance class."""
+    runs = result["runs"]
+    learners = ("dagger", "bc")
+    classes = list(runs[0]["evaluation"]["dagger"])
+    body = []
+    for name in classes:
+        row = [f"`{name}`"]
+        for run in runs:
+            for learner in learners:
+                s = run["evaluation"][learner][name]
+                row.append(
+                    f"{percent(s['success_rate'])} [{100 * s['ci95_low']:.0f}, "
+                    f"{100 * s['ci95_high']:.0f}]"
+                )
+        body.append(row)
+    header = ["disturbance"]
+    header += [
+        f"{'DAgger' if lr == 'dagger' else 'BC'} ({run['run']})" for run in runs for lr in learners
+    ]
+    intro = "".join(
+        f"- `{run['run']}`: {run['note']}; {run['expert_labels']} expert labels, "
+        f"{run['evaluation_set']} seeds from {run['evaluation_first_seed']}, "
+        f"{run['evaluation_episodes_per_class']} episodes per class: "
+        f"`{result['reproduce'][run['run']]}`\n"
+        for run in runs
+    )
+    return f"{runs[0]['env']}; success [95 % interval].\n\n" + intro + "\n" + rows(header, body)
+
+
+def benchmark(result: Mapping[str, Any]) -> str:
+    """One run of a ``bench/`` script (``bench/report.py``): its tables, goals and machine."""
+    if result.get("schema") != "ias-gym/bench-v1":
+        raise ValueError(f"{result.get('script')}: not a benchmark result (ias-gym/bench-v1)")
+    m = result["machine"]
+    parts = [
+        f"`{result['command']}`, {result['date_utc']} UTC; {m['cpu']}, {m['cores']} cores, "
+        f"load {m['load_average_1min']}, Python {m['python']}, MuJoCo {m['mujoco']}, numpy "
+        f"{m['numpy']}.\n"
+    ]
+    for table in result["tables"]:
+        if any(len(r) != len(table["header"]) for r in table["rows"]):
+            raise ValueError(f"{result['script']}: {table['title']!r} has rows of another width")
+        parts.append(f"\n{table['title']}:\n\n" + rows(table["header"], table["rows"]))
+    if result["notes"]:
+        parts.append("\n" + "".join(f"- {text}\n" for text in result["notes"]))
+    if result["checks"]:
+        parts.append("\nGoals in this run:\n\n")
+        parts += [
+            f"- {'met' if c['met'] else '**not met**'}: {c['goal']}"
+            + (f" ({c['measured']})" if c["measured"] else "")
+            + "\n"
+            for c in result["checks"]
+        ]
+    return "".join(parts)
+
+
+BENCHMARKS = (
+    "bench_internal_forces",
+    "bench_envs",
+    "bench_vector",
+    "bench_controller",
+    "bench_glove",
+    "bench_glove_loop",
+    "bench_glove_speed",
+    "bench_shadow_adroit",
+)
+"""The benchmarks whose latest runs (``docs/benchmarks/NAME.json``) the page shows."""
+
+PEN_EVALUATION = tuple(
+    f"evaluation_{task}_{policy}.json"
+    for task in ("penslide", "penrotate")
+    for policy in ("expert", "random")
+)
+"""The pen tasks' runs of ``ias-gym evaluate``, one row each."""
+
+PEN_LEARNING = tuple(
+    f"learning_{task}_{method}.json"
+    for task in ("penslide", "penrotate")
+    for method in ("bc", "bc_ppo", "ppo")
+)
+"""The learned policies' runs of ``ias-gym evaluate``, one row each."""
+
+PEN_ROBUSTNESS = tuple(
+    f"robustness_{task}_{policy}.json"
+    for policy in ("expert", "bc", "random")
+    for task in ("penslide", "penrotate")
+)
+"""The pen tasks' runs of ``ias-gym robustness``, one column each."""
 
 
 def tables(docs: Path) -> dict[str, str]:
@@ -274,8 +423,13 @@ def tables(docs: Path) -> dict[str, str]:
         ),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "completion.md": completion(load("completion_table.json")),
-        "robustness_shadow.md": robustness(load("robustness_shadow.json")),
-        "robustness_leap.md": robustness(load("robustness_leap.json")),
+        "evaluation_pen.md": evaluation([load(name) for name in PEN_EVALUATION]),
+        "learning.md": evaluation([load(name) for name in PEN_LEARNING]),
+        "robustness_pen.md": robustness([load(name) for name in PEN_ROBUSTNESS]),
+        "robustness_shadow.md": robustness([load("robustness_shadow.json")]),
+        "robustness_leap.md": robustness([load("robustness_leap.json")]),
+        "dagger.md": dagger(load("dagger_results.json")),
+        **{f"{name}.md": benchmark(load(f"benchmarks/{name}.json")) for name in BENCHMARKS},
     }
 
 
