@@ -1,7 +1,8 @@
 """Glove calibration over five simulated persons: accuracy, training time, inference cost.
 
-Run: ``python bench/bench_glove.py [--persons p1 p2 p3 p4 p5] [--readings 2000]
-[--json FILE]``. For each person (:meth:`PersonParams.sample`) one calibration session is
+Run: ``python bench/bench_glove.py [--population 5] [--population-seed 0] [--persons ID ...]
+[--readings 2000] [--json FILE]``. For each person (drawn from the documented population,
+or named by ``--persons``; :meth:`PersonParams.sample`) one calibration session is
 recorded and split 80/20, the shipped ANN calibration, the paper's index 2-10-3 variant and
 the linear least-squares baseline are trained on the same readings (:func:`calibrate_person`)
 and evaluated on the held-out ones. The tables and goals, measured in this one run:
@@ -53,7 +54,9 @@ def single_reading_us(calibration: Calibration, psi: np.ndarray, calls: int) -> 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--persons", nargs="+", default=["p1", "p2", "p3", "p4", "p5"])
+    parser.add_argument("--population", type=int, default=5, help="persons drawn")
+    parser.add_argument("--population-seed", type=int, default=0, help="seed of the draw")
+    parser.add_argument("--persons", nargs="+", metavar="ID", help="these ids instead")
     parser.add_argument("--readings", type=int, default=DEFAULT_READINGS)
     parser.add_argument("--calls", type=int, default=20000, help="single-reading predictions")
     report, args = Report.start(parser)
@@ -78,7 +81,10 @@ def main() -> int:
     )
     rows = []
     last = None
-    for pid in args.persons:
+    from ias_gym.glove.population import population_ids
+
+    persons = args.persons or population_ids(args.population, args.population_seed)
+    for pid in persons:
         person = PersonParams.sample(pid)
         run = calibrate_person(person, n_readings=args.readings)
         m = run.metrics
