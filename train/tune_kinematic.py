@@ -20,8 +20,8 @@ import dataclasses
 import json
 import sys
 from collections.abc import Sequence
-from pathlib import Path
 
+from dev_skills import development_skills
 from tqdm import tqdm
 
 
@@ -41,7 +41,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ias_gym.baselines.kinematic import KinematicGains
     from ias_gym.outputs import atomic_output, check_output_file
     from ias_gym.rates import Rate
-    from ias_gym.skills.db import SkillDB
     from ias_gym.skills.transfer import hand_names, transfer_reference
     from ias_gym.skills.transfer_run import run_transfer
 
@@ -50,22 +49,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         out = check_output_file(args.out_json, suffixes=(".json", ".jsonl"), what="--out-json")
     hands = hand_names() if args.hands == "all" else args.hands.split(",")
     squeezes = [float(x) for x in args.squeezes.split(",")]
-    with SkillDB(Path(args.db), readonly=True) as db:
-        summaries = [s for s in db.list_skills(success=True) if s.person_id]
-        persons = sorted({s.person_id for s in summaries})[: args.persons]
-        chosen: dict[tuple[str, str], int] = {}
-        for s in summaries:
-            key = (str(s.person_id), str(s.name))
-            if s.person_id in persons and key not in chosen:
-                chosen[key] = int(s.id)
-        skills = [db.get(i) for i in chosen.values()]
+    skills = development_skills(args.db, args.persons)
     rows = []
     jobs = [(h, q, sk) for h in hands for q in squeezes for sk in skills]
     for hand, squeeze, skill in tqdm(jobs, desc="kinematic runs", unit="run"):
         gains = dataclasses.replace(KinematicGains(), squeeze=squeeze)
         run, _ = run_transfer(transfer_reference(skill, hand), hand, "kinematic", gains=gains)
         rows.append({**run.to_json(), "squeeze_N": squeeze})
-    print(f"{len(skills)} skills of {len(persons)} persons")
+    print(f"{len(skills)} skills of {len({s.person_id for s in skills})} persons")
     print("hand    squeeze  success            held  tracked  margin kept  margin err")
     for hand in hands:
         for squeeze in squeezes:

@@ -49,7 +49,7 @@ class KinematicGains:
     feed_forward: bool = True
 
 
-def _rotation_between(a: FloatArray, b: FloatArray) -> FloatArray:
+def rotation_between(a: FloatArray, b: FloatArray) -> FloatArray:
     """The smallest rotation matrix taking unit vector ``a`` to unit vector ``b`` (Rodrigues)."""
     v = np.cross(a, b)
     c = float(a @ b)
@@ -115,7 +115,7 @@ class KinematicPolicy:
             self._below = below / max(int(np.sum(below)), 1)
             self._axis0 = ref.axis.copy()
         assert self._normals is not None and self._axis0 is not None
-        R = _rotation_between(self._axis0, ref.axis)
+        R = rotation_between(self._axis0, ref.axis)
         offsets = self._attached @ R.T
         target = ref.position + offsets
         target_velocity = ref.velocity + np.cross(ref.omega, offsets)

@@ -2,10 +2,11 @@
 
 The skill's object trajectory relative to its grasp frame, scaled into each hand's
 workspace, and its grasp margin (:mod:`ias_gym.skills.transfer`) are executed by the
-grip-transform expert (``--method gt``: Theorem 1) or the kinematic baseline
-(``--method kinematic``), nominal or under a class of the robustness suite
-(``--disturbance``); prints the transfer metrics per hand, with ``--json`` one JSON
-object per hand and line (``hand``, ``method``, ``success``, ``rot_rms_deg``,
+grip-transform expert (``--method gt``: Theorem 1), the kinematic baseline
+(``--method kinematic``) or the retargeting baseline (``--method retarget``: dex-retargeting
+and joint position control, ``pip install 'ias-gym[retarget]'``), nominal or under a class of
+the robustness suite (``--disturbance``); prints the transfer metrics per hand, with
+``--json`` one JSON object per hand and line (``hand``, ``method``, ``success``, ``rot_rms_deg``,
 ``pos_rms_mm``, ``margin_err_rel``, ``scale``, ...). ``--list-hands`` lists the hands. A
 demonstration whose own episode failed is refused unless ``--allow-failed``.
 """
@@ -57,6 +58,10 @@ def _transfer(args: argparse.Namespace) -> int:
 
     if args.method not in METHODS:
         raise InputError(f"unknown --method {args.method!r}; methods: {list(METHODS)}")
+    if args.method == "retarget":  # before any work
+        from ias_gym.baselines.retarget import require_retargeting
+
+        require_retargeting()
     from ias_gym.robustness import DISTURBANCES
 
     if args.disturbance not in DISTURBANCES:
@@ -134,14 +139,16 @@ def add_transfer_command(commands: argparse._SubParsersAction[Any]) -> argparse.
     transfer = commands.add_parser(
         "transfer",
         formatter_class=HelpFormatter,
-        help="execute a stored skill on robot hands (grip transform or kinematic)",
+        help="execute a stored skill on robot hands (grip transform, kinematic or retargeting)",
         description="Turn a stored skill (e.g. a glove session) into a reference for each "
         "robot hand - the object's motion relative to its grasp frame, scaled into the "
         "hand's workspace, and the person's grasp margin - and execute it with the "
-        "grip-transform expert (gt, Theorem 1) or the kinematic baseline, nominal or under "
-        "a disturbance class. Success: the pen held, the motion tracked and the margin "
-        "kept within the tolerances of the person's own repeatability. Prints the "
-        "transfer metrics per hand; with --json one JSON object per hand and line (hand, "
+        "grip-transform expert (gt, Theorem 1), the kinematic baseline or the retargeting "
+        "baseline (retarget: dex-retargeting and joint position control, the retarget "
+        "extra), nominal or under a disturbance class. Success: the pen held, the motion "
+        "tracked and the margin kept within the tolerances of the person's own "
+        "repeatability. Prints the transfer metrics per hand; with --json one JSON object "
+        "per hand and line (hand, "
         "method, disturbance, success, held, tracked, margin_kept, rot_rms_deg, "
         "pos_rms_mm, margin_err_rel, tolerance, scale, scale_rot, held_s, skill_id, "
         "person, skill).",
@@ -156,7 +163,10 @@ def add_transfer_command(commands: argparse._SubParsersAction[Any]) -> argparse.
         "--hand", default="ias4f", metavar="NAME|all", help="the robot hand, or all hands"
     )
     transfer.add_argument(
-        "--method", default="gt", metavar="gt|kinematic", help="how the hand executes it"
+        "--method",
+        default="gt",
+        metavar="gt|kinematic|retarget",
+        help="how the hand executes it (retarget: pip install 'ias-gym[retarget]')",
     )
     transfer.add_argument(
         "--seed", type=non_negative_int, default=0, metavar="S", help="the reset seed"

@@ -2,7 +2,8 @@
 
 :func:`run_transfer` runs one reference from :func:`ias_gym.skills.transfer.transfer_reference`
 in ``IAS-PenSkill-v0`` with one of :data:`METHODS` (the grip-transform expert, Theorem 1 on
-the skill's reference and margin, or the kinematic baseline) and returns a
+the skill's reference and margin, the kinematic baseline, or the retargeting baseline) and
+returns a
 :class:`TransferRun`: the env's verdict, the errors against the success test's tolerances
 and the traces a figure plots.
 """
@@ -25,8 +26,9 @@ FloatArray = NDArray[np.float64]
 
 
 #: Methods of executing a transferred skill: the grip-transform expert (Theorem 1 on the
-#: skill's reference and margin) and the kinematic baseline.
-METHODS: tuple[str, ...] = ("gt", "kinematic")
+#: skill's reference and margin), the kinematic baseline and the retargeting baseline
+#: (dex-retargeting and joint position control, the ``retarget`` extra).
+METHODS: tuple[str, ...] = ("gt", "kinematic", "retarget")
 
 
 @dataclass
@@ -34,7 +36,7 @@ class TransferRun:
     """One execution of a transferred skill by one hand, with its traces.
 
     Attributes:
-        hand, method: which hand, which method (``gt`` or ``kinematic``).
+        hand, method: which hand, which method (``gt``, ``kinematic`` or ``retarget``).
         skill_id: the skill's id in its database; person, name: its provenance.
         success: the env's ``is_success``: ``held``, ``tracked`` and ``margin_kept``.
         held: the pen held for the whole episode; tracked: RMS rotation and position
@@ -136,16 +138,18 @@ def run_transfer(
     Args:
         reference: from :func:`transfer_reference` for this hand.
         hand: the hand.
-        method: ``"gt"`` (the grip-transform expert: Theorem 1 with the skill's margin) or
-            ``"kinematic"`` (:class:`~ias_gym.baselines.kinematic.KinematicPolicy`).
+        method: ``"gt"`` (the grip-transform expert: Theorem 1 with the skill's margin),
+            ``"kinematic"`` (:class:`~ias_gym.baselines.kinematic.KinematicPolicy`) or
+            ``"retarget"`` (:class:`~ias_gym.baselines.retarget.RetargetPolicy`).
         seed: the reset seed.
         render: also return ``rgb_array`` frames (every other step: 50 fps).
         executed: the policy acts on this reference instead (same length of episode),
             while the run is still judged against ``reference``: a deliberately weak
             execution (e.g. the pen held still) that the success test must fail.
         gains: the method's gains: the expert's
-            :class:`~ias_gym.baselines.grip_transform_control.ControllerGains` or the
-            kinematic baseline's :class:`~ias_gym.baselines.kinematic.KinematicGains`
+            :class:`~ias_gym.baselines.grip_transform_control.ControllerGains`, the
+            kinematic baseline's :class:`~ias_gym.baselines.kinematic.KinematicGains` or
+            the retargeting baseline's :class:`~ias_gym.baselines.retarget.RetargetGains`
             (default: its own).
         reset_options: further options of the reset (e.g. an exact start, ``qpos`` and
             ``qvel``); the skill is always the reference.
@@ -155,7 +159,7 @@ def run_transfer(
         ``(run, frames)``; ``frames`` is empty unless ``render``.
 
     Raises:
-        InputError: an unknown method.
+        InputError: an unknown method, or ``retarget`` without dex-retargeting installed.
     """
     # the policies: imported here, so that reading references does not load them
     from ias_gym.baselines.expert import ExpertPolicy
@@ -167,7 +171,15 @@ def run_transfer(
         render_mode="rgb_array" if render else None, references=[reference], hand=hand, **config
     )
     try:
-        policy: Any = ExpertPolicy(env, gains) if method == "gt" else KinematicPolicy(env, gains)
+        policy: Any
+        if method == "gt":
+            policy = ExpertPolicy(env, gains)
+        elif method == "kinematic":
+            policy = KinematicPolicy(env, gains)
+        else:
+            from ias_gym.baselines.retarget import RetargetPolicy
+
+            policy = RetargetPolicy(env, gains)
         if executed is not None:
             policy = _Executing(policy, env, executed)
         rows: dict[str, list[Any]] = {
