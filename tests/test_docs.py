@@ -90,6 +90,7 @@ def test_every_results_table_is_made_from_its_json() -> None:
     tables = result_tables.tables(DOCS)
     assert set(tables) == {
         "transfer.md",
+        "transfer_leap.md",
         "recognition.md",
         "assistance.md",
         "pen_skill_bc.md",

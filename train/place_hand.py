@@ -21,11 +21,22 @@ ranges) solved from ``--starts`` random starts; the best is printed as the modul
 
     python train/place_hand.py --hand shadow
     python train/place_hand.py --hand leap
+    python train/place_hand.py --hand leap --layout two-under --steepness-axis tip \
+        --steepness 0.1 --thumb-steepness 0.3 --starts 6
+
+``--layout two-under`` (LEAP only) puts the index (x = +2.25 cm) and the middle finger
+(-2.25 cm) below the pen and the thumb alone on top, the mount turned so that the palm faces
+up. ``--thumb-steepness`` asks the thumb's distal link for its own least cosine;
+``--steepness-axis tip`` measures the cosines along the rounded tip's axis (the direction from
+the capsule's base to its end) instead of the distal body's z axis, which on LEAP is not the
+tip's axis (on the body's z a thumb of cosine 0.8 or 0.9 still touched the pen with its side,
+1.0-1.1 mm deep instead of 0.3 mm).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -82,6 +93,15 @@ HANDS = {
         "LEAP",
     ),
 }
+#: Other finger layouts per hand: index and middle finger below the pen at +2.25 and -2.25 cm,
+#: the thumb on top; the palm faces up (the fingers along world +y, the index at +x).
+LAYOUTS = {
+    ("leap", "two-under"): {
+        "upright": Rotation.from_matrix([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]),
+        "targets": ((0.0225, -1.0), (0.0, 1.0), (-0.0225, -1.0)),
+        "start": (0.0, -0.1, 0.12),
+    },
+}
 PEN_CENTRE = np.array([0.0, 0.0, 0.2])
 PEN_RADIUS = 0.01
 PENETRATION = 3e-4
@@ -119,6 +139,24 @@ def main() -> None:
         help="least cosine between each distal link and the direction its tip pushes in",
     )
     parser.add_argument(
+        "--thumb-steepness",
+        type=float,
+        default=None,
+        help="the thumb's (f2's) least cosine (default: --steepness)",
+    )
+    parser.add_argument(
+        "--steepness-axis",
+        choices=("body-z", "tip"),
+        default="body-z",
+        help="the distal link's axis the cosines measure: its body's z or the tip capsule's",
+    )
+    parser.add_argument(
+        "--layout",
+        choices=("default", "two-under"),
+        default="default",
+        help="the fingers' layout (two-under: LEAP's index and middle finger below the pen)",
+    )
+    parser.add_argument(
         "--tilts",
         type=float,
         nargs="*",
@@ -134,6 +172,10 @@ def main() -> None:
     )
     args = parser.parse_args()
     hand = HANDS[args.hand]
+    if args.layout != "default":
+        if (args.hand, args.layout) not in LAYOUTS:
+            parser.error(f"no layout {args.layout!r} for the hand {args.hand!r}")
+        hand = dataclasses.replace(hand, **LAYOUTS[args.hand, args.layout])
     if args.contact_x is None:
         args.contact_x = [x for x, _ in hand.targets]
     sides = [side for _, side in hand.targets]
@@ -203,6 +245,16 @@ def main() -> None:
 
     distal = [m.geom(f"{f.name}_tip_collision").bodyid[0] for f in fingers]
     push = -np.array(sides)  # the world z component of the direction each tip pushes in
+    steepness = np.full(len(fingers), args.steepness)
+    if args.thumb_steepness is not None:
+        steepness[[f.name for f in fingers].index("f2")] = args.thumb_steepness
+    tip_geoms_ordered = np.array(order)
+
+    def cosines() -> np.ndarray:
+        """Each distal link's axis along the direction its tip pushes in (world z)."""
+        if args.steepness_axis == "tip":  # the capsule's z: from its base to its end
+            return d.geom_xmat[tip_geoms_ordered, 8] * push
+        return d.xmat[distal, 8] * push  # the distal body's z
 
     def residual(x: np.ndarray) -> np.ndarray:
         out = [0.05 * x[3:6]]
@@ -211,8 +263,7 @@ def main() -> None:
             q = x[6 + n * i : 6 + n * (i + 1)]
             out.append(30.0 * (d.site_xpos[tips] - targets[i]).ravel())
             # each distal link points into the pen (its end presses it), not across it
-            along = d.xmat[distal, 8] * push  # the distal axis (its z) along the push
-            out.append(3.0 * np.maximum(0.0, args.steepness - along))
+            out.append(3.0 * np.maximum(0.0, steepness - cosines()))
             out.append(0.02 * (q - 0.5 * (lo + hi)) / (hi - lo))
             gaps = [mujoco.mj_geomDistance(m, d, g, pen_geom, 0.02, fromto) for g in hand_geoms]
             out.append(30.0 * np.maximum(0.0, args.clearance - np.array(gaps)))
@@ -241,10 +292,10 @@ def main() -> None:
         gap = min(mujoco.mj_geomDistance(m, d, g, pen_geom, 0.02, fromto) for g in hand_geoms)
         q = best.x[6 + n * i : 6 + n * (i + 1)]
         edge = np.min(np.minimum(q - lo, hi - q))
-        along = d.xmat[distal, 8] * push
         print(
             f"tilt {tilt:+.2f} rad: tip error {err:.1e} m, link gap {gap * 1e3:.1f} mm, "
-            f"nearest joint limit {edge:.3f} rad, distal cosines {np.round(along, 2)}"
+            f"nearest joint limit {edge:.3f} rad, distal cosines {np.round(cosines(), 2)}, "
+            f"tip-axis cosines {np.round(d.geom_xmat[tip_geoms_ordered, 8] * push, 2)}"
         )
     pose(best.x, 0)
     err = np.abs(d.site_xpos[tips] - targets[0]).max()
@@ -282,6 +333,12 @@ def main() -> None:
         tolerance=1e-12,
     )
     print(f"keyframe by the grasp's inverse kinematics: tip error {err:.1e} m")
+    contacts = physics.fingertip_contacts()
+    print(
+        f"keyframe tip depths {np.round(contacts.depth * 1e3, 3)} mm (asked "
+        f"{PENETRATION * 1e3:.1f}), active {contacts.active}, link contacts "
+        f"{physics.n_link_contacts()}"
+    )
     polished = physics.hand_qpos()
     print(f"{hand.prefix}_GRASP = (")
     for f in range(len(fingers)):

@@ -8,6 +8,7 @@ shows the numbers of the latest run:
 JSON in ``docs/``                      written by                          table
 =====================================  ==================================  =================
 ``transfer_results.json``              ``train/transfer_table.py``         ``transfer.md``
+``transfer_leap.json``                 the same, ``--hands leap``          ``transfer_leap.md``
 ``recognition_results.json``           ``train/recognition_table.py``      ``recognition.md``
 ``assist_table_phase.json``,           ``train/assist_table.py``           ``assistance.md``
 ``assist_table_oracle.json``
@@ -417,6 +418,7 @@ def tables(docs: Path) -> dict[str, str]:
 
     return {
         "transfer.md": transfer(load("transfer_results.json")),
+        "transfer_leap.md": transfer(load("transfer_leap.json")),
         "recognition.md": recognition(load("recognition_results.json")),
         "assistance.md": assistance(
             load("assist_table_phase.json"), load("assist_table_oracle.json")

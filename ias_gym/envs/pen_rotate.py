@@ -73,8 +73,8 @@ class PenRotateEnv(PenHandEnv):
     (``hand="shadow"``: first and little finger above the pen at -3.5 and +4 cm, the thumb
     below, ``amplitude`` 0.15 rad, the largest tilt the expert tracks on it from 2 to
     12 rad/s; needs ``pip install 'ias-gym[hands]'``). ``IAS-PenRotate-LEAP-v0`` runs it on
-    the LEAP hand of MuJoCo Playground (``hand="leap"``: index and middle finger above the
-    pen at -2.25 and +2.25 cm, the thumb below, ``amplitude`` 0.075 rad, the largest tilt the
+    the LEAP hand of MuJoCo Playground (``hand="leap"``: index and middle finger below the
+    pen at +2.25 and -2.25 cm, the thumb on top, ``amplitude`` 0.075 rad, the largest tilt the
     expert tracks on it from 2 to 12 rad/s; needs ``pip install --no-deps
     playground==0.2.0``, which ``make setup`` runs).
 

@@ -10,13 +10,15 @@ does not ship the hand's meshes, but every mesh geom is visual only (``contype``
 :class:`mujoco.MjSpec` and the physics is the model's. Dressed in code as a pen hand of the
 conventions of :mod:`ias_gym.sim.pen_hand`:
 
-- the hand is fixed to the world at a placement solved once (``train/place_hand.py --hand leap``:
-  the palm faces the pen, the fingers point up and curl over it); the fingers that do not
-  hold the pen (the ring finger) and the thumb's axial joint keep their joint at zero
-  (the joint is removed);
-- three fingers hold the pen, as on ``ias3f``: the index on top at x = -2.25 cm (``f1``), the
-  thumb below the centre (``f2``), the middle finger on top at x = +2.25 cm (``f3``; the
-  fingers' bases are 4.5 cm apart);
+- the hand is fixed to the world at a placement solved once (``train/place_hand.py --hand leap
+  --layout two-under --steepness-axis tip --steepness 0.1 --thumb-steepness 0.3 --starts 6``:
+  the palm faces up below the pen, the index and middle finger curl up under it, the thumb
+  reaches over it with its rounded end pointing into the pen); the fingers that do not hold
+  the pen (the ring finger) and the thumb's axial joint keep their joint at zero (the joint
+  is removed);
+- three fingers hold the pen: the index below at x = +2.25 cm (``f1``), the thumb on top at
+  the centre (``f2``), the middle finger below at x = -2.25 cm (``f3``): two fingers carry
+  the pen's weight, not the thumb's three motors alone;
 - each finger has three driven joints ``abd``, ``mcp``, ``pip`` (the model's ``rot``,
   ``mcp``, ``pip``; the thumb's ``cmc``, ``mcp``, ``ipl``) with a torque motor of the model's
   actuator force range (0.2196 N m, 60 % of the servo's stall torque, the model's note).
@@ -119,15 +121,15 @@ LEAP_COUPLING = 0.7
 #: The hand's placement: the model's ``leap_mount`` body's position [m] and orientation
 #: (w, x, y, z) in MuJoCo's world, solved by ``train/place_hand.py --hand leap``.
 LEAP_MOUNT: tuple[tuple[float, float, float], tuple[float, float, float, float]] = (
-    (-0.071114553, -0.082338551, 0.081705890),
-    (-0.589960407, 0.617672043, 0.396905360, 0.335997175),
+    (-0.019598575, -0.138348979, 0.191160243),
+    (0.708094616, -0.073506114, 0.043744301, 0.700917471),
 )
 #: The grasp keyframe's driven joint angles per finger (abd, mcp, pip) [rad], from the same
-#: script (tips 0.3 mm inside the pen at x = -2.25, 0, +2.25 cm).
+#: script (tips 0.3 mm inside the pen at x = +2.25, 0, -2.25 cm).
 LEAP_GRASP: tuple[tuple[float, float, float], ...] | None = (
-    (0.278513065, 1.145672856, 0.614707898),
-    (2.012106838, 0.731635790, -0.558740823),
-    (0.169062618, 1.059162312, 0.510421614),
+    (0.104780478, 0.325883197, 1.650980189),
+    (1.674270301, 0.091558939, 1.275154135),
+    (0.129919365, 0.360963049, 1.630572189),
 )
 #: Joints removed (their bodies stay at the joint's zero): the ring finger's, the thumb's
 #: axial joint.
