@@ -17,11 +17,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import sys
 from collections.abc import Sequence
 
-from dev_skills import development_skills
+from dev_skills import development_skills, summarise, write_rows
 from tqdm import tqdm
 
 
@@ -39,8 +38,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     from ias_gym.baselines.kinematic import KinematicGains
-    from ias_gym.outputs import atomic_output, check_output_file
-    from ias_gym.rates import Rate
+    from ias_gym.outputs import check_output_file
     from ias_gym.skills.transfer import hand_names, transfer_reference
     from ias_gym.skills.transfer_run import run_transfer
 
@@ -57,21 +55,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         run, _ = run_transfer(transfer_reference(skill, hand), hand, "kinematic", gains=gains)
         rows.append({**run.to_json(), "squeeze_N": squeeze})
     print(f"{len(skills)} skills of {len({s.person_id for s in skills})} persons")
-    print("hand    squeeze  success            held  tracked  margin kept  margin err")
-    for hand in hands:
-        for squeeze in squeezes:
-            group = [r for r in rows if r["hand"] == hand and r["squeeze_N"] == squeeze]
-            rate = Rate(sum(r["success"] for r in group), len(group))
-            terms = [sum(r[k] for r in group) for k in ("held", "tracked", "margin_kept")]
-            errors = [r["margin_err_rel"] for r in group if r["margin_err_rel"] is not None]
-            print(
-                f"{hand:<7} {squeeze:7.2f}  {rate.value:4.0%} "
-                f"[{rate.interval[0]:.0%}, {rate.interval[1]:.0%}]  {terms[0]:4d}  {terms[1]:7d}  "
-                f"{terms[2]:11d}  {sum(errors) / max(len(errors), 1):10.2f}"
-            )
-    if out is not None:
-        with atomic_output(out) as path:
-            path.write_text("".join(json.dumps(r) + "\n" for r in rows), encoding="utf-8")
+    summarise(rows, hands, ["squeeze_N"])
+    write_rows(out, rows)
     return 0
 
 

@@ -20,11 +20,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import sys
 from collections.abc import Sequence
 
-from dev_skills import development_skills
+from dev_skills import development_skills, summarise, write_rows
 from tqdm import tqdm
 
 
@@ -44,8 +43,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     from ias_gym.baselines.retarget import RetargetGains
-    from ias_gym.outputs import atomic_output, check_output_file
-    from ias_gym.rates import Rate
+    from ias_gym.outputs import check_output_file
     from ias_gym.skills.transfer import hand_names, transfer_reference
     from ias_gym.skills.transfer_run import run_transfer
 
@@ -66,29 +64,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         run, _ = run_transfer(transfer_reference(skill, hand), hand, "retarget", gains=gains)
         rows.append({**run.to_json(), "depth_mm": depth, "omega": omega, "zeta": args.zeta})
     print(f"{len(skills)} skills of {len({s.person_id for s in skills})} persons")
-    print(
-        "hand    omega  depth  success            held  tracked  margin kept  pos RMS  margin err"
-    )
-    for hand in hands:
-        for omega, depth in pairs:
-            group = [
-                r
-                for r in rows
-                if r["hand"] == hand and r["depth_mm"] == depth and r["omega"] == omega
-            ]
-            rate = Rate(sum(r["success"] for r in group), len(group))
-            terms = [sum(r[k] for r in group) for k in ("held", "tracked", "margin_kept")]
-            errors = [r["margin_err_rel"] for r in group if r["margin_err_rel"] is not None]
-            pos = [r["pos_rms_mm"] for r in group if r["pos_rms_mm"] is not None]
-            print(
-                f"{hand:<7} {omega:5.0f}  {depth:5.2f}  {rate.value:4.0%} "
-                f"[{rate.interval[0]:.0%}, {rate.interval[1]:.0%}]  {terms[0]:4d}  {terms[1]:7d}  "
-                f"{terms[2]:11d}  {sum(pos) / max(len(pos), 1):7.2f}  "
-                f"{sum(errors) / max(len(errors), 1):10.2f}"
-            )
-    if out is not None:
-        with atomic_output(out) as path:
-            path.write_text("".join(json.dumps(r) + "\n" for r in rows), encoding="utf-8")
+    summarise(rows, hands, ["omega", "depth_mm"])
+    write_rows(out, rows)
     return 0
 
 

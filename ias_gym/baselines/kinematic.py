@@ -23,7 +23,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv
+from ias_gym.baselines.torque_policy import TorquePolicy, rotation_between
+from ias_gym.envs.pen_hand_env import FloatArray
 
 #: The squeeze per tip of each hand [N]: of 0.2-2.5 N, the one with the most successes of the
 #: transfer test (held, tracked, margin kept), ties broken by the most terms passed, over 46
@@ -49,18 +50,7 @@ class KinematicGains:
     feed_forward: bool = True
 
 
-def rotation_between(a: FloatArray, b: FloatArray) -> FloatArray:
-    """The smallest rotation matrix taking unit vector ``a`` to unit vector ``b`` (Rodrigues)."""
-    v = np.cross(a, b)
-    c = float(a @ b)
-    if c < -1.0 + 1e-12:  # opposite: any half turn about an axis across a
-        raise ValueError("the reference axis turned by 180 degrees")
-    vx = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    result: FloatArray = np.eye(3) + vx + vx @ vx / (1.0 + c)
-    return result
-
-
-class KinematicPolicy:
+class KinematicPolicy(TorquePolicy):
     """``predict(obs) -> (action, None)``: the tips follow the reference as if glued to the pen.
 
     Privileged like the expert (:class:`~ias_gym.baselines.expert.ExpertPolicy`): it reads
@@ -73,13 +63,7 @@ class KinematicPolicy:
     """
 
     def __init__(self, env: gym.Env[Any, Any], gains: KinematicGains | None = None) -> None:
-        unwrapped = env.unwrapped
-        if not isinstance(unwrapped, PenHandEnv):
-            raise TypeError(
-                f"the kinematic baseline controls IAS pen environments, got "
-                f"{type(unwrapped).__name__}"
-            )
-        self.env = unwrapped
+        super().__init__(env, "kinematic baseline")
         self.gains = gains or KinematicGains()
         self.reset()
 
@@ -133,16 +117,3 @@ class KinematicPolicy:
         if g.feed_forward:
             tau = tau + p.hand_bias_forces()
         return tau
-
-    def predict(
-        self,
-        observation: Any,
-        state: Any = None,
-        episode_start: Any = None,
-        deterministic: bool = True,
-    ) -> tuple[FloatArray, None]:
-        """The action for the env's current state (SB3's signature; ``observation`` unused)."""
-        if episode_start is not None and bool(np.any(episode_start)):
-            self.reset()
-        action = np.clip(self.torques() / self.env._ctrl_max, -1.0, 1.0)
-        return action.astype(np.float32), None

@@ -61,8 +61,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ias_gym.baselines.kinematic import rotation_between
-from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv
+from ias_gym.baselines.torque_policy import TorquePolicy, rotation_between
+from ias_gym.envs.pen_hand_env import FloatArray
 from ias_gym.errors import InputError
 from ias_gym.sim.pen import paper_to_mj
 from ias_gym.sim.urdf_export import HandURDF, pen_hand_urdf
@@ -174,7 +174,7 @@ def build_retargeting(urdf: HandURDF, normal_delta: float = 1e-6, ftol_abs: floa
     return retargeting
 
 
-class RetargetPolicy:
+class RetargetPolicy(TorquePolicy):
     """``predict(obs) -> (action, None)``: keypoints retargeted to joint angles, joint PD.
 
     Privileged like the kinematic baseline: it reads the unwrapped env's reference, tip
@@ -196,13 +196,7 @@ class RetargetPolicy:
     """
 
     def __init__(self, env: gym.Env[Any, Any], gains: RetargetGains | None = None) -> None:
-        unwrapped = env.unwrapped
-        if not isinstance(unwrapped, PenHandEnv):
-            raise TypeError(
-                f"the retargeting baseline controls IAS pen environments, got "
-                f"{type(unwrapped).__name__}"
-            )
-        self.env = unwrapped
+        super().__init__(env, "retargeting baseline")
         self.gains = gains or RetargetGains()
         p, m = self.env.physics, self.env.model
         self.urdf = pen_hand_urdf(p, self.env.config.hand)
@@ -216,9 +210,7 @@ class RetargetPolicy:
         )
         self._lower = m.jnt_range[m.dof_jntid[p.hand_dof_ids], 0].copy()
         self._upper = m.jnt_range[m.dof_jntid[p.hand_dof_ids], 1].copy()
-        gear = m.actuator_gear[p.hand_actuator_ids, 0]
-        self._tau_max = self.env._ctrl_max * np.abs(gear)  # [N m]
-        self._gear = gear.copy()
+        self._tau_max = self.env._ctrl_max.copy()  # [N m]: the env's motors act as torques
         self.failures = 0
         self.residual = 0.0
         self.reset()
@@ -287,17 +279,3 @@ class RetargetPolicy:
             tau = tau + p.hand_bias_forces()
         out: FloatArray = np.clip(tau, -self._tau_max, self._tau_max)
         return out
-
-    def predict(
-        self,
-        observation: Any,
-        state: Any = None,
-        episode_start: Any = None,
-        deterministic: bool = True,
-    ) -> tuple[FloatArray, None]:
-        """The action for the env's current state (SB3's signature; ``observation`` unused)."""
-        if episode_start is not None and bool(np.any(episode_start)):
-            self.reset()
-        ctrl = self.torques() / self._gear
-        action = np.clip(ctrl / self.env._ctrl_max, -1.0, 1.0)
-        return action.astype(np.float32), None
