@@ -264,6 +264,29 @@ def test_finger_inertia_gives_the_contact_accelerations_of_the_object(seed: int)
     np.testing.assert_allclose(qacc[~touching], 0.0, atol=1e-9)
 
 
+@settings(max_examples=50, deadline=None)
+@given(SEEDS)
+def test_the_motion_share_is_the_largest_that_the_motors_can_add(seed: int) -> None:
+    # Beyond the paper: holding torques first, one share s of the motion terms per env.
+    rng = np.random.default_rng(seed)
+    limits = rng.uniform(0.1, 1.0, (5, 9))
+    hold = rng.uniform(-1.2, 1.2, (5, 9)) * limits  # some joints saturated by holding alone
+    motion = rng.normal(scale=0.8, size=(5, 9))
+    s = law.motion_share(hold, motion, limits)
+    assert s.shape == (5,) and np.all((s >= 0) & (s <= 1))
+    free = np.abs(hold) <= limits
+    total = hold + s[:, None] * motion
+    assert np.all(np.abs(total[free]) <= limits[free] * (1 + 1e-12))
+    # maximal: a little more motion breaks a free joint's limit, unless all of it fits
+    more = hold + np.minimum(s + 1e-6, 1.0)[:, None] * motion
+    over = (np.abs(more) > limits) & free
+    assert np.all(over.any(axis=1) | (s == 1.0))
+    # motion that fits is taken whole; a joint saturated by holding alone does not count
+    assert law.motion_share(np.zeros(3), np.array([0.5, -0.5, 0.0]), np.ones(3)) == 1.0
+    assert law.motion_share(np.array([2.0, 0.0]), np.array([1.0, 0.5]), np.ones(2)) == 1.0
+    assert law.motion_share(np.array([0.5, 0.0]), np.array([1.0, 0.0]), np.ones(2)) == 0.5
+
+
 def test_damped_pinv_blocks_invert_each_finger() -> None:
     """Undamped, blockdiag(J+) is J's inverse; damped, it is eq. (32)'s full-matrix
     ``J^T (J J^T + lambda I)^-1`` of the block-diagonal J."""

@@ -83,3 +83,42 @@ def test_without_the_coulomb_feedforward_the_joint_friction_stalls_the_tilt() ->
     plain = _rms_tilt_error(dataclasses.replace(ControllerGains(), coulomb_speed=0.0), 3)
     assert plain > 0.2
     assert _rms_tilt_error(ControllerGains(), 3) < 0.05
+
+
+@pytest.mark.closed_loop
+def test_a_motion_too_fast_for_the_motors_slows_the_fingers_and_keeps_the_pen() -> None:
+    """The pen slid along its axis by 5 mm at 10 rad/s (50 mm/s): the two fingers below it
+    must swing their abduction joints at about 2 rad/s, twice what their 0.22 N m motors
+    give against the model's joint damping. Holding first (the default), the fingers lag and
+    the pen is held from every nearby start; each joint's sum clipped instead, it drops."""
+    from ias_gym.envs.pen_skill_env import PenSkillEnv
+    from ias_gym.envs.skill_reference import SkillReference
+    from ias_gym.perturbed_starts import perturbed_starts
+    from ias_gym.skills.transfer_run import run_transfer
+
+    dt = 0.01
+    t = np.arange(0.0, 2.0 + 1e-9, dt)
+    position = np.zeros((len(t), 3))
+    position[:, 0] = 0.005 * np.sin(10.0 * t) * np.minimum(t / 0.3, 1.0)
+    velocity = np.gradient(position, dt, axis=0)
+    still = np.zeros((len(t), 3))
+    ref = SkillReference(
+        dt=dt,
+        position=position,
+        velocity=velocity,
+        acceleration=np.gradient(velocity, dt, axis=0),
+        axis=np.tile([1.0, 0.0, 0.0], (len(t), 1)),
+        omega=still,
+        alpha=still,
+        margin=np.full(len(t), 1.3),
+        name="fast slide",
+    )
+    env = PenSkillEnv(references=[ref], hand="leap")
+    for options in perturbed_starts(env, seed=0, n=1):
+        held, _ = run_transfer(ref, "leap", reset_options=options)
+        assert held.held, options
+        clipped, _ = run_transfer(
+            ref, "leap", gains=ControllerGains(hold_first=False), reset_options=options
+        )
+        assert not clipped.held, options
+    env.close()

@@ -45,7 +45,10 @@ Beyond the paper, where its assumptions do not hold in the simulation:
 - ``H`` has Coriolis/centrifugal terms only (gravity is compensated by the model's gravcomp);
   the joints' passive damping is left in place (see :meth:`GripTransformController.torques`);
 - the LP's solution is the least-norm one among equal sums of normal forces, because MuJoCo's
-  soft friction lets any shear creep.
+  soft friction lets any shear creep;
+- where the motors cannot give every term, the holding torques ``J^T f + H`` come first and
+  the motion terms are scaled down together (:func:`~ias_gym.baselines.law.motion_share`):
+  the paper's motors have no limits.
 """
 
 from __future__ import annotations
@@ -118,6 +121,10 @@ class ControllerGains:
     lead: float = 0.0  # evaluate the reference this far ahead [s]
     damping_feedforward: bool = True  # add the joints' damping along the reference motion
     coulomb_speed: float = 0.005  # [rad/s] their Coulomb friction's smoothed sign (0: none)
+    # Where the motors cannot give every term, the holding torques (J^T f + H) come first
+    # and the motion terms (finger inertia, damping and friction feed-forward) are scaled
+    # down together to what is left; False: each joint's sum is clipped (docs/controller.md).
+    hold_first: bool = True
 
 
 @dataclass
@@ -347,6 +354,7 @@ def batch_torques(
                 ctrl._damping(env),
                 p.pen_inertia(nominal=True),
                 ctrl._g(env),
+                env._ctrl_max,
                 *((p.hand_mass_matrix(),) if g.finger_inertia else ()),
             )
         )
@@ -475,7 +483,15 @@ def _control_step(
                 x.damping[:, 1], J_pinv, W, v_d, touching, g.coulomb_speed
             )
             feedforward = feedforward + friction
-    tau = law.joint_torques(J, f, x.coriolis, inertia, feedforward)
+    tau = law.joint_torques(J, f, x.coriolis)
+    motion = [term for term in (inertia, feedforward) if term is not None]
+    if motion and g.hold_first:
+        # Holding first (beyond the paper, docs/controller.md): the motion terms' share that
+        # the motors can still give; 1.0 (the torques of eq. 45 to the bit) where none saturates.
+        share = law.motion_share(tau, sum(motion[1:], motion[0]), x.limits)[:, None]
+        motion = [share * term for term in motion]
+    for term in motion:
+        tau += term
 
     for i, ctrl in enumerate(controllers):
         ctrl._prev_W, ctrl._prev_J, ctrl._extra = W[i], J[i], extra[i]

@@ -85,6 +85,7 @@ class Gathered:
     tips: FloatArray  # (n, k, 3)
     tip_x: FloatArray  # (n, k)
     M: FloatArray  # (n, dofs, dofs) (only with finger_inertia)
+    limits: FloatArray  # (n, dofs) the motors' torque limits [N m]
     coriolis: FloatArray  # (n, dofs)
     damping: FloatArray  # (n, 2, dofs) viscous [N m s/rad] and Coulomb [N m]
     inertia: FloatArray  # (n, 3, 3)
@@ -117,6 +118,7 @@ class Gathered:
         "damping",
         "inertia",
         "gravity",
+        "limits",
         "M",
     )
 
