@@ -23,7 +23,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ias_gym.baselines.torque_policy import TorquePolicy, rotation_between
+from ias_gym.baselines.torque_policy import TorquePolicy, rotation_between, side_shares
 from ias_gym.envs.pen_hand_env import FloatArray
 
 #: The squeeze per tip of each hand [N]: of 0.2-2.5 N, the one with the most successes of the
@@ -84,18 +84,13 @@ class KinematicPolicy(TorquePolicy):
             # the tips' places on the demonstrated object, frozen at the start
             self._attached = tips - ref.position
             self._normals = contacts.frames[:, 0].copy()
-            # The same total squeeze from above and below (k/2 x squeeze each side), split
-            # among the fingers of each side: equal squeezes on a hand with more fingers on
-            # one side would push the object off (measured on the three-finger hand: every
-            # skill dropped). That is all the force model the baseline has.
-            sides = np.sign(self._normals[:, 1])
-            k = len(sides)
-            count = np.where(sides > 0, np.sum(sides > 0), np.sum(sides <= 0))
+            # The same total squeeze from above and below, split among the fingers of each
+            # side: all the force model the baseline has.
             squeeze = g.squeeze
             if squeeze is None:
                 squeeze = SQUEEZE_BY_HAND.get(env.config.hand, DEFAULT_SQUEEZE)
-            self._squeeze = squeeze * (k / 2) / count
-            below = sides > 0  # normals point up into the pen from below
+            self._squeeze = squeeze * side_shares(self._normals)
+            below = self._normals[:, 1] > 0  # normals point up into the pen from below
             self._below = below / max(int(np.sum(below)), 1)
             self._axis0 = ref.axis.copy()
         assert self._normals is not None and self._axis0 is not None

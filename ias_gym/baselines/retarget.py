@@ -7,8 +7,10 @@ joint position servos execute them. Here the keypoints are those a glove pipelin
 give for the demonstrated object motion: each tip's place on the object, frozen at the
 start of the episode and carried rigidly along ``env.reference()`` (its position plus the
 rotation taking the initial axis to the reference's, as :mod:`ias_gym.baselines.kinematic`
-does), pressed :attr:`RetargetGains.depth` into the pen along the contact's initial normal
-(turned with the object): the only grip a position-controlled hand gets is the stiffness of
+does), pressed into the pen along the contact's initial normal (turned with the object),
+:attr:`RetargetGains.depth` split between the sides above and below as the kinematic
+squeeze is (on a three-finger hand the finger alone on its side presses 1.5 x the depth,
+the two on the other side 0.75 x): the only grip a position-controlled hand gets is the stiffness of
 its servos times that depth. No W, no internal forces, no friction cones, no weight fed
 forward.
 
@@ -61,7 +63,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ias_gym.baselines.torque_policy import TorquePolicy, rotation_between
+from ias_gym.baselines.torque_policy import TorquePolicy, rotation_between, side_shares
 from ias_gym.envs.pen_hand_env import FloatArray
 from ias_gym.errors import InputError
 from ias_gym.sim.pen import paper_to_mj
@@ -76,11 +78,13 @@ __all__ = [
     "require_retargeting",
 ]
 
-#: How far each keypoint is pressed into the pen along its contact's normal [m], per hand:
-#: of 0.25-6 mm, the one with the most successes of the transfer test (ties broken by the
-#: most terms passed, as the kinematic squeeze) over the 48 glove skills of 8 development
-#: persons at omega = 130 rad/s (``train/tune_retarget.py``, the table in the CHANGELOG; no
-#: depth succeeds on the Shadow and LEAP hands). A hand not listed gets :data:`DEFAULT_DEPTH`.
+#: How far each keypoint is pressed into the pen along its contact's normal [m], per hand, the
+#: mean over the fingers of the press split between the sides (:func:`side_shares`): of
+#: 0.25-8 mm, the one with the most successes of the transfer test (ties broken by the most
+#: terms passed, as the kinematic squeeze) over the 48 glove skills of 8 development persons
+#: at omega = 130 rad/s (``train/tune_retarget.py``, the table in the CHANGELOG; no depth
+#: succeeds on the Shadow hand, one skill of 48 on the LEAP hand). A hand not listed gets
+#: :data:`DEFAULT_DEPTH`.
 DEPTH_BY_HAND: dict[str, float] = {"ias4f": 3e-3, "ias3f": 4.5e-3, "shadow": 1e-3, "leap": 2.5e-4}
 DEFAULT_DEPTH = 1e-3
 
@@ -231,7 +235,9 @@ class RetargetPolicy(TorquePolicy):
             if depth is None:
                 depth = DEPTH_BY_HAND.get(env.config.hand, DEFAULT_DEPTH)
             normals = p.fingertip_contacts().frames[:, 0]  # into the pen
-            self._attached = p.tip_positions() - ref.position + depth * normals
+            # the same press from above and below (the kinematic squeeze's split)
+            press = depth * side_shares(normals)
+            self._attached = p.tip_positions() - ref.position + press[:, None] * normals
             self._axis0 = ref.axis.copy()
         assert self._axis0 is not None
         R = rotation_between(self._axis0, ref.axis)

@@ -29,6 +29,23 @@ def rotation_between(a: FloatArray, b: FloatArray) -> FloatArray:
     return result
 
 
+def side_shares(normals: FloatArray) -> FloatArray:
+    """Each finger's share of its side's press, ``(k / 2) / (fingers on its side)``, ``(k,)``.
+
+    The sides are above and below the pen (the sign of the contact normal's vertical part,
+    paper frame: y up). The same total press from above and below, split among the fingers
+    of each side: equal presses on a hand with more fingers on one side push the object off
+    (measured on the three-finger hand with the kinematic squeeze: every skill dropped).
+
+    Args:
+        normals: ``(k, 3)`` the contacts' normals into the pen.
+    """
+    sides = np.sign(normals[:, 1])
+    count = np.where(sides > 0, np.sum(sides > 0), np.sum(sides <= 0))
+    result: FloatArray = (len(sides) / 2) / count
+    return result
+
+
 class TorquePolicy:
     """``predict(obs) -> (action, None)`` from :meth:`torques`, the env's torques [N m]
     normalised by its motors' ranges and clipped to [-1, 1].
