@@ -90,7 +90,7 @@ def test_every_results_table_is_made_from_its_json() -> None:
     tables = result_tables.tables(DOCS)
     assert set(tables) == {
         "transfer.md",
-        "transfer_leap.md",
+        "transfer_skills.md",
         "recognition.md",
         "assistance.md",
         "pen_skill_bc.md",
@@ -138,6 +138,9 @@ def test_a_results_table_follows_its_numbers() -> None:
         in (table)
     )
     assert "tilt_left" not in table  # the page shows all skills; the JSON has each class
+    by_skill = result_tables.transfer_skills(result)
+    assert "| gt | tilt_left | 50 % (2) |" in by_skill
+    assert "| all |" not in by_skill
 
 
 def readme_snippets() -> list[str]:

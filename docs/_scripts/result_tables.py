@@ -7,8 +7,8 @@ shows the numbers of the latest run:
 =====================================  ==================================  =================
 JSON in ``docs/``                      written by                          table
 =====================================  ==================================  =================
-``transfer_results.json``              ``train/transfer_table.py``         ``transfer.md``
-``transfer_leap.json``                 the same, ``--hands leap``          ``transfer_leap.md``
+``transfer_results.json``              ``train/transfer_table.py``         ``transfer.md``,
+                                                                           ``transfer_skills.md``
 ``recognition_results.json``           ``train/recognition_table.py``      ``recognition.md``
 ``assist_table_phase.json``,           ``train/assist_table.py``           ``assistance.md``
 ``assist_table_oracle.json``
@@ -105,6 +105,25 @@ def transfer(result: Mapping[str, Any]) -> str:
         "`weak_*` are the executions the test must fail (nominal only).\n\n"
     )
     return intro + rows(header, body)
+
+
+def transfer_skills(result: Mapping[str, Any]) -> str:
+    """Success per skill class (rows) and hand (columns) of each method, disturbance nominal."""
+    summary = result["summary"]
+    hands, methods = result["hands"], result["methods"]
+    skills = sorted(
+        {k.split("|")[3] for k in summary} - {"all", "held-out", "development"},
+    )
+    header = ["method", "skill", *hands]
+    body = []
+    for method in methods:
+        for skill in skills:
+            cells = []
+            for hand in hands:
+                s = summary.get(f"{hand}|{method}|nominal|{skill}")
+                cells.append("-" if s is None else f"{percent(s['success_rate'])} ({s['runs']})")
+            body.append([method, skill, *cells])
+    return "Success (runs) per skill class, nominal.\n\n" + rows(header, body)
 
 
 def recognition(result: Mapping[str, Any]) -> str:
@@ -418,7 +437,7 @@ def tables(docs: Path) -> dict[str, str]:
 
     return {
         "transfer.md": transfer(load("transfer_results.json")),
-        "transfer_leap.md": transfer(load("transfer_leap.json")),
+        "transfer_skills.md": transfer_skills(load("transfer_results.json")),
         "recognition.md": recognition(load("recognition_results.json")),
         "assistance.md": assistance(
             load("assist_table_phase.json"), load("assist_table_oracle.json")
