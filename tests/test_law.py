@@ -21,7 +21,7 @@ from hypothesis import strategies as st
 import ias_gym  # noqa: F401  (registers the envs)
 from ias_gym.baselines import law
 from ias_gym.baselines.grip_transform_control import GripTransformController
-from ias_gym.baselines.grip_transform_terms import right_inverses
+from ias_gym.baselines.grip_transform_terms import motion_share, right_inverses
 from ias_gym.envs.pen_hand_env import PenHandEnv
 from ias_gym.grasp.grip_transform import GraspRankError, null_space_basis, pseudo_inverse
 from ias_gym.grasp.internal_forces import InternalForceSettings, friction_cone_residual
@@ -272,7 +272,7 @@ def test_the_motion_share_is_the_largest_that_the_motors_can_add(seed: int) -> N
     limits = rng.uniform(0.1, 1.0, (5, 9))
     hold = rng.uniform(-1.2, 1.2, (5, 9)) * limits  # some joints saturated by holding alone
     motion = rng.normal(scale=0.8, size=(5, 9))
-    s = law.motion_share(hold, motion, limits)
+    s = motion_share(hold, motion, limits)
     assert s.shape == (5,) and np.all((s >= 0) & (s <= 1))
     free = np.abs(hold) <= limits
     total = hold + s[:, None] * motion
@@ -282,9 +282,9 @@ def test_the_motion_share_is_the_largest_that_the_motors_can_add(seed: int) -> N
     over = (np.abs(more) > limits) & free
     assert np.all(over.any(axis=1) | (s == 1.0))
     # motion that fits is taken whole; a joint saturated by holding alone does not count
-    assert law.motion_share(np.zeros(3), np.array([0.5, -0.5, 0.0]), np.ones(3)) == 1.0
-    assert law.motion_share(np.array([2.0, 0.0]), np.array([1.0, 0.5]), np.ones(2)) == 1.0
-    assert law.motion_share(np.array([0.5, 0.0]), np.array([1.0, 0.0]), np.ones(2)) == 0.5
+    assert motion_share(np.zeros(3), np.array([0.5, -0.5, 0.0]), np.ones(3)) == 1.0
+    assert motion_share(np.array([2.0, 0.0]), np.array([1.0, 0.5]), np.ones(2)) == 1.0
+    assert motion_share(np.array([0.5, 0.0]), np.array([1.0, 0.0]), np.ones(2)) == 0.5
 
 
 def test_damped_pinv_blocks_invert_each_finger() -> None:

@@ -46,9 +46,8 @@ Beyond the paper, where its assumptions do not hold in the simulation:
   the joints' passive damping is left in place (see :meth:`GripTransformController.torques`);
 - the LP's solution is the least-norm one among equal sums of normal forces, because MuJoCo's
   soft friction lets any shear creep;
-- where the motors cannot give every term, the holding torques ``J^T f + H`` come first and
-  the motion terms are scaled down together (:func:`~ias_gym.baselines.law.motion_share`):
-  the paper's motors have no limits.
+- where the motors saturate, the holding torques ``J^T f + H`` come first and the motion
+  terms are scaled down together (:func:`~.grip_transform_terms.motion_share`).
 """
 
 from __future__ import annotations
@@ -70,6 +69,7 @@ from ias_gym.baselines.grip_transform_terms import (
     lateral_servo,
     right_inverses,
     slide_servo,
+    with_motion,
 )
 from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv, PenReference
 from ias_gym.grasp.grasp_margin import scale_to_margin
@@ -121,9 +121,7 @@ class ControllerGains:
     lead: float = 0.0  # evaluate the reference this far ahead [s]
     damping_feedforward: bool = True  # add the joints' damping along the reference motion
     coulomb_speed: float = 0.005  # [rad/s] their Coulomb friction's smoothed sign (0: none)
-    # Where the motors cannot give every term, the holding torques (J^T f + H) come first
-    # and the motion terms (finger inertia, damping and friction feed-forward) are scaled
-    # down together to what is left; False: each joint's sum is clipped (docs/controller.md).
+    # the holding torques J^T f + H first where the motors saturate (docs/controller.md)
     hold_first: bool = True
 
 
@@ -483,15 +481,7 @@ def _control_step(
                 x.damping[:, 1], J_pinv, W, v_d, touching, g.coulomb_speed
             )
             feedforward = feedforward + friction
-    tau = law.joint_torques(J, f, x.coriolis)
-    motion = [term for term in (inertia, feedforward) if term is not None]
-    if motion and g.hold_first:
-        # Holding first (beyond the paper, docs/controller.md): the motion terms' share that
-        # the motors can still give; 1.0 (the torques of eq. 45 to the bit) where none saturates.
-        share = law.motion_share(tau, sum(motion[1:], motion[0]), x.limits)[:, None]
-        motion = [share * term for term in motion]
-    for term in motion:
-        tau += term
+    tau = with_motion(law.joint_torques(J, f, x.coriolis), (inertia, feedforward), x, g.hold_first)
 
     for i, ctrl in enumerate(controllers):
         ctrl._prev_W, ctrl._prev_J, ctrl._extra = W[i], J[i], extra[i]

@@ -7,8 +7,9 @@ what a step computed (:class:`ControlStep`), the reference extrapolated by the c
 lead (:func:`ahead`), the rows as the law's motion and reference (:class:`MotionRows`,
 :class:`ReferenceRows`), the batched right inverse ``W+`` of eq. (5) (:func:`right_inverses`),
 the two servos beyond the paper that hold the tips on the pen (:func:`lateral_servo`) and
-move sliding tips along their schedule (:func:`slide_servo`), and the estimate of the pen's
-mass (:func:`estimated_masses`).
+move sliding tips along their schedule (:func:`slide_servo`), the estimate of the pen's
+mass (:func:`estimated_masses`), and the motion terms added within the motors' limits
+(:func:`with_motion`, :func:`motion_share`).
 """
 
 from __future__ import annotations
@@ -244,3 +245,48 @@ def estimated_masses(current: FloatArray, x: Gathered, W: FloatArray, tau: float
             alpha = float(x.dt[i, 0]) / (tau + float(x.dt[i, 0]))
             out[i] += alpha * (reading - out[i])
     return out
+
+
+def motion_share(hold: FloatArray, motion: FloatArray, limits: FloatArray) -> FloatArray:
+    """The largest share ``s`` in [0, 1] of the motion terms that the motors can add (beyond
+    the paper, which has no torque limits).
+
+    ``|hold + s motion| <= limits`` on every joint whose holding torque is within its limit
+    (a joint the holding torque saturates is clipped whatever ``s`` is). One ``s`` for all
+    joints of an env: the fingers slow down together, so that they keep moving the object as
+    one body, while the contact forces that hold it are kept whole. Clipping each joint's
+    sum instead changes the force its tip presses with (measured on the LEAP hand: the
+    abduction motors saturated by the damping feed-forward, the thumb lost the pen).
+
+    Args:
+        hold: ``(..., n)`` holding torques ``J^T f + H`` [N m].
+        motion: ``(..., n)`` motion terms (finger inertia, damping feed-forward) [N m].
+        limits: ``(..., n)`` the motors' torque limits [N m], > 0.
+
+    Returns:
+        ``(...)`` ``s`` [-].
+    """
+    free = (np.abs(hold) <= limits) & (motion != 0.0)
+    room = limits - np.sign(motion) * hold  # >= 0 on the free joints
+    bounds = np.where(free, room / np.where(free, np.abs(motion), 1.0), np.inf)
+    result: FloatArray = np.minimum(1.0, bounds.min(axis=-1))
+    return result
+
+
+def with_motion(
+    hold: FloatArray,
+    motion: tuple[FloatArray | None, ...],
+    x: Gathered,
+    hold_first: bool,
+) -> FloatArray:
+    """``hold`` plus the motion terms that are not ``None``, in their order; with
+    ``hold_first`` scaled by :func:`motion_share` of the motors' limits ``x.limits`` (1.0,
+    eq. (45)'s torques to the bit, where no motor saturates). ``hold`` is changed in place.
+    """
+    terms = [term for term in motion if term is not None]
+    if terms and hold_first:
+        share = motion_share(hold, sum(terms[1:], terms[0]), x.limits)[:, None]
+        terms = [share * term for term in terms]
+    for term in terms:
+        hold += term
+    return hold

@@ -11,9 +11,7 @@ reads the physics and calls them in the order of eq. (45)::
     step   = internal_force_step(e_f, W+, W', delta, dt)            eq. (44), one Euler step
     lam    = largest_step_inside_cones(c_p + c_h^d, step, ...)      (the cones, not the paper)
     f      = c_p + c_h^d + lam step (+ servo forces)
-    s      = motion_share(J^T f + H, motion terms, limits)         (the motors' limits)
-    tau    = joint_torques(J, f, H)
-             + s (finger_inertia_torques(...) + damping_feedforward_torques(...))
+    tau    = joint_torques(J, f, H, finger_inertia_torques(...), damping_feedforward_torques(...))
 
 Frames and units as the adapter's: the paper frame (x the pen's axis, y up), SI units;
 intensities per contact ``[normal, t1, t2]`` [N]; ``J`` is block diagonal with one 3 x 3 block
@@ -459,32 +457,6 @@ def joint_torques(
     if damping_feedforward is not None:
         tau += damping_feedforward
     return tau
-
-
-def motion_share(hold: FloatArray, motion: FloatArray, limits: FloatArray) -> FloatArray:
-    """The largest share ``s`` in [0, 1] of the motion terms that the motors can add (beyond
-    the paper, which has no torque limits).
-
-    ``|hold + s motion| <= limits`` on every joint whose holding torque is within its limit
-    (a joint the holding torque saturates is clipped whatever ``s`` is). One ``s`` for all
-    joints of an env: the fingers slow down together, so that they keep moving the object as
-    one body, while the contact forces that hold it are kept whole. Clipping each joint's
-    sum instead changes the force its tip presses with (measured on the LEAP hand: the
-    abduction motors saturated by the damping feed-forward, the thumb lost the pen).
-
-    Args:
-        hold: ``(..., n)`` holding torques ``J^T f + H`` [N m].
-        motion: ``(..., n)`` motion terms (finger inertia, damping feed-forward) [N m].
-        limits: ``(..., n)`` the motors' torque limits [N m], > 0.
-
-    Returns:
-        ``(...)`` ``s`` [-].
-    """
-    free = (np.abs(hold) <= limits) & (motion != 0.0)
-    room = limits - np.sign(motion) * hold  # >= 0 on the free joints
-    bounds = np.where(free, room / np.where(free, np.abs(motion), 1.0), np.inf)
-    result: FloatArray = np.minimum(1.0, bounds.min(axis=-1))
-    return result
 
 
 def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
