@@ -1,16 +1,17 @@
-"""Intent recognition on held-out persons: DTW vs the phase model, and on-line acquisition.
+"""Intent recognition on persons drawn from the population: DTW vs the phase model, and on-line
+acquisition.
 
-Records (once; reused when the databases exist) a library of glove sessions of development
-persons and sessions of held-out persons never used while developing, evaluates both
-recognisers side by side (:mod:`ias_gym.assist.metrics`), measures how many demonstrations of
-a skill the library did not know it takes to recognise it after on-line acquisition, and
-writes a markdown table, a JSON and a plot (accuracy vs the observed fraction of the skill's
-motion).
+Records (once; reused when the databases exist) a library of glove sessions of
+``--library-persons`` development persons (drawn with ``--library-seed``) and one session per
+skill of ``--persons`` evaluation persons (drawn with ``--population-seed``; say with ``--set``
+whether the method was tuned on them), evaluates both recognisers side by side
+(:mod:`ias_gym.assist.metrics`), measures how many demonstrations of a skill the library did
+not know it takes to recognise it after on-line acquisition, and writes a markdown table, a
+JSON (the rates with their 95 % Wilson intervals) and a plot (accuracy vs the observed
+fraction of the skill's motion).
 
-    PYTHONPATH=$PWD python train/recognition_table.py --out out/recognition \\
-        --plot docs/img/recognition.png
-
-The held-out ids were generated once (``secrets.token_hex``) and never tuned on.
+    python train/recognition_table.py --persons 30 --population-seed S --set held-out \\
+        --out out/recognition --plot docs/img/recognition.png
 """
 
 from __future__ import annotations
@@ -29,17 +30,22 @@ from ias_gym.assist.metrics import (
     FRACTIONS,
     LabelledSession,
     evaluate_methods,
+    evaluate_recogniser,
     labelled_session,
     record_sessions,
 )
 from ias_gym.assist.recogniser_registry import METHODS, make_recogniser
 from ias_gym.assist.recognition import UNKNOWN, acquire_skill
 from ias_gym.errors import InputError
+from ias_gym.glove.population import population_ids
 from ias_gym.glove.skills import SKILLS
+from ias_gym.rates import SET_KINDS, Rate
 from ias_gym.skills import Skill, SkillDB
 
-DEV_PERSONS = ("p1", "p2", "p3", "p4", "p5")
-HELD_OUT_PERSONS = ("ho-4ba0af", "ho-8e569b", "ho-e60a47")
+#: The library's development persons: this many, drawn with this seed (the library the
+#: recognisers are built from, and the demonstrations of the acquisition curve).
+LIBRARY_PERSONS = 8
+LIBRARY_SEED = 61
 KEYS = (
     "recog_acc_at_33",
     "recog_acc_at_60",
@@ -53,7 +59,7 @@ KEYS = (
 
 
 def sessions_of(
-    path: Path, persons: tuple[str, ...], episodes: int, seed: int
+    path: Path, persons: list[str], episodes: int, seed: int
 ) -> tuple[list[Skill], list[LabelledSession]]:
     """The skills stored in ``path`` and their labelled sessions, recorded there first if the
     file does not exist."""
@@ -125,13 +131,41 @@ def acquisition_curve(
     }
 
 
+def rates_of(
+    method: str, library: list[LabelledSession], held_out: list[LabelledSession]
+) -> dict[str, Any]:
+    """The per-session proportions of ``method`` on ``held_out`` as rates with their 95 %
+    Wilson intervals (:class:`~ias_gym.rates.Rate`): correct at 60 % of the motion, recognised
+    by the end, a false trigger."""
+    _, results = evaluate_recogniser(
+        make_recogniser(method, [s.library() for s in library]), held_out
+    )
+    at60 = FRACTIONS.index(0.6)
+    return {
+        "recog_acc_at_60": Rate.of([r.correct_at[at60] for r in results]).to_dict(),
+        "final_accuracy": Rate.of([r.final == r.skill for r in results]).to_dict(),
+        "false_trigger_rate": Rate.of([r.false_trigger for r in results]).to_dict(),
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
+    parser.add_argument("--persons", type=int, default=30, help="evaluation persons drawn")
+    parser.add_argument(
+        "--population-seed", type=int, required=True, help="seed of the evaluation persons' draw"
+    )
+    parser.add_argument(
+        "--set", choices=SET_KINDS, required=True, help="development or held-out evaluation persons"
+    )
+    parser.add_argument("--library-persons", type=int, default=LIBRARY_PERSONS)
+    parser.add_argument("--library-seed", type=int, default=LIBRARY_SEED)
+    parser.add_argument("--library-episodes", type=int, default=2, help="sessions per skill")
+    parser.add_argument("--episodes", type=int, default=1, help="evaluation sessions per skill")
+    parser.add_argument("--demos", type=int, default=5, help="acquisition demonstrations")
     parser.add_argument("--out", default="out/recognition", help="output and cache folder")
     parser.add_argument("--plot", default="docs/img/recognition.png", help="the figure")
-    parser.add_argument("--library-episodes", type=int, default=2)
-    parser.add_argument("--held-out-episodes", type=int, default=3)
-    parser.add_argument("--demos", type=int, default=5, help="acquisition demonstrations")
     parser.add_argument("--overwrite", action="store_true", help="replace existing outputs")
     parser.add_argument(
         "--replot", action="store_true", help="only redraw the plot from the JSON in --out"
@@ -142,23 +176,37 @@ def main(argv: list[str] | None = None) -> int:
         payload = json.loads((out / "recognition.json").read_text())
         _plot(payload["methods"], payload["acquisition"], Path(args.plot))
         return 0
+    if args.demos > args.library_persons:
+        print(
+            "error: --demos cannot exceed --library-persons (one demonstration each)",
+            file=sys.stderr,
+        )
+        return 2
     out.mkdir(parents=True, exist_ok=True)
     outputs = [out / "recognition.md", out / "recognition.json", Path(args.plot)]
     existing = [str(p) for p in outputs if p.exists()]
     if existing and not args.overwrite:
         print(f"error: {', '.join(existing)} exist; pass --overwrite", file=sys.stderr)
         return 2
-    lib_path, ho_path = out / "library.db", out / "heldout.db"
-    library_skills, library = sessions_of(lib_path, DEV_PERSONS, args.library_episodes, seed=0)
-    _, held_out = sessions_of(ho_path, HELD_OUT_PERSONS, args.held_out_episodes, seed=1000)
+    library_ids = population_ids(args.library_persons, args.library_seed)
+    ids = population_ids(args.persons, args.population_seed)
+    lib_path = out / f"library_{args.library_persons}_{args.library_seed}.db"
+    ho_path = out / f"persons_{args.persons}_{args.population_seed}.db"
+    library_skills, library = sessions_of(lib_path, library_ids, args.library_episodes, seed=0)
+    _, held_out = sessions_of(ho_path, ids, args.episodes, seed=1000)
     methods = list(METHODS)
     results = evaluate_methods([s.library() for s in library], held_out, methods, progress=tqdm)
+    for m in methods:
+        results[m]["rates"] = rates_of(m, library, held_out)
     acquisition = {
         m: acquisition_curve(m, library_skills, library, held_out, args.demos) for m in methods
     }
     payload = {
-        "library_persons": list(DEV_PERSONS),
-        "held_out_persons": list(HELD_OUT_PERSONS),
+        "set": args.set,
+        "population_seed": args.population_seed,
+        "persons": len(ids),
+        "library_seed": args.library_seed,
+        "library_persons": len(library_ids),
         "library_sessions": len(library),
         "held_out_sessions": len(held_out),
         "methods": results,
@@ -166,8 +214,9 @@ def main(argv: list[str] | None = None) -> int:
     }
     (out / "recognition.json").write_text(json.dumps(payload, indent=2))
     lines = [
-        f"Library: {len(library)} sessions of {', '.join(DEV_PERSONS)}; held out: "
-        f"{len(held_out)} sessions of {', '.join(HELD_OUT_PERSONS)}.",
+        f"Library: {len(library)} sessions of {len(library_ids)} development persons "
+        f"(population seed {args.library_seed}); evaluated on {len(held_out)} sessions of "
+        f"{len(ids)} persons (population seed {args.population_seed}, {args.set}).",
         "",
         "| method | " + " | ".join(KEYS) + " |",
         "|---|" + "---|" * len(KEYS),
@@ -175,6 +224,10 @@ def main(argv: list[str] | None = None) -> int:
     for m in methods:
         cells = ["-" if results[m][k] is None else f"{results[m][k]:.3f}" for k in KEYS]
         lines.append(f"| {m} | " + " | ".join(cells) + " |")
+    lines += ["", "With 95 % Wilson intervals:", ""]
+    for m in methods:
+        for key, row in results[m]["rates"].items():
+            lines.append(f"- {m} {key}: {Rate(row['successes'], row['trials'])}")
     lines += ["", "Accuracy by observed fraction of the skill's motion:", ""]
     lines.append("| method | " + " | ".join(f"{f:.0%}" for f in FRACTIONS) + " |")
     lines.append("|---|" + "---|" * len(FRACTIONS))

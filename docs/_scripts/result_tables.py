@@ -45,6 +45,14 @@ def percent(value: float | None) -> str:
     return "-" if value is None else f"{100 * value:.0f} %"
 
 
+def interval(rate: Mapping[str, Any]) -> str:
+    """A rate of the JSON (:meth:`ias_gym.rates.Rate.to_dict`) as ``84 % [75, 90] (42/50)``."""
+    return (
+        f"{percent(rate['success_rate'])} [{100 * rate['ci95_low']:.0f}, "
+        f"{100 * rate['ci95_high']:.0f}] ({rate['successes']}/{rate['trials']})"
+    )
+
+
 def number(value: float | None, digits: int) -> str:
     """A float with ``digits`` decimals; ``-`` for a missing value."""
     return "-" if value is None else f"{value:.{digits}f}"
@@ -126,6 +134,14 @@ def transfer_skills(result: Mapping[str, Any]) -> str:
     return "Success (runs) per skill class, nominal.\n\n" + rows(header, body)
 
 
+#: The recognition rates with intervals (``methods.<m>.rates`` of the JSON) -> column titles.
+RECOGNITION_RATES = {
+    "recog_acc_at_60": "correct at 60 % of the motion",
+    "final_accuracy": "correct at the end",
+    "false_trigger_rate": "false triggers",
+}
+
+
 def recognition(result: Mapping[str, Any]) -> str:
     """Each recogniser's scores, its accuracy by observed fraction, and on-line acquisition."""
     methods = result["methods"]
@@ -157,10 +173,22 @@ def recognition(result: Mapping[str, Any]) -> str:
             for which in ("new", "known")
         ],
     )
+    intervals = rows(
+        ["method", *RECOGNITION_RATES.values()],
+        [
+            [names.get(n, n), *(interval(m["rates"][k]) for k in RECOGNITION_RATES)]
+            for n, m in methods.items()
+            if "rates" in m
+        ],
+    )
     return (
-        f"Library: {result['library_sessions']} sessions; held out: "
-        f"{result['held_out_sessions']} sessions of persons never used while developing.\n\n"
+        f"Library: {result['library_sessions']} sessions of {result['library_persons']} "
+        f"development persons (population seed {result['library_seed']}); evaluated on "
+        f"{result['held_out_sessions']} sessions of {result['persons']} persons drawn with "
+        f"population seed {result['population_seed']} (**{result['set']}**).\n\n"
         + scores
+        + "\nThe proportions over sessions with their 95 % Wilson intervals:\n\n"
+        + intervals
         + "\nAccuracy by observed fraction of the skill's motion:\n\n"
         + by_fraction
         + "\nOn-line acquisition: accuracy on the held-out sessions after n demonstrations of "
@@ -252,11 +280,7 @@ def completion(result: Mapping[str, Any]) -> str:
     for skill in skills:
         row = [skill]
         for per_skill in tables.values():
-            s = per_skill[skill]
-            row.append(
-                f"{percent(s['success_rate'])} [{100 * s['ci95_low']:.0f}, "
-                f"{100 * s['ci95_high']:.0f}] ({s['successes']}/{s['trials']})"
-            )
+            row.append(interval(per_skill[skill]))
         body.append(row)
     header = ["skill", *(f"{name} operator" for name in tables)]
     intro = (
@@ -271,19 +295,13 @@ def robustness(results: Sequence[Mapping[str, Any]]) -> str:
     ``ias-gym robustness --json`` (kept by ``train/keep_run.py`` with the command and
     the seed set)."""
 
-    def cell(r: Mapping[str, Any]) -> str:
-        return (
-            f"{percent(r['success_rate'])} [{100 * r['ci95_low']:.0f}, "
-            f"{100 * r['ci95_high']:.0f}] ({r['successes']}/{r['trials']})"
-        )
-
     per_run = [
         {r["disturbance"]: r for r in result["rows"] if r["disturbance"] != "all"}
         for result in results
     ]
     classes = list(per_run[0])
     body = [
-        [f"`{name}`", *(cell(run[name]) if name in run else "-" for run in per_run)]
+        [f"`{name}`", *(interval(run[name]) if name in run else "-" for run in per_run)]
         for name in classes
     ]
     body.append(
