@@ -1,18 +1,27 @@
-"""Fit the observation assistant's stop threshold on development persons, cross-validated.
+"""Fit the observation assistant's stop test on development persons, by what it is for.
 
-For persons drawn from the population with ``--seed`` (development persons: never the
-seed an evaluation reports), every skill with a motion is run twice with the assistant
-watching but never acting (``stop_ratio`` 0: no stop is ever latched): once unimpaired and
-once with ``stops:at=F`` (F drawn from the family's sample range per session). Each session
-gives the smallest ratio of the operator's speed to the fitted model's at which a stop could
-have been latched (:attr:`~ias_gym.assist.policy.ObservationAssistant.min_ratios`, the true
-skill's). A threshold between the two classes is chosen to maximise balanced accuracy on
-the training folds (folds are groups of persons, ``--folds``), and its false-trigger and
-detection rates on the held-out folds are reported with 95 % intervals. The threshold fitted
-on all persons is written to ``ias_gym/assets/assistant_params.json`` (``--out``; an existing
-file only with ``--overwrite``).
+The stop test (:class:`~ias_gym.assist.policy.AssistParams`: ``stop_window_s``, the window
+over which the operator's speed is compared with the fitted model's, and ``stop_ratio``, the
+share below which the operator has stopped) decides when the assistant completes a skill.
+Its value is judged by the sessions it produces: for persons drawn from the population with
+``--seed`` (development persons: never the seed an evaluation reports), every skill with a
+motion of its own is performed once unimpaired and once with ``stops:at=F`` (F drawn from
+the family's sample range per person and skill), each assisted with the phase recogniser at
+every grid point of ``--windows`` x ``--ratios``, and judged against the person's unimpaired,
+unassisted reference (:func:`~ias_gym.assist.assistance_evaluation.reference_session`;
+(person, skill) pairs without one are left out and counted).
 
-    python train/fit_assistant.py --persons 30 --seed 7001 --overwrite
+A grid point is chosen by its success on the unimpaired sessions first (an unimpaired
+operator must lose nothing to the assistant), then on the stopped ones (which only a
+completion saves); ``--objective balanced`` takes the mean of the two rates instead. Folds
+are groups of persons (``--folds``): each fold's grid point is chosen on the others, and the
+success it gives on the fold's own persons is reported with 95 % intervals. The grid point
+chosen on all persons (ties: the first in the grid's order, smaller windows and ratios
+first) is written to
+``ias_gym/assets/assistant_params.json`` (``--out``; an existing file only with
+``--overwrite``).
+
+    python train/fit_assistant.py --persons 20 --seed 7001 --workers 2 --overwrite
 """
 
 from __future__ import annotations
@@ -20,54 +29,92 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
 import sys
-from typing import Any
+from dataclasses import dataclass
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
-from tqdm import tqdm
 
 import ias_gym  # noqa: F401  (registers the envs)
+from ias_gym.assist.assistance_evaluation import reference_session
 from ias_gym.assist.policy import PARAMS_PATH, AssistParams, make_assistant
-from ias_gym.assist.sessions import run_session
+from ias_gym.assist.sessions import run_session, session_success
 from ias_gym.assist.skill_motions import load_motions
+from ias_gym.errors import InputError
 from ias_gym.glove.impairment_spec import FAMILIES
 from ias_gym.glove.impairments import session_rng
 from ias_gym.glove.population import population_ids
+from ias_gym.outputs import check_output_file
 from ias_gym.rates import Rate
+from ias_gym.runtime.jobs import Backend, run_jobs
+
+#: The grid searched (``--windows`` [s], ``--ratios`` [-]).
+WINDOWS = (0.05, 0.1, 0.15, 0.2)
+RATIOS = (0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.4)
+#: The two kinds of session: unimpaired (0) and stopped (1).
+UNIMPAIRED, STOPPED = 0, 1
 
 
-def session_ratio(person: str, skill: str, spec: str, params: AssistParams, seed: int) -> float:
-    """The smallest armed speed ratio of one watched session (inf if never armed)."""
-    env = gym.make("IAS-GloveAssist-v0", person_id=person, skill=skill, impairment=spec)
-    u: Any = env.unwrapped
-    watch = dataclasses.replace(params, stop_ratio=1e-12)
-    assistant = make_assistant(
-        recogniser="none",
-        params=watch,
-        layout=u.observation_layout,
-        control_dt=u.config.control_dt,
-        action_scale=u.config.action_scale,
-    )
-    run_session(env, assistant, seed)
-    env.close()
-    return assistant.min_ratios[skill]
+@dataclass(frozen=True)
+class PersonJob:
+    """A picklable job: one person's sessions at every grid point.
+
+    Returns rows ``(skill, kind, window, ratio, success)``, and ``(skill, -1, nan, nan,
+    False)`` for a skill without a reference."""
+
+    grid: tuple[tuple[float, float], ...]
+    base: AssistParams
+
+    def __call__(self, person: str) -> list[tuple[str, int, float, float, bool]]:
+        rows: list[tuple[str, int, float, float, bool]] = []
+        for skill in sorted(load_motions()):
+            reference = reference_session(person, skill, 0)
+            if reference is None:
+                rows.append((skill, -1, float("nan"), float("nan"), False))
+                continue
+            lo, hi = (float(v) for v in FAMILIES["stops"]["at"].sample)
+            at = float(session_rng("fit-stops", person, skill).uniform(lo, hi))
+            for kind, spec in ((UNIMPAIRED, "none"), (STOPPED, f"stops:at={at:.3f}")):
+                env = gym.make("IAS-GloveAssist-v0", person_id=person, skill=skill, impairment=spec)
+                layout = env.unwrapped.observation_layout  # type: ignore[attr-defined]
+                for window, ratio in self.grid:
+                    params = dataclasses.replace(self.base, stop_window_s=window, stop_ratio=ratio)
+                    assistant = make_assistant(recogniser="phase", params=params, layout=layout)
+                    result = run_session(env, assistant, 0)
+                    rows.append((skill, kind, window, ratio, session_success(result, reference)))
+                env.close()
+        return rows
 
 
-def best_threshold(unimpaired: np.ndarray, stopped: np.ndarray) -> float:
-    """The threshold (midway between neighbouring observed values) with the best balanced
-    accuracy: unimpaired ratios above it, stopped ones below."""
-    values = np.unique(np.concatenate([unimpaired, stopped]))
-    values = values[np.isfinite(values)]
-    if not len(values):
-        raise SystemExit("no session ever armed the stop test: nothing to fit on")
-    cuts = (values[:-1] + values[1:]) / 2 if len(values) > 1 else values
-    best, cut = -1.0, float(cuts[0])
-    for c in cuts:
-        score = np.mean(unimpaired >= c) + np.mean(stopped < c)
-        if score > best:
-            best, cut = float(score), float(c)
-    return cut
+def rates(outcomes: np.ndarray) -> tuple[float, float]:
+    """(unimpaired, stopped) success rates of ``outcomes``, rows ``(kind, success)``; 0 for a
+    kind without sessions."""
+    out = [outcomes[outcomes[:, 0] == k, 1] for k in (UNIMPAIRED, STOPPED)]
+    unimpaired, stopped = (float(r.mean()) if len(r) else 0.0 for r in out)
+    return unimpaired, stopped
+
+
+def score(outcomes: np.ndarray, objective: str) -> tuple[float, ...]:
+    """What a grid point is chosen by (larger is better): ``"no-loss"``, the unimpaired
+    success, then the stopped one; ``"balanced"``, their mean."""
+    unimpaired, stopped = rates(outcomes)
+    return (unimpaired, stopped) if objective == "no-loss" else ((unimpaired + stopped) / 2,)
+
+
+def choose(
+    table: dict[tuple[float, float], np.ndarray], persons: np.ndarray, objective: str
+) -> tuple[float, float]:
+    """The grid point with the best :func:`score` on ``persons`` (their indices, the third
+    column of each point's outcomes); ties: the first in the table's order."""
+    best: tuple[float, ...] = (-1.0,)
+    point = next(iter(table))
+    for key, outcomes in table.items():
+        s = score(outcomes[np.isin(outcomes[:, 2], persons)][:, :2], objective)
+        if s > best:
+            best, point = s, key
+    return point
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -75,53 +122,93 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__.split("\n\n")[0],
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    ap.add_argument("--persons", type=int, default=30, help="development persons")
+    ap.add_argument("--persons", type=int, default=20, help="development persons")
     ap.add_argument("--seed", type=int, default=7001, help="population seed (development)")
     ap.add_argument("--folds", type=int, default=5, help="cross-validation groups of persons")
+    ap.add_argument("--windows", default=",".join(map(str, WINDOWS)), help="stop windows [s]")
+    ap.add_argument("--ratios", default=",".join(map(str, RATIOS)), help="stop ratios [-]")
+    ap.add_argument(
+        "--objective", choices=("no-loss", "balanced"), default="no-loss", help="what is chosen"
+    )
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes")
     ap.add_argument("--out", default=str(PARAMS_PATH), help="parameter file written")
+    ap.add_argument("--report", help="also write the report (JSON) here")
     ap.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     args = ap.parse_args(argv)
+    try:
+        windows = [float(w) for w in args.windows.split(",")]
+        ratios = [float(r) for r in args.ratios.split(",")]
+    except ValueError:
+        print("--windows and --ratios are comma-separated numbers", file=sys.stderr)
+        return 2
+    if not all(w > 0 for w in windows) or not all(0 < r < 1 for r in ratios):
+        print("--windows must be > 0 s and --ratios in (0, 1)", file=sys.stderr)
+        return 2
+    if args.persons < args.folds:
+        print(f"--persons {args.persons} cannot fill {args.folds} folds", file=sys.stderr)
+        return 2
+    try:  # before any work
+        out = check_output_file(args.out, overwrite=args.overwrite, what="--out")
+    except InputError as exc:
+        print(str(exc), file=sys.stderr)
+        return 2
     persons = population_ids(args.persons, args.seed)
-    skills = sorted(load_motions())
-    base = AssistParams()
-    rows = []
-    with tqdm(total=2 * len(persons) * len(skills), desc="watched sessions") as bar:
-        for k, person in enumerate(persons):
-            for skill in skills:
-                lo, hi = (float(v) for v in FAMILIES["stops"]["at"].sample)
-                at = float(session_rng("fit-stops", person, skill).uniform(lo, hi))
-                for spec, label in (("none", 0), (f"stops:at={at:.3f}", 1)):
-                    ratio = session_ratio(person, skill, spec, base, 0)
-                    rows.append((k % args.folds, label, ratio))
-                    bar.update()
-    data = np.array(rows)
-    false_hits = detected = n_u = n_s = 0
+    base = AssistParams.load()
+    grid = tuple((w, r) for w in windows for r in ratios)
+    per_person = run_jobs(
+        PersonJob(grid, base),
+        persons,
+        Backend.from_options(args.workers),
+        desc="persons",
+        progress=True,
+    )
+    table: dict[tuple[float, float], list[tuple[int, bool, int]]] = {p: [] for p in grid}
+    excluded = 0
+    for index, rows in enumerate(per_person):
+        for _skill, kind, window, ratio, success in rows:
+            if kind < 0:
+                excluded += 1
+            else:
+                table[(window, ratio)].append((kind, success, index))
+    arrays = {p: np.array(v, dtype=float) for p, v in table.items()}
+    folds = np.arange(len(persons)) % args.folds
+    held: dict[int, list[bool]] = {UNIMPAIRED: [], STOPPED: []}
     for fold in range(args.folds):
-        train, test = data[data[:, 0] != fold], data[data[:, 0] == fold]
-        cut = best_threshold(train[train[:, 1] == 0, 2], train[train[:, 1] == 1, 2])
-        u, s = test[test[:, 1] == 0, 2], test[test[:, 1] == 1, 2]
-        false_hits += int(np.sum(u < cut))
-        detected += int(np.sum(s < cut))
-        n_u, n_s = n_u + len(u), n_s + len(s)
-    cut = best_threshold(data[data[:, 1] == 0, 2], data[data[:, 1] == 1, 2])
+        point = choose(arrays, np.flatnonzero(folds != fold), args.objective)
+        outcomes = arrays[point]
+        mine = outcomes[np.isin(outcomes[:, 2], np.flatnonzero(folds == fold))]
+        for kind in held:
+            held[kind] += [bool(s) for s in mine[mine[:, 0] == kind, 1]]
+    window, ratio = choose(arrays, np.arange(len(persons)), args.objective)
     fitted = dataclasses.replace(
         base,
-        stop_ratio=round(cut, 4),
-        fitted_on=f"{args.persons} population persons, seed {args.seed}, {len(skills)} skills",
+        stop_window_s=window,
+        stop_ratio=ratio,
+        fitted_on=f"{args.persons} population persons, seed {args.seed}, {args.objective}",
     )
-    try:
-        fitted.save(args.out, overwrite=args.overwrite)
-    except FileExistsError as e:
-        print(f"{e} (give --overwrite)", file=sys.stderr)
-        return 2
+    fitted.save(out, overwrite=args.overwrite)
     report = {
-        "stop_ratio": fitted.stop_ratio,
-        "cv_false_triggers": Rate(false_hits, n_u).to_dict(),
-        "cv_detections": Rate(detected, n_s).to_dict(),
+        "stop_window_s": window,
+        "stop_ratio": ratio,
+        "cv_unimpaired_success": Rate.of(held[UNIMPAIRED]).to_dict(),
+        "cv_stopped_success": Rate.of(held[STOPPED]).to_dict(),
+        "excluded_pairs": excluded,
+        "objective": args.objective,
+        "grid_success_unimpaired_stopped": {
+            f"{w}|{r}": rates(arrays[(w, r)][:, :2]) for w, r in grid
+        },
+        "sessions": [
+            [persons[i], skill, kind, *((w, r) if kind >= 0 else (None, None)), ok]
+            for i, rows in enumerate(per_person)
+            for skill, kind, w, r, ok in rows
+        ],
         "persons": args.persons,
         "seed": args.seed,
     }
-    print(json.dumps(report, indent=2))
+    text = json.dumps(report, indent=2)
+    if args.report:
+        Path(args.report).write_text(text + "\n")
+    print(text)
     return 0
 
 
