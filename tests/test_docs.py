@@ -93,6 +93,7 @@ def test_every_results_table_is_made_from_its_json() -> None:
         "transfer_skills.md",
         "recognition.md",
         "assistance.md",
+        "assist_population.md",
         "pen_skill_bc.md",
         "completion.md",
         "evaluation_pen.md",

@@ -2,8 +2,8 @@
 unassisted, assisted with the recogniser and assisted without skill knowledge, with 95 %
 intervals, on persons drawn by a seed the fitting never saw.
 
-    python train/assist_population.py --persons 30 --seed 20261202 \
-        --impairment none --impairment stops:at=0.4 --out out/assist_population.json
+    python train/assist_population.py --persons 30 --seed S --set held-out \
+        --impairment none --impairment stops:at=0.4 --out docs/assist_population.json
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from ias_gym.glove.impairment_spec import expand_specs
 from ias_gym.glove.impairments import reference_kwargs
 from ias_gym.glove.population import population_ids
 from ias_gym.outputs import atomic_output, check_output_file
-from ias_gym.rates import Rate
+from ias_gym.rates import SET_KINDS, Rate
 
 ARMS = ("unassisted", "assisted", "no_skill_knowledge")
 
@@ -38,7 +38,10 @@ def main(argv: list[str] | None = None) -> int:
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     ap.add_argument("--persons", type=int, default=30, help="population persons")
-    ap.add_argument("--seed", type=int, required=True, help="population seed (held out)")
+    ap.add_argument("--seed", type=int, required=True, help="population seed")
+    ap.add_argument(
+        "--set", choices=SET_KINDS, required=True, help="development or held-out persons"
+    )
     ap.add_argument("--impairment", action="append", help="spec, repeatable")
     ap.add_argument("--reset-seed", type=int, default=0, help="reset seed of every session")
     ap.add_argument("--out", required=True, help="JSON file written")
@@ -78,6 +81,7 @@ def main(argv: list[str] | None = None) -> int:
                     env.close()
                     bar.update()
     table = {
+        "set": args.set,
         "persons": args.persons,
         "population_seed": args.seed,
         "skills": skills,

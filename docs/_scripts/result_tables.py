@@ -12,6 +12,7 @@ JSON in ``docs/``                      written by                          table
 ``recognition_results.json``           ``train/recognition_table.py``      ``recognition.md``
 ``assist_table_phase.json``,           ``train/assist_table.py``           ``assistance.md``
 ``assist_table_oracle.json``
+``assist_population.json``             ``train/assist_population.py``      ``assist_population.md``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
 ``robustness_{penslide,penrotate}_     ``ias-gym robustness --json`` kept   ``robustness_pen.md``
@@ -195,6 +196,27 @@ def recognition(result: Mapping[str, Any]) -> str:
         "the skill left out (mean over the skills), and on the known skills meanwhile:\n\n"
         + acquired
     )
+
+
+def assist_population(result: Mapping[str, Any]) -> str:
+    """The observation assistant on population persons: success [95 % interval] per
+    impairment spec, unassisted, assisted and without skill knowledge."""
+    arms = {
+        "unassisted": "unassisted",
+        "assisted": "assisted (phase recogniser)",
+        "no_skill_knowledge": "no skill knowledge",
+    }
+    body = [
+        [f"`{spec}`", *(interval(row[arm]) for arm in arms), str(row["excluded"])]
+        for spec, row in result["by_impairment"].items()
+    ]
+    intro = (
+        f"{result['persons']} persons of population seed {result['population_seed']} "
+        f"(**{result['set']}**), the skills with a motion of their own "
+        f"({', '.join(result['skills'])}), reset seed 0; success [95 % interval] "
+        "(successes/sessions judged), and the sessions left out for want of a reference.\n\n"
+    )
+    return intro + rows(["impairment", *arms.values(), "left out"], body)
 
 
 def assistance(phase: Mapping[str, Any], oracle: Mapping[str, Any]) -> str:
@@ -460,6 +482,7 @@ def tables(docs: Path) -> dict[str, str]:
         "assistance.md": assistance(
             load("assist_table_phase.json"), load("assist_table_oracle.json")
         ),
+        "assist_population.md": assist_population(load("assist_population.json")),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "completion.md": completion(load("completion_table.json")),
         "evaluation_pen.md": evaluation([load(name) for name in PEN_EVALUATION]),
