@@ -368,6 +368,8 @@ def test_cli_recognise_errors(
         (["--db", "/nonexistent.db", "--persons", "p9"], "no such file"),
         (["--db", path, "--persons", member], "in the library"),
         (["--db", path, "--persons", "p9", "--method", "knn"], "choose one of"),
+        (["--db", path], "--population N"),
+        (["--db", path, "--persons", "p9", "--population", "2"], "exclude each other"),
     ):
         assert main(["assist", "recognise", *args]) == 2
         err = capsys.readouterr().err
@@ -444,3 +446,14 @@ def test_cli_library_records_sessions_the_recognisers_read(tmp_path: Path) -> No
     assert main([*argv, "--skills", "wobble"]) == 2  # refused, nothing added
     with SkillDB(path, readonly=True) as db:
         assert len(db) == 2
+
+
+def test_cli_library_draws_its_persons_from_the_population(tmp_path: Path) -> None:
+    from ias_gym.glove.population import population_ids
+
+    path = tmp_path / "lib.db"
+    argv = ["assist", "library", "--db", str(path), "--population", "1", "--episodes", "1"]
+    assert main([*argv, "--population-seed", "5", "--skills", "lift_hold"]) == 0
+    with SkillDB(path, readonly=True) as db:
+        stored = {db.get(i).person_id for i in db.ids()}
+    assert stored == set(population_ids(1, 5))

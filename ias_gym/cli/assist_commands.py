@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ias_gym.cli.args import HelpFormatter, episode_arguments, non_negative_int
+from ias_gym.cli.args import HelpFormatter, episode_arguments, int_at_least, non_negative_int
 from ias_gym.errors import InputError
 
 #: The recognition keys of ``assist recognise --json`` (per method).
@@ -43,18 +43,13 @@ def _recognise(args: argparse.Namespace) -> int:
     from ias_gym.assist.metrics import check_held_out, evaluate_methods, record_sessions
     from ias_gym.assist.recogniser_registry import METHODS
     from ias_gym.assist.recognition import load_library
-    from ias_gym.glove.ids import check_id
     from ias_gym.glove.skills import SKILLS
     from ias_gym.skills import SkillDB
 
     methods = list(METHODS) if args.method == "all" else [args.method]
     if args.method != "all" and args.method not in METHODS:
         raise InputError(f"--method {args.method!r}: choose one of {', '.join(METHODS)} or all")
-    persons = [p.strip() for p in args.persons.split(",") if p.strip()]
-    if not persons:
-        raise InputError("--persons needs at least one person id, e.g. --persons h1,h2")
-    for p in persons:
-        check_id(p, "--persons id")
+    persons = _persons_of(args, None)
     db_path = Path(args.db)
     if not db_path.is_file():
         raise InputError(
@@ -92,7 +87,7 @@ def _library(args: argparse.Namespace) -> int:
     from ias_gym.glove.skills import SKILLS
     from ias_gym.skills import SkillDB
 
-    persons = _persons(args.persons)
+    persons = _persons_of(args, LIBRARY_PERSONS)
     skills = SKILLS if args.skills == "all" else [s.strip() for s in args.skills.split(",")]
     for s in skills:
         if s not in SKILLS:
@@ -106,13 +101,54 @@ def _library(args: argparse.Namespace) -> int:
     return 0
 
 
-def _persons(text: str) -> list[str]:
-    from ias_gym.glove.ids import check_id
+#: The persons of ``assist library`` and ``assist evaluate`` when neither ``--persons`` nor
+#: ``--population`` is given.
+LIBRARY_PERSONS = "p1,p2,p3,p4,p5"
+EVALUATION_PERSONS = "p7,p8,p9"
 
+
+def _persons_of(args: argparse.Namespace, default: str | None) -> list[str]:
+    """The persons of ``--persons ID,ID`` or ``--population N --population-seed S`` (one of
+    the two; ``default`` ids without either).
+
+    Raises:
+        InputError: both given, neither (without a default), an empty list or a bad id.
+    """
+    from ias_gym.glove.ids import check_id
+    from ias_gym.glove.population import population_ids
+
+    if args.population is not None:
+        if args.persons is not None:
+            raise InputError("--persons and --population exclude each other: give one of them")
+        return population_ids(args.population, args.population_seed)
+    text = args.persons if args.persons is not None else default
+    if text is None:
+        raise InputError("give the persons: --persons ID,ID,... or --population N")
     persons = [p.strip() for p in text.split(",") if p.strip()]
     if not persons:
         raise InputError("--persons needs at least one person id, e.g. p7,p8,p9")
     return [check_id(p, "--persons") for p in persons]
+
+
+def _person_arguments(parser: argparse.ArgumentParser, default: str | None) -> None:
+    """``--persons`` and the population draw that replaces it."""
+    shown = f"default: {default}" if default else "or --population"
+    parser.add_argument(
+        "--persons", default=None, metavar="ID,ID,...", help=f"person ids ({shown})"
+    )
+    parser.add_argument(
+        "--population",
+        type=int_at_least(1),
+        metavar="N",
+        help="instead of --persons: N persons drawn from the population (docs/population.md)",
+    )
+    parser.add_argument(
+        "--population-seed",
+        type=non_negative_int,
+        default=0,
+        metavar="S",
+        help="seed of the --population draw: the same seed gives the same persons",
+    )
 
 
 def _impairments(specs: list[str] | None) -> list[str]:
@@ -186,7 +222,7 @@ def _assistant_factory(kind: str, recogniser: str, db: Path) -> Any:
 
 
 def _evaluate(args: argparse.Namespace) -> int:
-    persons = _persons(args.persons)
+    persons = _persons_of(args, EVALUATION_PERSONS)
     impairments = _impairments(args.impairment)
     db = Path(args.db)
     if not db.is_file():
@@ -317,7 +353,7 @@ def add_assist_evaluate(commands: argparse._SubParsersAction[Any]) -> argparse.A
         "evaluate",
         help="success with and without the assistant per impairment",
         description="Run IAS-GloveAssist-v0 sessions of every skill for each person and "
-        "impairment, without and with the analytic assistant, and judge them against the "
+        "impairment, without and with the assistant (--assistant), and judge them against the "
         "unimpaired person's session (docs/assistance.md). With --json the last line is "
         "one object: " + ", ".join(RECOGNITION_KEYS) + " and by_impairment.",
         formatter_class=HelpFormatter,
@@ -325,7 +361,7 @@ def add_assist_evaluate(commands: argparse._SubParsersAction[Any]) -> argparse.A
     p.add_argument(
         "--db", required=True, metavar="F", help="the skill library (`ias-gym assist library`)"
     )
-    p.add_argument("--persons", default="p7,p8,p9", metavar="ID,ID,...", help="person ids")
+    _person_arguments(p, EVALUATION_PERSONS)
     p.add_argument(
         "--impairment",
         action="append",
@@ -415,9 +451,7 @@ def add_assist_commands(subparsers: argparse._SubParsersAction[Any]) -> None:
         formatter_class=HelpFormatter,
     )
     recognise.add_argument("--db", required=True, metavar="FILE", help="the skill library")
-    recognise.add_argument(
-        "--persons", required=True, metavar="ID,ID", help="held-out person ids to record"
-    )
+    _person_arguments(recognise, None)
     recognise.add_argument(
         "--method", default="all", metavar="dtw|phase|all", help="the recogniser(s)"
     )
@@ -435,9 +469,7 @@ def add_assist_commands(subparsers: argparse._SubParsersAction[Any]) -> None:
         formatter_class=HelpFormatter,
     )
     library.add_argument("--db", required=True, metavar="FILE", help="the skill database")
-    library.add_argument(
-        "--persons", default="p1,p2,p3,p4,p5", metavar="ID,ID,...", help="person ids"
-    )
+    _person_arguments(library, LIBRARY_PERSONS)
     library.add_argument(
         "--skills", default="all", metavar="NAME,...|all", help="the skills to record"
     )
