@@ -457,3 +457,28 @@ def test_cli_library_draws_its_persons_from_the_population(tmp_path: Path) -> No
     with SkillDB(path, readonly=True) as db:
         stored = {db.get(i).person_id for i in db.ids()}
     assert stored == set(population_ids(1, 5))
+
+
+def test_the_summary_counts_each_proportion_with_its_interval() -> None:
+    from ias_gym.assist.metrics import FRACTIONS, SessionResult, summarise
+
+    at60 = FRACTIONS.index(0.6)
+
+    def result(correct_at_60: bool, final: str, false_trigger: bool) -> SessionResult:
+        correct = tuple(i == at60 and correct_at_60 for i in range(len(FRACTIONS)))
+        return SessionResult("tilt_left", "x", correct, None, false_trigger, final)
+
+    results = [
+        result(True, "tilt_left", False),
+        result(True, "tilt_left", True),
+        result(False, "seesaw_slow", False),
+        result(False, "tilt_left", False),
+    ]
+    out = summarise(results)
+    rates = out["rates"]
+    assert (rates["recog_acc_at_60"]["successes"], rates["recog_acc_at_60"]["trials"]) == (2, 4)
+    assert rates["final_accuracy"]["successes"] == 3
+    assert rates["false_trigger_rate"]["successes"] == 1
+    for key, rate in rates.items():
+        assert out[key] == rate["success_rate"]
+        assert rate["ci95_low"] < rate["success_rate"] < rate["ci95_high"]

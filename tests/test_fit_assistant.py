@@ -1,26 +1,19 @@
-"""train/fit_assistant.py: the stop test is chosen by the sessions' balanced success."""
+"""train/fit_assistant.py: the stop test is chosen by the sessions it produces."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 from types import ModuleType
 
 import numpy as np
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[1] / "train" / "fit_assistant.py"
+from tests.train_scripts import load_train_script
 
 
 @pytest.fixture(scope="module")
 def fit() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("fit_assistant", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
+    return load_train_script("fit_assistant")
 
 
 def _outcomes(unimpaired: list[bool], stopped: list[bool], persons: list[int]) -> np.ndarray:

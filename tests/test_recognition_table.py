@@ -2,21 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 from types import ModuleType
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[1] / "train" / "recognition_table.py"
+from tests.train_scripts import load_train_script
 
 
 def _script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("recognition_table", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_train_script("recognition_table")
 
 
 def test_more_demonstrations_than_library_persons_is_refused(

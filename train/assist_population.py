@@ -1,6 +1,6 @@
-"""Held-out population table of the observation assistant: per impairment spec, success
-unassisted, assisted with the recogniser and assisted without skill knowledge, with 95 %
-intervals, on persons drawn by a seed the fitting never saw.
+"""Population table of the observation assistant: per impairment spec, success unassisted,
+assisted with the recogniser and assisted without skill knowledge, with 95 % intervals, on
+persons drawn by a seed (``--set held-out``: one the fitting never saw).
 
     python train/assist_population.py --persons 30 --seed S --set held-out \
         --impairment none --impairment stops:at=0.4 --out docs/assist_population.json

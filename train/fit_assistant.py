@@ -32,7 +32,6 @@ import json
 import os
 import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -46,7 +45,7 @@ from ias_gym.errors import InputError
 from ias_gym.glove.impairment_spec import FAMILIES
 from ias_gym.glove.impairments import session_rng
 from ias_gym.glove.population import population_ids
-from ias_gym.outputs import check_output_file
+from ias_gym.outputs import atomic_output, check_output_file
 from ias_gym.rates import Rate
 from ias_gym.runtime.jobs import Backend, run_jobs
 
@@ -133,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes")
     ap.add_argument("--out", default=str(PARAMS_PATH), help="parameter file written")
     ap.add_argument("--report", help="also write the report (JSON) here")
-    ap.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    ap.add_argument("--overwrite", action="store_true", help="replace an existing --out, --report")
     args = ap.parse_args(argv)
     try:
         windows = [float(w) for w in args.windows.split(",")]
@@ -149,11 +148,16 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:  # before any work
         out = check_output_file(args.out, overwrite=args.overwrite, what="--out")
+        report_path = (
+            check_output_file(args.report, overwrite=args.overwrite, what="--report")
+            if args.report
+            else None
+        )
     except InputError as exc:
         print(str(exc), file=sys.stderr)
         return 2
     persons = population_ids(args.persons, args.seed)
-    base = AssistParams.load()
+    base = AssistParams()  # the defaults of what is not fitted, never a former fit's file
     grid = tuple((w, r) for w in windows for r in ratios)
     per_person = run_jobs(
         PersonJob(grid, base),
@@ -206,8 +210,9 @@ def main(argv: list[str] | None = None) -> int:
         "seed": args.seed,
     }
     text = json.dumps(report, indent=2)
-    if args.report:
-        Path(args.report).write_text(text + "\n")
+    if report_path is not None:
+        with atomic_output(report_path, overwrite=args.overwrite) as tmp:
+            tmp.write_text(text + "\n")
     print(text)
     return 0
 

@@ -30,7 +30,6 @@ from ias_gym.assist.metrics import (
     FRACTIONS,
     LabelledSession,
     evaluate_methods,
-    evaluate_recogniser,
     labelled_session,
     record_sessions,
 )
@@ -131,23 +130,6 @@ def acquisition_curve(
     }
 
 
-def rates_of(
-    method: str, library: list[LabelledSession], held_out: list[LabelledSession]
-) -> dict[str, Any]:
-    """The per-session proportions of ``method`` on ``held_out`` as rates with their 95 %
-    Wilson intervals (:class:`~ias_gym.rates.Rate`): correct at 60 % of the motion, recognised
-    by the end, a false trigger."""
-    _, results = evaluate_recogniser(
-        make_recogniser(method, [s.library() for s in library]), held_out
-    )
-    at60 = FRACTIONS.index(0.6)
-    return {
-        "recog_acc_at_60": Rate.of([r.correct_at[at60] for r in results]).to_dict(),
-        "final_accuracy": Rate.of([r.final == r.skill for r in results]).to_dict(),
-        "false_trigger_rate": Rate.of([r.false_trigger for r in results]).to_dict(),
-    }
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__.split("\n\n")[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
@@ -196,8 +178,6 @@ def main(argv: list[str] | None = None) -> int:
     _, held_out = sessions_of(ho_path, ids, args.episodes, seed=1000)
     methods = list(METHODS)
     results = evaluate_methods([s.library() for s in library], held_out, methods, progress=tqdm)
-    for m in methods:
-        results[m]["rates"] = rates_of(m, library, held_out)
     acquisition = {
         m: acquisition_curve(m, library_skills, library, held_out, args.demos) for m in methods
     }

@@ -37,6 +37,7 @@ from ias_gym.assist.recognition import (
 from ias_gym.assist.stream import SessionFrame, frames_from_skill
 from ias_gym.errors import InputError
 from ias_gym.glove.skills import SKILLS, check_skill
+from ias_gym.rates import Rate
 from ias_gym.skills.glove_session import PHASE_INFO
 from ias_gym.skills.glove_session import motion_window as glove_motion_window
 
@@ -245,7 +246,10 @@ def summarise(results: Sequence[SessionResult]) -> dict[str, Any]:
     Returns:
         ``sessions``, ``accuracy_by_fraction`` (fraction -> accuracy), ``recog_acc_at_33``,
         ``recog_acc_at_60``, ``time_to_recognise_s`` (mean over recognised sessions, or
-        ``None``), ``recognised_fraction``, ``false_trigger_rate``, ``final_accuracy``.
+        ``None``), ``recognised_fraction``, ``false_trigger_rate``, ``final_accuracy``, and
+        ``rates``: the per-session proportions (correct at 60 % of the motion, correct at the
+        end, a false trigger) with their 95 % Wilson intervals
+        (:meth:`~ias_gym.rates.Rate.to_dict`).
 
     Raises:
         InputError: no results.
@@ -255,15 +259,22 @@ def summarise(results: Sequence[SessionResult]) -> dict[str, Any]:
     acc = np.mean([r.correct_at for r in results], axis=0)
     curve = {f"{f:.1f}": float(a) for f, a in zip(FRACTIONS, acc, strict=True)}
     ttr = [r.time_to_recognise_s for r in results if r.time_to_recognise_s is not None]
+    at60 = FRACTIONS.index(0.6)
+    rates = {
+        "recog_acc_at_60": Rate.of([r.correct_at[at60] for r in results]),
+        "final_accuracy": Rate.of([r.final == r.skill for r in results]),
+        "false_trigger_rate": Rate.of([r.false_trigger for r in results]),
+    }
     return {
         "sessions": len(results),
         "accuracy_by_fraction": curve,
         "recog_acc_at_33": _interp_acc(acc, 0.33),
-        "recog_acc_at_60": float(acc[FRACTIONS.index(0.6)]),
+        "recog_acc_at_60": rates["recog_acc_at_60"].value,
         "time_to_recognise_s": float(np.mean(ttr)) if ttr else None,
         "recognised_fraction": len(ttr) / len(results),
-        "false_trigger_rate": float(np.mean([r.false_trigger for r in results])),
-        "final_accuracy": float(np.mean([r.final == r.skill for r in results])),
+        "false_trigger_rate": rates["false_trigger_rate"].value,
+        "final_accuracy": rates["final_accuracy"].value,
+        "rates": {key: rate.to_dict() for key, rate in rates.items()},
     }
 
 
