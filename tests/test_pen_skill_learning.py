@@ -173,11 +173,24 @@ def test_pipeline_records_clones_saves_and_acts(
     env.close()
 
 
-def test_script_refuses_existing_outputs(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("extra", "expected"),
+    [
+        ((), "overwrite"),  # results.json is there
+        (("--heldout-seed", "5150"), "training persons' seed"),  # the training persons' own
+        (("--heldout-persons", "0"), "population size 0"),
+    ],
+)
+def test_script_refuses_bad_input_before_work(
+    tmp_path: Path, extra: tuple[str, ...], expected: str
+) -> None:
     (tmp_path / "results.json").write_text("{}")
     path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
+    args = ["--heldout-seed", "1", "--set", "development", "--out", str(tmp_path)]
+    if extra:
+        args += [*extra, "--overwrite"]
     result = subprocess.run(
-        [sys.executable, str(ROOT / "train" / "pen_skill_bc.py"), "--out", str(tmp_path)],
+        [sys.executable, str(ROOT / "train" / "pen_skill_bc.py"), *args],
         capture_output=True,
         text=True,
         timeout=60,
@@ -185,6 +198,7 @@ def test_script_refuses_existing_outputs(tmp_path: Path) -> None:
         env={**os.environ, "PYTHONPATH": path},
     )
     assert result.returncode == 2
-    assert "--overwrite" in result.stderr or "overwrite" in result.stderr
+    assert expected in result.stderr and len(result.stderr.strip().splitlines()) == 1
     assert (tmp_path / "results.json").read_text() == "{}"
     assert not (tmp_path / "demos.db").exists()
+    assert not (tmp_path / "train_library.db").exists()

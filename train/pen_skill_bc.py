@@ -1,19 +1,24 @@
 """An SB3 agent across human skills: BC from the expert's executions, then PPO fine-tuning.
 
-    python train/pen_skill_bc.py --hand ias4f --n-demos 40 --out out/pen_skill_bc_ias4f
+    python train/pen_skill_bc.py --hand ias4f --n-demos 200 --train-persons 20 \
+        --heldout-persons 30 --heldout-seed S --set held-out --out out/pen_skill_bc_ias4f
 
-Issue #13, learning across skills. The training library is the shipped human skills
-(``--train-db``) minus the held-out skills (``--heldout-skills``) and persons
-(:func:`ias_gym.learning.skill_split.split_skills`). On ``IAS-PenSkill-v0`` restricted to
-it, the expert (Theorem 1 following the transferred skill) is recorded with noise injection
-(DART, :func:`ias_gym.learning.dart.record_noisy_expert`, as ``train/bc.py``), cloned into
-an SB3 PPO model (:func:`ias_gym.learning.cloning.behaviour_clone`) and fine-tuned briefly
-by PPO (:func:`ias_gym.learning.finetune.fine_tune`, the best policy on validation seeds of
-the training skills kept). Expert, cloned, fine-tuned and random policies are then run once
+Learning across skills on persons drawn from the population. The training library is one
+glove session per training skill of ``--train-persons`` persons of ``--train-seed``
+(recorded into ``OUT/train_library.db``; unsuccessful sessions are no demonstrations and
+are left out, :func:`ias_gym.learning.skill_split.split_skills`), or ``--train-db``. On
+``IAS-PenSkill-v0`` restricted to it, the expert (Theorem 1 following the transferred skill)
+is recorded with noise injection (DART, :func:`ias_gym.learning.dart.record_noisy_expert`,
+as ``train/bc.py``), cloned into an SB3 PPO model
+(:func:`ias_gym.learning.cloning.behaviour_clone`) and fine-tuned briefly by PPO
+(:func:`ias_gym.learning.finetune.fine_tune`, the best policy on validation seeds of the
+training skills kept). Expert, cloned, fine-tuned and random policies are then run once
 per skill and ``--eval-seeds`` seed on four groups: training skills of training persons
 (new seeds), held-out skills of training persons, and training and held-out skills of
-held-out persons (``--heldout-persons``, glove sessions recorded into
-``OUT/heldout_persons.db`` unless ``--heldout-db`` gives them).
+``--heldout-persons`` persons of ``--heldout-seed`` (their glove sessions recorded after
+training into ``OUT/heldout_persons.db``, unless ``--heldout-db`` gives them). Success per
+group with its 95 % Wilson interval; ``--set`` states whether the held-out persons are
+development or held-out data.
 
 Writes into ``--out``: ``demos.db``, ``bc.zip``, ``bc_ppo.zip`` (SB3 zips that load
 without unpickling: ``ias-gym evaluate --env IAS-PenSkill-v0 --policy OUT/bc.zip``),
@@ -33,8 +38,8 @@ from typing import Any
 
 ENV_ID = "IAS-PenSkill-v0"
 OUTPUTS = ("demos.db", "bc.zip", "bc_ppo.zip", "results.json", "results.md")
-#: Three person ids never used while developing (random strings).
-HELDOUT_PERSONS = "hx-7f3a,hx-b21c,hx-e9d4"
+#: Population seed of the training persons (development data by definition).
+TRAIN_SEED = 5150
 #: Held out of training: a faster variant of a trained motion (extrapolation in speed) and
 #: a motion of its own (the pen put down, not held).
 HELDOUT_SKILLS = "seesaw_fast,lift_place"
@@ -52,7 +57,30 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", required=True, metavar="DIR", help="output directory")
     parser.add_argument("--overwrite", action="store_true", help="replace existing outputs")
     parser.add_argument(
-        "--train-db", default=None, help="training library (default: the shipped human skills)"
+        "--train-persons", type=int, default=20, help="training persons of the population"
+    )
+    parser.add_argument(
+        "--train-seed", type=int, default=TRAIN_SEED, help="population seed of the training persons"
+    )
+    parser.add_argument(
+        "--train-db",
+        default=None,
+        help="train on this library instead of glove sessions of the training persons",
+    )
+    parser.add_argument(
+        "--heldout-persons", type=int, default=30, help="held-out persons of the population"
+    )
+    parser.add_argument(
+        "--heldout-seed",
+        type=int,
+        required=True,
+        help="population seed of the held-out persons (one the training never saw)",
+    )
+    parser.add_argument(
+        "--set",
+        choices=("development", "held-out"),
+        required=True,
+        help="whether the held-out persons are development or held-out data",
     )
     parser.add_argument(
         "--heldout-db",
@@ -61,14 +89,6 @@ def build_parser() -> argparse.ArgumentParser:
         "OUT/heldout_persons.db, reused if there)",
     )
     parser.add_argument("--heldout-skills", default=HELDOUT_SKILLS, help="comma-separated")
-    parser.add_argument("--heldout-persons", default=HELDOUT_PERSONS, help="comma-separated")
-    parser.add_argument(
-        "--extra-train-persons",
-        default="",
-        help="comma-separated ids: their glove sessions of the training skills are recorded "
-        "into OUT/train_library.db beside a copy of --train-db (missing ones only), and that "
-        "library is trained on (e.g. tr-k4m2,tr-q8s1,tr-w3n7)",
-    )
     parser.add_argument(
         "--noise", type=float, default=0.001, help="DART noise std [normalised torque]"
     )
@@ -114,27 +134,6 @@ def record_sessions(db: Path, persons: Sequence[str], skills: Sequence[str]) -> 
         record_skills_spec(
             "IAS-GloveGrasp-v0", "teleop", 1, db, progress=False, person_id=person, skill=skill
         )
-
-
-def extend_library(
-    source: Path, target: Path, persons: Sequence[str], heldout_skills: Sequence[str]
-) -> Path:
-    """``target``: a copy of ``source``'s skills (made once) plus one glove session of each
-    of ``persons`` per skill not held out (those missing there are recorded).
-    """
-    from ias_gym.glove.skills import SKILLS
-    from ias_gym.skills.db import SkillDB
-
-    if not target.exists():
-        tmp = target.with_name(f".{target.name}.partial")
-        for suffix in ("", "-wal", "-shm"):
-            Path(f"{tmp}{suffix}").unlink(missing_ok=True)
-        with SkillDB(source, readonly=True) as src, SkillDB(tmp) as dst:
-            for summary in src.list_skills():
-                dst.add(src.get(summary.id))
-        tmp.rename(target)  # closed cleanly: the write-ahead log is folded into the file
-    record_sessions(target, persons, [s for s in SKILLS if s not in heldout_skills])
-    return target
 
 
 def first_per_person_and_skill(summaries: Sequence[Any]) -> list[Any]:
@@ -243,8 +242,11 @@ def open_loop_diagnosis(
 
 
 def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    """Success rate, held rate, and the tracking errors' means over the held episodes."""
+    """Success rate (with its 95 % Wilson interval), held rate, and the tracking errors'
+    means over the held episodes."""
     import numpy as np
+
+    from ias_gym.rates import Rate
 
     held = [r for r in rows if r["held"]]
 
@@ -255,6 +257,7 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     return {
         "episodes": len(rows),
         "success_rate": float(np.mean([r["success"] for r in rows])) if rows else 0.0,
+        "success": Rate.of([r["success"] for r in rows]).to_dict() if rows else None,
         "held_rate": len(held) / len(rows) if rows else 0.0,
         "mean_length_s": float(np.mean([r["length_s"] for r in rows])) if rows else 0.0,
         "rms_position_error_mean_mm": mean("rms_position_error_mm"),
@@ -264,16 +267,26 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+def percent_interval(rate: dict[str, Any] | None) -> str:
+    """``"83 % [71, 91]"`` from a :meth:`ias_gym.rates.Rate.to_dict` (``"-"`` for none)."""
+    if rate is None:
+        return "-"
+    return (
+        f"{rate['success_rate']:.0%} [{100 * rate['ci95_low']:.0f}, {100 * rate['ci95_high']:.0f}]"
+    ).replace("%", " %")
+
+
 def markdown(results: dict[str, Any]) -> str:
     """The results as a markdown table (one row per group and policy)."""
 
     def fmt(value: float | None, digits: int) -> str:
         return "-" if value is None else f"{value:.{digits}f}"
 
+    n_persons, seed = results["heldout_population"]
     lines = [
-        f"hand {results['hand']}; training: {results['train_persons']} x "
-        f"{results['train_skills']}; held-out skills {results['heldout_skills']}, "
-        f"held-out persons {results['heldout_persons']}",
+        f"hand {results['hand']}; training: {len(results['train_persons'])} persons x "
+        f"{results['train_skills']}; held-out skills {results['heldout_skills']}; "
+        f"held-out persons: {n_persons} of population seed {seed} ({results['set']})",
         "",
         "| group | policy | episodes | success | held | mean length [s] | RMS pos. err. [mm] | "
         "RMS axis err. [deg] | margin err. [-] |",
@@ -282,7 +295,7 @@ def markdown(results: dict[str, Any]) -> str:
     for group, per_policy in results["groups"].items():
         for name, s in per_policy.items():
             lines.append(
-                f"| {group} | {name} | {s['episodes']} | {s['success_rate']:.0%} | "
+                f"| {group} | {name} | {s['episodes']} | {percent_interval(s['success'])} | "
                 f"{s['held_rate']:.0%} | {s['mean_length_s']:.2f} | "
                 f"{fmt(s['rms_position_error_mean_mm'], 2)} | "
                 f"{fmt(s['rms_rotation_error_mean_deg'], 2)} | "
@@ -312,11 +325,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Split, record, clone, fine-tune, evaluate, write the table."""
     args = build_parser().parse_args(argv)
     from ias_gym.errors import IasGymError, InputError
+    from ias_gym.glove.population import check_population, population_ids
     from ias_gym.outputs import atomic_output, prepare_output_dir
 
     try:  # before the heavy imports and any work
         if args.n_demos < 1:
             raise InputError(f"--n-demos must be >= 1, got {args.n_demos}")
+        check_population(args.train_persons, args.train_seed)
+        check_population(args.heldout_persons, args.heldout_seed)
+        if args.heldout_seed == args.train_seed:
+            raise InputError(
+                f"--heldout-seed {args.heldout_seed} is the training persons' seed; draw "
+                "the held-out persons with another"
+            )
         out = prepare_output_dir(args.out, OUTPUTS, overwrite=args.overwrite)
     except IasGymError as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -329,17 +350,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ias_gym.learning.finetune import KeepBestPolicy, fine_tune, make_vec_env
     from ias_gym.learning.skill_split import split_skills
     from ias_gym.skills.db import SkillDB
-    from ias_gym.skills.transfer import shipped_skill_db
 
     torch.set_num_threads(args.threads)
-    heldout_skills, heldout_persons = _names(args.heldout_skills), _names(args.heldout_persons)
-    train_db = Path(args.train_db) if args.train_db else shipped_skill_db()
-    extra = _names(args.extra_train_persons)
-    if set(extra) & set(heldout_persons):
-        print(f"error: {sorted(set(extra) & set(heldout_persons))} are held out", file=sys.stderr)
-        return 2
-    if extra:
-        train_db = extend_library(train_db, out / "train_library.db", extra, heldout_skills)
+    from ias_gym.glove.skills import SKILLS
+
+    heldout_skills = _names(args.heldout_skills)
+    heldout_persons = population_ids(args.heldout_persons, args.heldout_seed)
+    if args.train_db:
+        train_db = Path(args.train_db)
+    else:
+        train_db = out / "train_library.db"
+        persons = population_ids(args.train_persons, args.train_seed)
+        record_sessions(train_db, persons, [s for s in SKILLS if s not in heldout_skills])
     with SkillDB(train_db, readonly=True) as db:
         summaries = db.list_skills()
     split = split_skills(summaries, heldout_skills, heldout_persons)
@@ -357,9 +379,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise AssertionError(f"held-out persons {leaked} in the training data")
 
     env_kwargs: dict[str, Any] = {"hand": args.hand, "skill_ids": list(split.train)}
-    library = None if train_db == shipped_skill_db() else str(train_db)  # None: the env's default
-    if library is not None:
-        env_kwargs["skill_db"] = library
+    library = str(train_db)
+    env_kwargs["skill_db"] = library
     demos_db = out / "demos.db"
     if demos_db.exists():  # --overwrite: a fresh recording, not appended to the old one
         for suffix in ("", "-wal", "-shm"):
@@ -404,10 +425,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     env.close()
 
-    from ias_gym.glove.skills import SKILLS
-
     # Recorded after training (missing sessions only): nothing of them can reach training.
+    # The training persons' held-out skills go there too (the held-out-skill group).
     record_sessions(heldout_db, heldout_persons, SKILLS)
+    record_sessions(heldout_db, train_persons, heldout_skills)
     with SkillDB(heldout_db, readonly=True) as db:
         heldout_split = split_skills(
             first_per_person_and_skill(db.list_skills()), heldout_skills, heldout_persons
@@ -421,7 +442,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     }
     libraries = {
         "train": (library, split.train),
-        "heldout_skill": (library, split.heldout_skill),
+        "heldout_skill": (str(heldout_db), heldout_split.heldout_skill),
         "heldout_person": (str(heldout_db), heldout_split.heldout_person),
         "heldout_both": (str(heldout_db), heldout_split.heldout_both),
     }
@@ -455,7 +476,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     results = {
         "env": ENV_ID,
+        "set": args.set,
         "hand": args.hand,
+        "train_population": None if args.train_db else [args.train_persons, args.train_seed],
+        "heldout_population": [args.heldout_persons, args.heldout_seed],
         "train_db": str(train_db),
         "heldout_db": str(heldout_db),
         "train_persons": train_persons,
