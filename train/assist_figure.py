@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 #: Keys of an assist_table JSON that are not assistants.
-NOT_ASSISTANTS = {"persons", "skills", "seed", "switch_latency"}
+NOT_ASSISTANTS = {"set", "population", "persons", "skills", "seed", "switch_latency"}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -31,14 +31,16 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {out} exists; pass --overwrite", file=sys.stderr)
         return 2
     results: dict[str, dict[str, Any]] = {}
-    persons: list[str] = []
+    title = ""
     for name in args.tables:
         try:
             table = json.loads(Path(name).read_text())
         except (OSError, ValueError) as exc:
             print(f"error: {name} is not a readable assist_table JSON ({exc})", file=sys.stderr)
             return 2
-        persons = table.get("persons", persons)
+        if "population" in table:
+            n, seed = table["population"]
+            title = f"{n} persons of population seed {seed} ({table.get('set', '?')})"
         results.update({k: v for k, v in table.items() if k not in NOT_ASSISTANTS})
     if not results:
         print("error: the tables hold no assistant", file=sys.stderr)
@@ -51,17 +53,30 @@ def main(argv: list[str] | None = None) -> int:
 
     first = next(iter(results.values()))
     impairments = list(first)
-    series = {"unassisted": [first[i]["success_unassisted"] for i in impairments]}
+    # each bar a rate (Rate.to_dict, with its 95 % interval), or a bare share (older tables)
+    series = {
+        "unassisted": [
+            first[i].get("unassisted") or first[i]["success_unassisted"] for i in impairments
+        ]
+    }
     for name, rows in results.items():
         # assist_table.py names an assistant on the oracle intent without a recogniser
         label = name.replace("+", " + ") if "+" in name else f"{name} + oracle"
-        series[label] = [rows[i]["success_assisted"] for i in impairments]
+        series[label] = [
+            rows[i].get("assisted") or rows[i]["success_assisted"] for i in impairments
+        ]
     fig, ax = plt.subplots(figsize=(10, 3.6))
     width = 0.8 / len(series)
     for k, (name, values) in enumerate(series.items()):
         xs = [i + (k - (len(series) - 1) / 2) * width for i in range(len(impairments))]
-        ax.bar(xs, [100 * (v or 0.0) for v in values], width, label=name)
-    ax.axhline(95, color="grey", linestyle=":", linewidth=1)
+        rates = [v if isinstance(v, dict) else {"success_rate": v or 0.0} for v in values]
+        heights = [100 * r["success_rate"] for r in rates]
+        errors = [
+            [h - 100 * r.get("ci95_low", h / 100) for h, r in zip(heights, rates, strict=True)],
+            [100 * r.get("ci95_high", h / 100) - h for h, r in zip(heights, rates, strict=True)],
+        ]
+        ax.bar(xs, heights, width, label=name, yerr=errors, capsize=2)
+    ax.axhline(90, color="grey", linestyle=":", linewidth=1)  # the goal assisted
     ax.axhline(50, color="grey", linestyle=":", linewidth=1)
     # sessions without a reference are left out, so each impairment has its own count
     ax.set_xticks(
@@ -70,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     ax.set_ylabel("success [%]")
     ax.set_ylim(0, 105)
-    ax.set_title(f"held-out persons {', '.join(persons)}")
+    ax.set_title(f"{title}; bars: 95 % intervals")
     ax.legend(fontsize=8, ncol=len(series), loc="upper center", bbox_to_anchor=(0.5, -0.2))
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -2,8 +2,9 @@
 
     PYTHONPATH=$PWD python train/assist_residual.py --timesteps 20000 --out out/assist_residual.zip
 
-Persons p3-p6 (development persons; the table's held-out persons are others), every
-impairment and skill drawn at random per episode (``ias_gym.learning.assist_residual``).
+``--persons`` development persons drawn from the population with ``--population-seed``
+(the table's persons are another draw), every impairment and skill drawn at random per
+episode (``ias_gym.learning.assist_residual``).
 Measure the result with ``train/assist_table.py --residual OUT``.
 """
 
@@ -11,15 +12,17 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from tqdm import tqdm
 
 from ias_gym.assist.skill_templates import load_templates
+from ias_gym.errors import InputError
 from ias_gym.glove.impairments import IMPAIRMENTS
+from ias_gym.glove.population import population_ids
 from ias_gym.learning.assist_residual import ResidualAssistEnv
+from ias_gym.outputs import atomic_output, check_output_file
 
 
 class Bar(BaseCallback):
@@ -41,7 +44,10 @@ def main(argv: list[str] | None = None) -> int:
     """Train and save (arguments: ``--help``)."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--timesteps", type=int, default=20_000)
-    parser.add_argument("--persons", default="p3,p4,p5,p6")
+    parser.add_argument("--persons", type=int, default=8, help="development persons")
+    parser.add_argument(
+        "--population-seed", type=int, default=62, help="seed of the development persons' draw"
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
         "--db", default=None, help="skill library of the analytic assistant (default: shipped)"
@@ -56,12 +62,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="out/assist_residual.zip")
     parser.add_argument("--overwrite", action="store_true")
     args = parser.parse_args(argv)
-    out = Path(args.out)
-    if out.exists() and not args.overwrite:
-        print(f"{out} exists (--overwrite)", file=sys.stderr)
+    try:
+        out = check_output_file(args.out, overwrite=args.overwrite, what="--out")
+        persons = population_ids(args.persons, args.population_seed)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
         return 2
-    out.parent.mkdir(parents=True, exist_ok=True)
-    env = ResidualAssistEnv(load_templates(args.db), args.persons.split(","), list(IMPAIRMENTS))
+    env = ResidualAssistEnv(load_templates(args.db), persons, list(IMPAIRMENTS))
     model = PPO(
         "MlpPolicy",
         env,
@@ -75,7 +82,8 @@ def main(argv: list[str] | None = None) -> int:
         verbose=0,
     )
     model.learn(args.timesteps, callback=Bar(args.timesteps))
-    model.save(out)
+    with atomic_output(out, overwrite=args.overwrite) as tmp:
+        model.save(tmp)
     env.close()
     print(f"saved {out}")
     return 0

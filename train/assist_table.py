@@ -1,6 +1,7 @@
-"""Measure the assistants on held-out persons: success per impairment, intervention, latency.
+"""The analytic assistant on population persons: success per impairment, intervention, latency.
 
-For every impairment (``IAS-GloveAssist-v0``) and held-out person, each glove skill once
+For every impairment (``IAS-GloveAssist-v0``) and each of ``--persons`` persons drawn with
+``--population-seed`` (``--set``: development or held-out data), each glove skill once
 (seed ``--seed + i``) without an assistant, with the analytic assistant and, if
 ``--residual`` names a trained model (``train/assist_residual.py``), with the learned
 residual on top of it; every session judged against the unimpaired session of the same
@@ -9,9 +10,12 @@ the unimpaired operator switches skills at ``--switch-time``. Writes a markdown 
 JSON of the numbers and, per session, what it did (``OUT.sessions.json``: success, the pose
 errors, whether and when the pen was lost; ``ias_gym.assist.sessions.session_record``).
 
-    ias-gym assist library --db out/library.db      # p1-p5, every skill twice
+    ias-gym assist library --db out/library.db --population 8 --population-seed 61
     PYTHONPATH=$PWD python train/assist_table.py --db out/library.db --recogniser phase \
-        --out out/table_phase
+        --persons 30 --population-seed S --set held-out --out out/table_phase
+
+The analytic assistant reads the env's state (docs/assistance.md), not only its observation:
+it is a reference of what such help can do, not an assistant of the hardware path.
 """
 
 from __future__ import annotations
@@ -29,8 +33,12 @@ from tqdm import tqdm
 from ias_gym.assist.assistance_evaluation import evaluate_assistance, switch_latency
 from ias_gym.assist.assistants import AnalyticAssistant
 from ias_gym.assist.skill_templates import load_templates
+from ias_gym.errors import InputError
 from ias_gym.glove.impairments import DEFAULT_STRENGTHS, IMPAIRMENTS
+from ias_gym.glove.population import population_ids
 from ias_gym.glove.skills import SKILLS
+from ias_gym.outputs import atomic_output
+from ias_gym.rates import SET_KINDS
 
 #: (from, to) skill pairs of the intent-switch measurement.
 SWITCH_PAIRS = [
@@ -48,11 +56,12 @@ def _seconds(value: float | None) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Run the measurement (arguments: ``--help``)."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--persons", type=int, default=30, help="population persons")
     parser.add_argument(
-        "--persons",
-        default="hf-5d714f,hf-0c5718,hf-bd08e4,hf-11112d,hf-5a3f22,hf-c80fa6",
-        help="held-out person ids (generated once with secrets.token_hex, never tuned on; "
-        "the earlier sets ha-* (session 5), hc-* (6) and hd-* (7) were diagnosed on since)",
+        "--population-seed", type=int, required=True, help="seed of the persons' draw"
+    )
+    parser.add_argument(
+        "--set", choices=SET_KINDS, required=True, help="development or held-out persons"
     )
     parser.add_argument("--impairments", default="all", help="names or all")
     parser.add_argument("--seed", type=int, default=0)
@@ -77,7 +86,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{out.with_suffix(suffix)} exists (--overwrite)", file=sys.stderr)
             return 2
     out.parent.mkdir(parents=True, exist_ok=True)
-    persons = args.persons.split(",")
+    try:
+        persons = population_ids(args.persons, args.population_seed)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     imps = list(IMPAIRMENTS) if args.impairments == "all" else args.impairments.split(",")
     templates = load_templates(args.db)
     assistants: dict[str, Any] = {"analytic": lambda: AnalyticAssistant(templates)}
@@ -97,7 +110,13 @@ def main(argv: list[str] | None = None) -> int:
         assistants["residual"] = lambda: ResidualAssistant.load(args.residual, templates)
     wanted = args.assistants.split(",")
     assistants = {k: v for k, v in assistants.items() if k.split("+")[0] in wanted}
-    results: dict[str, Any] = {"persons": persons, "skills": list(SKILLS), "seed": args.seed}
+    results: dict[str, Any] = {
+        "set": args.set,
+        "population": [args.persons, args.population_seed],
+        "persons": persons,
+        "skills": list(SKILLS),
+        "seed": args.seed,
+    }
     sessions: dict[str, Any] = {}
     total = len(assistants) * len(imps) * len(persons) * len(SKILLS)
     with tqdm(total=total, desc="session pairs") as bar:
@@ -125,7 +144,8 @@ def main(argv: list[str] | None = None) -> int:
         }
     results["switch_latency"] = latency
     lines = [
-        f"Held-out persons {', '.join(persons)}; each of the {len(SKILLS)} skills once "
+        f"{len(persons)} persons of population seed {args.population_seed} ({args.set}); "
+        f"each of the {len(SKILLS)} skills once "
         f"(seeds {args.seed}-{args.seed + len(SKILLS) - 1}).",
         "",
         "| impairment | strength | unassisted | "
@@ -138,7 +158,8 @@ def main(argv: list[str] | None = None) -> int:
         row = [
             imp,
             f"{DEFAULT_STRENGTHS[imp] if args.strength is None else args.strength:g}",
-            f"{100 * results[first][imp]['success_unassisted']:.0f} %",
+            f"{100 * results[first][imp]['success_unassisted']:.0f} %"
+            f" ({results[first][imp]['sessions']})",
         ]
         for n in assistants:
             r = results[n][imp]
@@ -155,9 +176,13 @@ def main(argv: list[str] | None = None) -> int:
         ),
     ]
     text = "\n".join(lines) + "\n"
-    out.with_suffix(".md").write_text(text)
-    out.with_suffix(".json").write_text(json.dumps(results, indent=1))
-    out.with_suffix(".sessions.json").write_text(json.dumps(sessions, indent=1))
+    for suffix, content in (
+        (".md", text),
+        (".json", json.dumps(results, indent=1)),
+        (".sessions.json", json.dumps(sessions, indent=1)),
+    ):
+        with atomic_output(out.with_suffix(suffix), overwrite=True) as tmp:
+            tmp.write_text(content)
     print(text)
     return 0
 

@@ -10,8 +10,7 @@ JSON in ``docs/``                      written by                          table
 ``transfer_results.json``              ``train/transfer_table.py``         ``transfer.md``,
                                                                            ``transfer_skills.md``
 ``recognition_results.json``           ``train/recognition_table.py``      ``recognition.md``
-``assist_table_phase.json``,           ``train/assist_table.py``           ``assistance.md``
-``assist_table_oracle.json``
+``assist_table_phase.json``            ``train/assist_table.py``           ``assistance.md``
 ``assist_population.json``             ``train/assist_population.py``      ``assist_population.md``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
@@ -219,23 +218,22 @@ def assist_population(result: Mapping[str, Any]) -> str:
     return intro + rows(["impairment", *arms.values(), "left out"], body)
 
 
-def assistance(phase: Mapping[str, Any], oracle: Mapping[str, Any]) -> str:
-    """Success unassisted and assisted, the intervention in brackets, per impairment."""
-    columns = {
-        "analytic + phase recogniser": phase["analytic+phase"],
-        "analytic + oracle intent": oracle["analytic"],
-        "residual PPO + oracle": oracle["residual"],
-    }
+def assistance(phase: Mapping[str, Any]) -> str:
+    """The analytic assistant with the phase recogniser on population persons: success
+    [95 % interval] unassisted and assisted, the intervention, per impairment."""
     body = []
-    for impairment, first in phase["analytic+phase"].items():
-        row = [impairment, percent(first["success_unassisted"])]
-        row += [
-            f"{percent(c[impairment]['success_assisted'])} ({c[impairment]['intervention']:.3f})"
-            for c in columns.values()
-            if impairment in c
-        ]
-        body.append([*row, str(first["sessions"])])
-    table = rows(["impairment", "unassisted", *columns, "sessions"], body)
+    for impairment, row in phase["analytic+phase"].items():
+        body.append(
+            [
+                impairment,
+                interval(row["unassisted"]),
+                interval(row["assisted"]),
+                number(row["intervention"], 3),
+                str(row["excluded"]),
+            ]
+        )
+    header = ["impairment", "unassisted", "analytic + phase recogniser", "intervention", "left out"]
+    table = rows(header, body)
     latency = phase.get("switch_latency", {}).get("analytic+phase")
     note = ""
     if latency:
@@ -244,9 +242,13 @@ def assistance(phase: Mapping[str, Any], oracle: Mapping[str, Any]) -> str:
             f"in {latency['n'] - latency['never']}, after a median "
             f"{number(latency['median_s'], 2)} s (max {number(latency['max_s'], 2)} s).\n"
         )
+    n, seed = phase["population"]
     intro = (
-        f"{len(phase['persons'])} held-out persons x {len(phase['skills'])} skills, each "
-        "impairment once per person and skill.\n\n"
+        f"{n} persons of population seed {seed} (**{phase['set']}**) x "
+        f"{len(phase['skills'])} skills, each impairment once per person and skill (reset "
+        f"seeds {phase['seed']}-{phase['seed'] + len(phase['skills']) - 1}); success [95 % "
+        "interval] (successes/sessions judged), and the sessions left out for want of a "
+        "reference.\n\n"
     )
     return intro + table + note
 
@@ -261,19 +263,27 @@ GROUPS = {
 
 
 def pen_skill_bc(result: Mapping[str, Any]) -> str:
-    """Success of the expert, BC, BC + PPO and random per training set and group."""
+    """Success [95 % interval] of the expert, BC and BC + PPO per training run and group,
+    with the cloned policy's errors (random policies: 0 % in every group, in the JSON)."""
     body = []
+    intro = ""
     for run in result["runs"]:
         res = run["results"]
+        n_persons, seed = res["heldout_population"]
+        intro = (
+            f"Held-out persons: {n_persons} of population seed {seed} "
+            f"(**{res['set']}**); training persons: {len(res['train_persons'])} of "
+            f"population seed {res['train_population'][1]}; one episode per session "
+            f"(seed {res['eval_seeds'][0]}).\n\n"
+        )
         for group, per_policy in res["groups"].items():
-            cells = [per_policy.get(p) for p in ("expert", "bc", "bc_ppo", "random")]
-            bc = per_policy.get("bc") or {}
+            bc = per_policy["bc"]
             open_loop = res.get("open_loop", {}).get(group, {})
             body.append(
                 [
-                    run["name"].replace("p1+p2", "2 persons"),
-                    f"{GROUPS.get(group, group)} ({(cells[0] or {}).get('episodes', '-')})",
-                    *(percent(c["success_rate"]) if c else "-" for c in cells),
+                    f"{res['hand']}, {len(res['train_persons'])} persons, {res['n_demos']} demos",
+                    GROUPS.get(group, group),
+                    *(interval(per_policy[p]["success"]) for p in ("expert", "bc", "bc_ppo")),
                     f"{number(bc.get('rms_position_error_mean_mm'), 2)} / "
                     f"{number(bc.get('rms_rotation_error_mean_deg'), 2)}",
                     number(open_loop.get("bc_action_rms_error"), 4),
@@ -282,16 +292,15 @@ def pen_skill_bc(result: Mapping[str, Any]) -> str:
             )
     header = [
         "training data",
-        "group (episodes)",
+        "group",
         "expert",
         "BC",
         "BC + PPO",
-        "random",
         "BC RMS pos. / axis err. [mm / deg]",
         "BC open-loop action err.",
         "max abs z",
     ]
-    return rows(header, body)
+    return intro + rows(header, body)
 
 
 def completion(result: Mapping[str, Any]) -> str:
@@ -479,9 +488,7 @@ def tables(docs: Path) -> dict[str, str]:
         "transfer.md": transfer(load("transfer_results.json")),
         "transfer_skills.md": transfer_skills(load("transfer_results.json")),
         "recognition.md": recognition(load("recognition_results.json")),
-        "assistance.md": assistance(
-            load("assist_table_phase.json"), load("assist_table_oracle.json")
-        ),
+        "assistance.md": assistance(load("assist_table_phase.json")),
         "assist_population.md": assist_population(load("assist_population.json")),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "completion.md": completion(load("completion_table.json")),

@@ -49,9 +49,12 @@ class ImpairmentScore:
     excluded: int = 0
     records: list[dict[str, Any]] = field(default_factory=list)
 
-    def to_json(self) -> dict[str, float | None]:
+    def to_json(self) -> dict[str, Any]:
         """The three shares as a JSON object (``sessions`` and ``excluded`` as well; null
-        for a share of no session)."""
+        for a share of no session), and the two successes as
+        :meth:`~ias_gym.rates.Rate.to_dict` with their 95 % intervals (``unassisted``,
+        ``assisted``; null without sessions)."""
+        from ias_gym.rates import Rate
 
         def number(x: float) -> float | None:
             return None if math.isnan(x) else x
@@ -62,6 +65,15 @@ class ImpairmentScore:
             "intervention": number(self.intervention),
             "sessions": self.sessions,
             "excluded": self.excluded,
+            **{
+                name: Rate(round(share * self.sessions), self.sessions).to_dict()
+                if self.sessions
+                else None
+                for name, share in (
+                    ("unassisted", self.success_unassisted),
+                    ("assisted", self.success_assisted),
+                )
+            },
         }
 
 

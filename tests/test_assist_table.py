@@ -1,0 +1,63 @@
+"""train/assist_table.py and train/assist_residual.py: persons drawn from the population,
+bad input refused before any work, the rates' intervals."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from ias_gym.assist.assistance_evaluation import ImpairmentScore
+from tests.train_scripts import load_train_script
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["--persons", "0", "--population-seed", "1", "--set", "development"], "population size"),
+        (["--persons", "3", "--population-seed", "-1", "--set", "development"], "seed"),
+    ],
+)
+def test_the_table_refuses_a_bad_population_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], expected: str
+) -> None:
+    table = load_train_script("assist_table")
+    out = tmp_path / "table"
+    assert table.main([*args, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert expected in err and len(err.splitlines()) == 1
+    assert not list(tmp_path.iterdir())
+
+
+def test_the_table_refuses_to_replace_its_outputs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    table = load_train_script("assist_table")
+    (tmp_path / "table.json").write_text("{}")
+    args = ["--persons", "2", "--population-seed", "1", "--set", "development"]
+    assert table.main([*args, "--out", str(tmp_path / "table")]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert (tmp_path / "table.json").read_text() == "{}"
+
+
+def test_the_residual_refuses_a_bad_population_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    residual = load_train_script("assist_residual")
+    out = tmp_path / "residual.zip"
+    assert residual.main(["--persons", "0", "--out", str(out)]) == 2
+    assert "population size" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_score_gives_its_successes_with_intervals() -> None:
+    score = ImpairmentScore(0.5, 1.0, 0.1, sessions=30, excluded=2)
+    row = score.to_json()
+    assert row["unassisted"]["successes"] == 15 and row["unassisted"]["trials"] == 30
+    assert row["assisted"]["successes"] == 30
+    low, high = row["unassisted"]["ci95_low"], row["unassisted"]["ci95_high"]
+    assert low < 0.5 < high and high - low > 0.3  # 30 sessions: a wide interval
+    assert row["assisted"]["ci95_high"] == 1.0 and row["assisted"]["ci95_low"] < 0.9
+    assert (
+        ImpairmentScore(float("nan"), float("nan"), float("nan"), 0).to_json()["assisted"] is None
+    )
