@@ -131,18 +131,42 @@ RANDOM = "random"
 #: Policy spec of glove envs: zero action, the glove alone drives the hand.
 TELEOP = "teleop"
 
+#: Policy spec of the model shipped for the env (``ias_gym/assets/policies/<env id>.zip``).
+SHIPPED = "shipped"
+
+
+def shipped_policy_path(env_id: str) -> Path:
+    """The SB3 model shipped for ``env_id`` (its model card: ``assets/policies/README.md``).
+
+    Raises:
+        PolicyNotFoundError: no model is shipped for ``env_id``.
+    """
+    from importlib.resources import files
+
+    folder = Path(str(files("ias_gym") / "assets" / "policies"))
+    path = folder / f"{env_id}.zip"
+    if not path.is_file():
+        shipped = sorted(p.stem for p in folder.glob("*.zip"))
+        raise PolicyNotFoundError(
+            f"no policy is shipped for {env_id}; shipped: {', '.join(shipped) or 'none'} "
+            "(train one: docs/results-learning.md)"
+        )
+    return path
+
 
 def load_policy(
     spec: str, env: gym.Env[Any, Any], seed: int | None = None, *, trust_pickle: bool = False
 ) -> Policy:
     """The policy object (:class:`Policy`) for ``expert`` (pen tasks), ``teleop`` (glove envs:
-    zero action, pure teleoperation), ``random`` or a saved SB3 model's path.
+    zero action, pure teleoperation), ``random``, ``shipped`` (the model shipped for the env,
+    :func:`shipped_policy_path`) or a saved SB3 model's path.
 
     A model file is loaded without running code from it (:func:`ias_gym.safe_sb3.
     load_sb3_policy`), and must have been saved for ``env``'s spaces.
 
     Args:
-        spec: ``"expert"``, ``"teleop"``, ``"random"`` or the path of an SB3 ``.zip``.
+        spec: ``"expert"``, ``"teleop"``, ``"random"``, ``"shipped"`` or the path of an SB3
+            ``.zip``.
         env: the env the policy acts in.
         seed: seeds the ``random`` policy's action sampling.
         trust_pickle: load a model with SB3's own ``load``, which unpickles the file (runs
@@ -152,7 +176,8 @@ def load_policy(
         InputError: ``teleop`` on an env without a glove (or without a Box action space),
             or ``expert`` on a glove env (it has none: the person wearing the glove is the
             demonstrator).
-        PolicyNotFoundError: ``spec`` is neither a known name nor an existing file.
+        PolicyNotFoundError: ``spec`` is neither a known name nor an existing file, or
+            ``shipped`` for an env without a shipped model.
         PolicyFileError: the file is not a usable model for ``env``;
             :class:`~ias_gym.safe_sb3.UntrustedPickleError` if it needs unpickling.
         MissingDependencyError: a model path was given but stable-baselines3 is not
@@ -185,10 +210,11 @@ def load_policy(
         return ExpertPolicy(env)
     if spec == RANDOM:
         return RandomPolicy(env.action_space, seed, _observation_shape(env))
-    path = Path(spec)
+    path = shipped_policy_path(name) if spec == SHIPPED else Path(spec)
     if not path.is_file():
         raise PolicyNotFoundError(
-            f"policy {spec!r} is not 'expert', 'teleop', 'random' or an existing SB3 model file"
+            f"policy {spec!r} is not 'expert', 'teleop', 'random', 'shipped' or an existing SB3 "
+            "model file"
         )
     try:  # optional heavy dependency (the [train] extra): only for a model file
         import stable_baselines3  # noqa: F401

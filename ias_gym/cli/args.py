@@ -91,10 +91,11 @@ def policy_arguments(
     *,
     episodes: int,
     episodes_help: str = "number of episodes",
-    policies: str = "expert|teleop|random|PATH",
+    policies: str = "expert|teleop|random|shipped|PATH",
     policy_help: str = "the grip-transform expert (pen tasks), zero action (glove envs: the "
-    "glove alone drives the hand), uniform random actions, or a saved SB3 model (.zip, "
-    "loaded without running code from it)",
+    "glove alone drives the hand), uniform random actions, the model shipped for the env "
+    "(ias_gym/assets/policies), or a saved SB3 model (.zip, loaded without running code "
+    "from it)",
 ) -> None:
     """Add the policy and episode options of ``evaluate``, ``robustness`` and ``skills
     record``: ``--policy`` (default ``expert``), ``--trust-pickle``, ``--episodes N``

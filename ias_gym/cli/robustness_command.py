@@ -78,9 +78,10 @@ def add_robustness_command(subparsers: argparse._SubParsersAction[Any]) -> None:
         robustness,
         episodes=100,
         episodes_help="episodes per class",
-        policies="expert|random|PATH",
-        policy_help="the grip-transform expert, uniform random actions, or a saved SB3 model "
-        "(.zip, loaded without running code from it)",
+        policies="expert|random|shipped|PATH",
+        policy_help="the grip-transform expert, uniform random actions, the model shipped for "
+        "the env (ias_gym/assets/policies), or a saved SB3 model (.zip, loaded without "
+        "running code from it)",
     )
     parallel_arguments(robustness)
     robustness.add_argument(
