@@ -12,7 +12,15 @@ import pytest
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.envs.layout import layout_size, observation_layout
 
-PEN_ENVS = ("IAS-PenSlide-v0", "IAS-PenRotate-v0", "IAS-PenRotate3F-v0", "IAS-PenSkill-v0")
+# (the Shadow and LEAP hands' joints are not consecutive in qpos: gathered, not sliced)
+PEN_ENVS = (
+    "IAS-PenSlide-v0",
+    "IAS-PenRotate-v0",
+    "IAS-PenRotate3F-v0",
+    "IAS-PenRotate-Shadow-v0",
+    "IAS-PenRotate-LEAP-v0",
+    "IAS-PenSkill-v0",
+)
 
 
 def covered_columns(layout: dict[str, slice]) -> list[int]:

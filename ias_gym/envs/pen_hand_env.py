@@ -153,10 +153,12 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         # bindings builds a new array (about 0.3 us, several per step).
         d = self.data
         self._qpos, self._qvel, self._ctrl = d.qpos, d.qvel, d.ctrl
-        # Contiguous indices as slices (views instead of fancy-indexed copies).
-        self._hand_q_ix, self._hand_v_ix = as_index(self._hand_q), as_index(self._hand_v)
+        # The motors' ctrl as a view when they are consecutive (written in place), else
+        # by index.
         self._act_ix = as_index(self._act_ids)
-        self._reader = PenStateReader(self.model, d, p)  # the pen, the tips, their sensors
+        self._hand_ctrl = self._ctrl[self._act_ix] if isinstance(self._act_ix, slice) else None
+        # The hand's joints, the pen, the tips and their sensors: one read per step.
+        self._reader = PenStateReader(self.model, d, p)
         self.disturbances = self._build_disturbances()
         self._reward_keys: tuple[str, ...] | None = None
 
@@ -164,6 +166,7 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         mujoco.mj_forward(self.model, self.data)
         self._start_episode()
         self.action_space = spaces.Box(-1.0, 1.0, shape=(p.n_hand_dofs,), dtype=np.float32)
+        self._action_shape = self.action_space.shape
         obs_dim = len(self._observation())
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(obs_dim,), dtype=np.float64)
         #: The observation's parts in order, ``(name, size)`` each (:mod:`ias_gym.envs.layout`).
@@ -294,10 +297,11 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             ValueError: the action has the wrong shape or contains NaN or inf.
         """
         a = np.asarray(action, dtype=float)
-        if a.shape != self.action_space.shape:
-            raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
+        if a.shape != self._action_shape:
+            raise ValueError(f"action must have shape {self._action_shape}, got {a.shape}")
         # One sum instead of isfinite(a).all(): NaN and inf propagate into it (cheaper).
-        if not math.isfinite(float(a.sum())) and not np.isfinite(a).all():
+        # (np.add.reduce is what ndarray.sum calls, without its Python-level wrapper.)
+        if not math.isfinite(np.add.reduce(a)) and not np.isfinite(a).all():
             raise ValueError(f"action contains NaN or inf: {a}; actions must be finite")
         a = np.minimum(np.maximum(a, -1.0), 1.0)
         self._last_action = a
@@ -307,8 +311,12 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             a = dist.actuate(a)
             push = dist.push(self.time)
             d.xfrc_applied[self._pen_body, :3] = push[TO_PAPER_INDEX] * (1.0, -1.0, 1.0)
-        self._ctrl[self._act_ix] = a * self._ctrl_max
-        warnings_before = int(self._warnings.sum())
+        if self._hand_ctrl is not None:  # the motors' ctrl as a view: written in place
+            np.multiply(a, self._ctrl_max, out=self._hand_ctrl)
+        else:
+            self._ctrl[self._act_ix] = a * self._ctrl_max
+        # (a Python sum of the few counters costs a fifth of numpy's)
+        warnings_before = sum(self._warnings.tolist())
         mujoco.mj_step(m, d, nstep=self.frame_skip)
         self._steps += 1
         if dist is not None:
@@ -316,8 +324,8 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
             dist.draw_noise()
 
         # A diverging simulation makes MuJoCo warn (and reset its data).
-        self._unstable = int(self._warnings.sum()) > warnings_before or not math.isfinite(
-            float(self._qpos.sum()) + float(self._qvel.sum())
+        self._unstable = sum(self._warnings.tolist()) > warnings_before or not math.isfinite(
+            float(np.add.reduce(self._qpos)) + float(np.add.reduce(self._qvel))
         )
         if self._unstable:
             mujoco.mj_resetDataKeyframe(m, d, self._key)
@@ -364,25 +372,20 @@ class PenHandEnv(gym.Env[FloatArray, NDArray[Any]]):
         self._task_update()
 
     def _observation(self) -> FloatArray:
-        qpos, qvel = self._qpos, self._qvel
-        noise = self.sensor_noise
+        state, noise = self.state, self.sensor_noise
         if noise is not None:
-            vector = self.state.vector.copy()
+            joints, vector = state.joints.copy(), state.vector.copy()
+            n = len(noise.qpos)
+            joints[:n] += noise.qpos
+            joints[n:] += noise.qvel
             vector[12:] += noise.force.ravel()
             return np.concatenate(
-                [
-                    qpos[self._hand_q_ix] + noise.qpos,
-                    qvel[self._hand_v_ix] + noise.qvel,
-                    vector,
-                    (self._steps / self.max_steps,),
-                    self._task_observation(),
-                ]
+                [joints, vector, (self._steps / self.max_steps,), self._task_observation()]
             )
         return np.concatenate(
             [
-                qpos[self._hand_q_ix],
-                qvel[self._hand_v_ix],
-                self.state.vector,
+                state.joints,  # the hand's joint angles and velocities at _measure
+                state.vector,
                 (self._steps / self.max_steps,),
                 self._task_observation(),
             ]

@@ -54,16 +54,25 @@ class PenState:
             [rad/s] (3), net force of each fingertip on the pen [N] (k x 3).
         touching: ``(k,)`` bool, fingertip touches the pen.
         tip_x: ``(k,)`` each fingertip's position along the pen's axis from its centre [m].
+        joints: ``(2n,)`` the hand's n joint angles [rad], then their velocities [rad/s], in
+            the hand's joint order (the observation's first parts).
         position_error: ``|position|`` [m].
         tilt: angle between the pen's axis and its nominal direction (paper x) [rad].
     """
 
-    __slots__ = ("position_error", "tilt", "tip_x", "touching", "vector")
+    __slots__ = ("joints", "position_error", "tilt", "tip_x", "touching", "vector")
 
-    def __init__(self, vector: FloatArray, touching: NDArray[np.bool_], tip_x: FloatArray) -> None:
+    def __init__(
+        self,
+        vector: FloatArray,
+        touching: NDArray[np.bool_],
+        tip_x: FloatArray,
+        joints: FloatArray,
+    ) -> None:
         self.vector = vector
         self.touching = touching
         self.tip_x = tip_x
+        self.joints = joints
         x, y, z, ax = vector[:4].tolist()
         self.position_error = math.sqrt(x * x + y * y + z * z)
         self.tilt = math.acos(min(1.0, abs(ax)))

@@ -224,7 +224,10 @@ class PenRotateEnv(PenHandEnv):
     def _sample_initial_pose(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         position, rpy, contact_x = super()._sample_initial_pose()
         lo, hi = self.config.initial_error
-        rpy[2] = self.np_random.choice([-1.0, 1.0]) * self.np_random.uniform(lo, hi)
+        # The sign as rng.choice([-1.0, 1.0]) draws it (numpy's choice with replacement is
+        # integers(0, 2)), the same bits without its 4 us of argument handling.
+        sign = (-1.0, 1.0)[self.np_random.integers(0, 2)]
+        rpy[2] = sign * self.np_random.uniform(lo, hi)
         return position, rpy, contact_x
 
     def _task_update(self) -> None:
