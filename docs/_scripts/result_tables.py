@@ -10,7 +10,8 @@ JSON in ``docs/``                      written by                          table
 ``transfer_results.json``              ``train/transfer_table.py``         ``transfer.md``,
                                                                            ``transfer_skills.md``
 ``recognition_results.json``           ``train/recognition_table.py``      ``recognition.md``
-``assist_table_phase.json``            ``train/assist_table.py``           ``assistance.md``
+``assist_table_phase.json``,           ``train/assist_table.py``           ``assistance.md``
+``assist_table_residual.json``
 ``assist_population.json``             ``train/assist_population.py``      ``assist_population.md``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
@@ -218,21 +219,31 @@ def assist_population(result: Mapping[str, Any]) -> str:
     return intro + rows(["impairment", *arms.values(), "left out"], body)
 
 
-def assistance(phase: Mapping[str, Any]) -> str:
-    """The analytic assistant with the phase recogniser on population persons: success
-    [95 % interval] unassisted and assisted, the intervention, per impairment."""
+def assistance(phase: Mapping[str, Any], residual: Mapping[str, Any]) -> str:
+    """The analytic assistant with the phase recogniser and the learned residual on it (on
+    the true intent) on population persons: success [95 % interval] unassisted and assisted,
+    the intervention in brackets, per impairment."""
+    if (phase["population"], phase["seed"]) != (residual["population"], residual["seed"]):
+        raise ValueError("the two assistance tables are of different persons or seeds")
     body = []
     for impairment, row in phase["analytic+phase"].items():
+        other = residual["residual"][impairment]
         body.append(
             [
                 impairment,
                 interval(row["unassisted"]),
-                interval(row["assisted"]),
-                number(row["intervention"], 3),
+                f"{interval(row['assisted'])} ({number(row['intervention'], 3)})",
+                f"{interval(other['assisted'])} ({number(other['intervention'], 3)})",
                 str(row["excluded"]),
             ]
         )
-    header = ["impairment", "unassisted", "analytic + phase recogniser", "intervention", "left out"]
+    header = [
+        "impairment",
+        "unassisted",
+        "analytic + phase recogniser",
+        "residual PPO + true intent",
+        "left out",
+    ]
     table = rows(header, body)
     latency = phase.get("switch_latency", {}).get("analytic+phase")
     note = ""
@@ -247,8 +258,8 @@ def assistance(phase: Mapping[str, Any]) -> str:
         f"{n} persons of population seed {seed} (**{phase['set']}**) x "
         f"{len(phase['skills'])} skills, each impairment once per person and skill (reset "
         f"seeds {phase['seed']}-{phase['seed'] + len(phase['skills']) - 1}); success [95 % "
-        "interval] (successes/sessions judged), and the sessions left out for want of a "
-        "reference.\n\n"
+        "interval] (successes/sessions judged), the intervention in brackets, and the "
+        "sessions left out for want of a reference.\n\n"
     )
     return intro + table + note
 
@@ -488,7 +499,9 @@ def tables(docs: Path) -> dict[str, str]:
         "transfer.md": transfer(load("transfer_results.json")),
         "transfer_skills.md": transfer_skills(load("transfer_results.json")),
         "recognition.md": recognition(load("recognition_results.json")),
-        "assistance.md": assistance(load("assist_table_phase.json")),
+        "assistance.md": assistance(
+            load("assist_table_phase.json"), load("assist_table_residual.json")
+        ),
         "assist_population.md": assist_population(load("assist_population.json")),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "completion.md": completion(load("completion_table.json")),
