@@ -179,6 +179,7 @@ def test_pipeline_records_clones_saves_and_acts(
         ((), "overwrite"),  # results.json is there
         (("--heldout-seed", "5150"), "training persons' seed"),  # the training persons' own
         (("--heldout-persons", "0"), "population size 0"),
+        (("--randomise", "mass,gravity"), "unknown randomisation families ['gravity']"),
     ],
 )
 def test_script_refuses_bad_input_before_work(

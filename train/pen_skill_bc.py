@@ -92,6 +92,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--noise", type=float, default=0.001, help="DART noise std [normalised torque]"
     )
+    parser.add_argument(
+        "--randomise",
+        default="",
+        metavar="FAMILY,...",
+        help="record the expert under dynamics drawn per episode from these families of "
+        "ias_gym.learning.randomised_dynamics (e.g. nominal,friction,mass,push,action_noise,"
+        "internal_force_steps); empty: nominal dynamics",
+    )
     parser.add_argument("--record-seed", type=int, default=0, help="seed of the first demo")
     parser.add_argument("--epochs", type=int, default=100, help="cloning: passes over the data")
     parser.add_argument("--net-arch", default="256,256", help="hidden layers of actor, critic")
@@ -331,6 +339,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:  # before the heavy imports and any work
         if args.n_demos < 1:
             raise InputError(f"--n-demos must be >= 1, got {args.n_demos}")
+        if args.randomise:  # the families named, checked before any work
+            from ias_gym.learning.randomised_dynamics import Randomisation
+
+            Randomisation(families=tuple(_names(args.randomise)))
         check_population(args.train_persons, args.train_seed)
         check_population(args.heldout_persons, args.heldout_seed)
         if args.heldout_seed == args.train_seed:
@@ -381,17 +393,37 @@ def main(argv: Sequence[str] | None = None) -> int:
     env_kwargs: dict[str, Any] = {"hand": args.hand, "skill_ids": list(split.train)}
     library = str(train_db)
     env_kwargs["skill_db"] = library
-    demos_db = out / "demos.db"
-    if demos_db.exists():  # --overwrite: a fresh recording, not appended to the old one
-        for suffix in ("", "-wal", "-shm"):
-            Path(f"{demos_db}{suffix}").unlink(missing_ok=True)
     start = time.perf_counter()
-    record_noisy_expert(
-        ENV_ID, args.n_demos, demos_db, args.noise, seed=args.record_seed, env_kwargs=env_kwargs
-    )
-    demos = load_demonstrations(demos_db, ENV_ID, source="expert")
+    if args.randomise:
+        # Expert episodes under dynamics drawn per episode from the robustness suite's
+        # families (ias_gym.learning.randomised_dynamics), every visited state labelled.
+        from ias_gym.learning.expert_labelling import expert_dataset
+
+        randomisation = Randomisation(families=tuple(_names(args.randomise)))
+        import gymnasium as gym
+
+        steps = gym.spec(ENV_ID).max_episode_steps or 1  # labels per demonstration
+        dataset, _ = expert_dataset(
+            ENV_ID,
+            args.n_demos * steps,
+            seed=args.record_seed,
+            randomisation=randomisation,
+            env_kwargs=env_kwargs,
+            expert_noise=args.noise,
+        )
+        observations, actions, returns = dataset.observations, dataset.actions, None
+    else:
+        demos_db = out / "demos.db"
+        if demos_db.exists():  # --overwrite: a fresh recording, not appended to the old one
+            for suffix in ("", "-wal", "-shm"):
+                Path(f"{demos_db}{suffix}").unlink(missing_ok=True)
+        record_noisy_expert(
+            ENV_ID, args.n_demos, demos_db, args.noise, seed=args.record_seed, env_kwargs=env_kwargs
+        )
+        demos = load_demonstrations(demos_db, ENV_ID, source="expert")
+        observations, actions, returns = demos.observations, demos.actions, demos.returns
     print(
-        f"recorded {args.n_demos} demonstrations ({len(demos.actions)} successful steps) in "
+        f"recorded {args.n_demos} demonstrations ({len(actions)} labelled steps) in "
         f"{time.perf_counter() - start:.0f} s"
     )
 
@@ -399,9 +431,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     start = time.perf_counter()
     model = behaviour_clone(
         env,
-        demos.observations,
-        demos.actions,
-        demos.returns,
+        observations,
+        actions,
+        returns,
         epochs=args.epochs,
         net_arch=[int(n) for n in args.net_arch.split(",")],
         seed=args.seed,
@@ -467,7 +499,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             for name, spec in specs.items()
         }
         diagnosis[group] = open_loop_diagnosis(
-            visited, demos.observations, {n: specs[n] for n in ("bc", "bc_ppo")}, env_kwargs
+            visited, observations, {n: specs[n] for n in ("bc", "bc_ppo")}, env_kwargs
         )
         print(
             group,
@@ -487,7 +519,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "heldout_skills": heldout_skills,
         "heldout_persons": heldout_persons,
         "n_demos": args.n_demos,
-        "demo_steps": len(demos.actions),
+        "demo_steps": len(actions),
+        "randomise": _names(args.randomise),
         "noise": args.noise,
         "epochs": args.epochs,
         "ppo_steps": int(model.num_timesteps),
