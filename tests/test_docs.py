@@ -95,6 +95,7 @@ def test_every_results_table_is_made_from_its_json() -> None:
         "assistance.md",
         "assist_population.md",
         "pen_skill_bc.md",
+        "pen_skill_bc_robustness.md",
         "completion.md",
         "evaluation_pen.md",
         "learning.md",

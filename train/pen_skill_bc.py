@@ -33,6 +33,7 @@ import math
 import sys
 import time
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -116,6 +117,16 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--eval-seed", type=int, default=1000, help="first evaluation seed")
     parser.add_argument(
         "--max-eval-skills", type=int, default=0, help="per group at most N skills (0: all)"
+    )
+    parser.add_argument(
+        "--robustness-episodes",
+        type=int,
+        default=0,
+        help="episodes per disturbance class of the robustness suite, expert and BC on the "
+        "held-out persons' training skills (0: none)",
+    )
+    parser.add_argument(
+        "--robustness-seed", type=int, default=30000, help="first seed of the robustness suite"
     )
     parser.add_argument("--seed", type=int, default=0, help="training seed")
     parser.add_argument("--threads", type=int, default=1, help="torch threads")
@@ -275,6 +286,13 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+def policy_for(spec: str, env: Any) -> Any:
+    """The policy ``spec`` for ``env`` (:func:`ias_gym.baselines.policies.load_policy`)."""
+    from ias_gym.baselines.policies import load_policy
+
+    return load_policy(spec, env)
+
+
 def percent_interval(rate: dict[str, Any] | None) -> str:
     """``"83 % [71, 91]"`` from a :meth:`ias_gym.rates.Rate.to_dict` (``"-"`` for none)."""
     if rate is None:
@@ -326,6 +344,19 @@ def markdown(results: dict[str, Any]) -> str:
             f"| {group} | {d['steps']} | {d['max_abs_z']:.0f} (#{d['feature_of_max_z']}) | "
             f"{d['bc_action_rms_error']:.4f} | {d['bc_ppo_action_rms_error']:.4f} |"
         )
+    robustness = results.get("robustness") or {}
+    if robustness:
+        names = list(robustness)
+        lines += [
+            "",
+            "The robustness suite on the held-out persons' training skills (success per class):",
+            "",
+            "| class | " + " | ".join(names) + " |",
+            "|---|" + "---|" * len(names),
+        ]
+        for k, row in enumerate(robustness[names[0]]):
+            cells = [percent_interval(robustness[n][k]) for n in names]
+            lines.append(f"| {row['disturbance']} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -394,6 +425,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     library = str(train_db)
     env_kwargs["skill_db"] = library
     start = time.perf_counter()
+    observations: Any
+    actions: Any
+    returns: Any
     if args.randomise:
         # Expert episodes under dynamics drawn per episode from the robustness suite's
         # families (ias_gym.learning.randomised_dynamics), every visited state labelled.
@@ -506,6 +540,26 @@ def main(argv: Sequence[str] | None = None) -> int:
             {n: f"{s['success_rate']:.0%}" for n, s in groups[group].items()},
             flush=True,
         )
+    robustness: dict[str, list[dict[str, Any]]] = {}
+    if args.robustness_episodes > 0 and heldout_split.heldout_person:
+        from ias_gym.robustness import run_robustness
+
+        suite_env = {
+            "hand": args.hand,
+            "skill_db": str(heldout_db),
+            "skill_ids": list(heldout_split.heldout_person),
+        }
+        for name in ("expert", "bc"):
+            rows = run_robustness(
+                ENV_ID,
+                partial(policy_for, specs[name]),
+                args.robustness_episodes,
+                args.robustness_seed,
+                env_kwargs=suite_env,
+                progress=True,
+                name=name,
+            )
+            robustness[name] = [row.as_json() for row in rows]
     results = {
         "env": ENV_ID,
         "set": args.set,
@@ -528,6 +582,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "eval_seeds": eval_seeds,
         "groups": groups,
         "open_loop": diagnosis,
+        "robustness": robustness,
     }
     with atomic_output(out / "results.json", overwrite=True) as tmp:
         tmp.write_text(json.dumps(results, indent=1) + "\n")

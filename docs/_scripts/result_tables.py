@@ -277,22 +277,15 @@ def pen_skill_bc(result: Mapping[str, Any]) -> str:
     """Success [95 % interval] of the expert, BC and BC + PPO per training run and group,
     with the cloned policy's errors (random policies: 0 % in every group, in the JSON)."""
     body = []
-    intro = ""
     for run in result["runs"]:
         res = run["results"]
         n_persons, seed = res["heldout_population"]
-        intro = (
-            f"Held-out persons: {n_persons} of population seed {seed} "
-            f"(**{res['set']}**); training persons: {len(res['train_persons'])} of "
-            f"population seed {res['train_population'][1]}; one episode per session "
-            f"(seed {res['eval_seeds'][0]}).\n\n"
-        )
         for group, per_policy in res["groups"].items():
             bc = per_policy["bc"]
             open_loop = res.get("open_loop", {}).get(group, {})
             body.append(
                 [
-                    f"{res['hand']}, {len(res['train_persons'])} persons, {res['n_demos']} demos",
+                    f"{run['name']}; held-out: {n_persons} of seed {seed} ({res['set']})",
                     GROUPS.get(group, group),
                     *(interval(per_policy[p]["success"]) for p in ("expert", "bc", "bc_ppo")),
                     f"{number(bc.get('rms_position_error_mean_mm'), 2)} / "
@@ -302,7 +295,7 @@ def pen_skill_bc(result: Mapping[str, Any]) -> str:
                 ]
             )
     header = [
-        "training data",
+        "run",
         "group",
         "expert",
         "BC",
@@ -311,7 +304,29 @@ def pen_skill_bc(result: Mapping[str, Any]) -> str:
         "BC open-loop action err.",
         "max abs z",
     ]
-    return intro + rows(header, body)
+    return rows(header, body)
+
+
+def pen_skill_bc_robustness(result: Mapping[str, Any]) -> str:
+    """The robustness suite on the held-out persons' training skills: success [95 % interval]
+    of the expert and of each run's cloned policy per class (runs without it left out)."""
+    runs = [run for run in result["runs"] if run["results"].get("robustness")]
+    if not runs:
+        return "No run measured the robustness suite.\n"
+    columns: list[tuple[str, Any]] = []
+    experts = set()  # one expert column per hand and set of persons
+    for run in runs:
+        res = run["results"]
+        key = (res["hand"], tuple(res["heldout_population"]))
+        if key not in experts:
+            experts.add(key)
+            columns.append((f"expert ({res['hand']})", res["robustness"]["expert"]))
+        columns.append((f"BC: {run['name']}", res["robustness"]["bc"]))
+    body = [
+        [row["disturbance"], *(interval(rows_[k]) for _, rows_ in columns)]
+        for k, row in enumerate(columns[0][1])
+    ]
+    return rows(["class", *(name for name, _ in columns)], body)
 
 
 def completion(result: Mapping[str, Any]) -> str:
@@ -504,6 +519,7 @@ def tables(docs: Path) -> dict[str, str]:
         ),
         "assist_population.md": assist_population(load("assist_population.json")),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
+        "pen_skill_bc_robustness.md": pen_skill_bc_robustness(load("pen_skill_bc_results.json")),
         "completion.md": completion(load("completion_table.json")),
         "evaluation_pen.md": evaluation([load(name) for name in PEN_EVALUATION]),
         "learning.md": evaluation([load(name) for name in PEN_LEARNING]),
