@@ -85,12 +85,12 @@ def main(argv: list[str] | None = None) -> int:
         if out.with_suffix(suffix).exists() and not args.overwrite:
             print(f"{out.with_suffix(suffix)} exists (--overwrite)", file=sys.stderr)
             return 2
-    out.parent.mkdir(parents=True, exist_ok=True)
     try:
         persons = population_ids(args.persons, args.population_seed)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    out.parent.mkdir(parents=True, exist_ok=True)
     imps = list(IMPAIRMENTS) if args.impairments == "all" else args.impairments.split(",")
     templates = load_templates(args.db)
     assistants: dict[str, Any] = {"analytic": lambda: AnalyticAssistant(templates)}

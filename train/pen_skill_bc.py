@@ -286,20 +286,12 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
-def policy_for(spec: str, env: Any) -> Any:
-    """The policy ``spec`` for ``env`` (:func:`ias_gym.baselines.policies.load_policy`)."""
-    from ias_gym.baselines.policies import load_policy
-
-    return load_policy(spec, env)
-
-
 def percent_interval(rate: dict[str, Any] | None) -> str:
-    """``"83 % [71, 91]"`` from a :meth:`ias_gym.rates.Rate.to_dict` (``"-"`` for none)."""
-    if rate is None:
-        return "-"
-    return (
-        f"{rate['success_rate']:.0%} [{100 * rate['ci95_low']:.0f}, {100 * rate['ci95_high']:.0f}]"
-    ).replace("%", " %")
+    """A rate of the JSON (:meth:`ias_gym.rates.Rate.to_dict`) as :class:`~ias_gym.rates.Rate`
+    prints it; ``"-"`` for none."""
+    from ias_gym.rates import Rate
+
+    return "-" if rate is None else str(Rate(rate["successes"], rate["trials"]))
 
 
 def markdown(results: dict[str, Any]) -> str:
@@ -370,10 +362,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:  # before the heavy imports and any work
         if args.n_demos < 1:
             raise InputError(f"--n-demos must be >= 1, got {args.n_demos}")
+        randomisation = None
         if args.randomise:  # the families named, checked before any work
             from ias_gym.learning.randomised_dynamics import Randomisation
 
-            Randomisation(families=tuple(_names(args.randomise)))
+            randomisation = Randomisation(families=tuple(_names(args.randomise)))
         check_population(args.train_persons, args.train_seed)
         check_population(args.heldout_persons, args.heldout_seed)
         if args.heldout_seed == args.train_seed:
@@ -421,20 +414,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     if leaked:  # split_skills excludes them; a second check costs nothing
         raise AssertionError(f"held-out persons {leaked} in the training data")
 
-    env_kwargs: dict[str, Any] = {"hand": args.hand, "skill_ids": list(split.train)}
     library = str(train_db)
-    env_kwargs["skill_db"] = library
+    env_kwargs: dict[str, Any] = {
+        "hand": args.hand,
+        "skill_db": library,
+        "skill_ids": list(split.train),
+    }
     start = time.perf_counter()
     observations: Any
     actions: Any
     returns: Any
-    if args.randomise:
+    if randomisation is not None:
         # Expert episodes under dynamics drawn per episode from the robustness suite's
         # families (ias_gym.learning.randomised_dynamics), every visited state labelled.
-        from ias_gym.learning.expert_labelling import expert_dataset
-
-        randomisation = Randomisation(families=tuple(_names(args.randomise)))
         import gymnasium as gym
+
+        from ias_gym.learning.expert_labelling import expert_dataset
 
         steps = gym.spec(ENV_ID).max_episode_steps or 1  # labels per demonstration
         dataset, _ = expert_dataset(
@@ -542,6 +537,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     robustness: dict[str, list[dict[str, Any]]] = {}
     if args.robustness_episodes > 0 and heldout_split.heldout_person:
+        from ias_gym.baselines.policies import load_policy
         from ias_gym.robustness import run_robustness
 
         suite_env = {
@@ -552,7 +548,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for name in ("expert", "bc"):
             rows = run_robustness(
                 ENV_ID,
-                partial(policy_for, specs[name]),
+                partial(load_policy, specs[name]),
                 args.robustness_episodes,
                 args.robustness_seed,
                 env_kwargs=suite_env,
