@@ -124,5 +124,10 @@ class SkillNotFoundError(SkillDBError):
     """No skill with the requested id."""
 
 
+class OfflineDatasetError(InputError):
+    """A dataset for offline RL that cannot be used: missing, empty, of another env, or of
+    other observation or action shapes than the env's (the message names the dataset)."""
+
+
 class SkillTransferError(InputError):
     """A stored skill cannot be transferred (no contacts, too short, ...); says which."""
