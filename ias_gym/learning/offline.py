@@ -135,7 +135,13 @@ def load_offline_dataset(dataset_id: str, env_id: str) -> OfflineDataset:
         env.close()
     try:
         dataset = minari.load_dataset(dataset_id)
-    except (FileNotFoundError, ValueError) as exc:
+    except FileNotFoundError:
+        raise OfflineDatasetError(
+            f"Minari dataset {dataset_id!r} cannot be loaded: there is none of that id under "
+            "MINARI_DATASETS_PATH (default ~/.minari/datasets); write one with "
+            "`ias-gym skills export`"
+        ) from None
+    except ValueError as exc:  # a malformed id or metadata
         raise OfflineDatasetError(
             f"Minari dataset {dataset_id!r} cannot be loaded: {exc}"
         ) from None
