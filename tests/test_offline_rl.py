@@ -169,3 +169,27 @@ def test_the_script_refuses_bad_data_in_one_line_with_exit_2(
     assert script.main([*argv, "--json", str(out)]) == 2
     assert "--overwrite" in capsys.readouterr().err
     assert json.loads(out.read_text()) == {}
+
+
+def test_the_table_collects_cells_and_refuses_a_second_run_of_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    table = load_train_script("offline_table")
+    cell = {
+        "env": ENV_ID,
+        "dataset_id": "test/slide-v0",
+        "algorithm": "bc",
+        "runs": [],
+        "command": "python train/offline_rl.py ...",
+        "set": "development",
+        "eval_seeds": [0, 9],
+    }
+    run = tmp_path / "bc.json"
+    run.write_text(json.dumps(cell))
+    out = tmp_path / "table.json"
+    assert table.main([str(run), "--out", str(out)]) == 0
+    written = json.loads(out.read_text())
+    assert written["cells"] == [cell] and "pen-human" in written["reference"]["dataset"]
+    assert table.main([str(run), str(run), "--out", str(tmp_path / "two.json")]) == 2
+    assert "a second run of bc" in capsys.readouterr().err
+    assert not (tmp_path / "two.json").exists()
