@@ -89,6 +89,7 @@ def test_an_iteration_labels_exactly_the_states_the_learner_visited(run: DaggerR
     rows = slice(first.dataset_size, None)
     new_obs = result.dataset.observations[rows]
     new_labels = result.dataset.actions[rows]
+    kept = 0
     offset = 0
     for k in range(second.episodes):
         dynamics = episode_dynamics(3, second.episodes + k)
@@ -99,8 +100,12 @@ def test_an_iteration_labels_exactly_the_states_the_learner_visited(run: DaggerR
         # the visited states: every observation the learner acted on, none other
         assert trajectory.observations is not None
         np.testing.assert_array_equal(episode.observations, trajectory.observations[:-1])
-        np.testing.assert_array_equal(new_obs[offset : offset + steps], episode.observations)
-        np.testing.assert_array_equal(new_labels[offset : offset + steps], episode.labels)
+        # the dataset holds those where the expert's grasp model held, in order
+        observations, labels = episode.teaching_pairs()
+        assert len(labels) == int(episode.held.sum())
+        np.testing.assert_array_equal(new_obs[kept : kept + len(labels)], observations)
+        np.testing.assert_array_equal(new_labels[kept : kept + len(labels)], labels)
+        kept += len(labels)
         # the learner acted ...
         acted = learner.predict(episode.observations.astype(np.float32), deterministic=True)[0]
         np.testing.assert_allclose(trajectory.actions, acted, rtol=1e-6, atol=1e-7)
@@ -109,7 +114,7 @@ def test_an_iteration_labels_exactly_the_states_the_learner_visited(run: DaggerR
         np.testing.assert_array_equal(observations, episode.observations)
         np.testing.assert_allclose(episode.labels, labels, rtol=1e-6, atol=1e-7)
         offset += steps
-    assert offset == second.labels_added
+    assert kept == second.labels_added <= offset
 
 
 def test_the_expert_alone_labels_its_own_actions() -> None:
@@ -117,6 +122,28 @@ def test_the_expert_alone_labels_its_own_actions() -> None:
     episode = collect_episode(ENV_ID, dynamics, None, 1.0, env_kwargs=ENV_KWARGS)
     assert episode.expert_fraction == 1.0
     np.testing.assert_array_equal(episode.trajectory.actions, episode.labels)
+    assert episode.held.all()  # the expert holds the pen it carries
+
+
+class _NoTorque:
+    """A learner that lets go: zero torque on every joint."""
+
+    def predict(self, observation: Any, state: Any = None, **_: Any) -> tuple[np.ndarray, Any]:
+        return np.zeros(12, dtype=np.float32), state
+
+
+def test_states_the_expert_cannot_hold_teach_nothing() -> None:
+    """A learner that lets go drops the pen within a few steps; the states after it has
+    gone are labelled (the expert runs on) but kept out of the teaching pairs."""
+    dynamics = episode_dynamics(0, 0)
+    episode = collect_episode(ENV_ID, dynamics, _NoTorque(), 0.0, env_kwargs=ENV_KWARGS)
+    assert episode.trajectory.terminated  # dropped
+    assert episode.held[0] and not episode.held[-1]
+    observations, labels = episode.teaching_pairs()
+    np.testing.assert_array_equal(labels, episode.labels[episode.held])
+    np.testing.assert_array_equal(observations, episode.observations[episode.held])
+    # what the expert asks for once the pen has gone is far from what it asks while holding
+    assert np.abs(episode.labels[~episode.held]).max() > 2 * np.abs(labels).max()
 
 
 def test_noise_on_the_expert_acts_but_never_reaches_the_labels() -> None:

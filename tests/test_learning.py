@@ -215,6 +215,42 @@ def test_bc_then_ppo_runs_and_saves(demo_db: Path, tmp_path: Path) -> None:
     env.close()
 
 
+class _LineEnv(gym.Env):  # type: ignore[type-arg]
+    """Spaces only: 3 observed numbers, 2 torques (for cloning a synthetic relation)."""
+
+    observation_space = gym.spaces.Box(-np.inf, np.inf, (3,), np.float64)
+    action_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
+
+
+def test_robust_cloning_is_not_pulled_by_a_few_outlying_labels() -> None:
+    """Labels of a smooth law (|a| <= 0.03) plus 0.5 % at the actuator limit (the expert's
+    asks on states it cannot hold): the squared error bends the fit toward them, Huber's
+    loss fits the law as if they were not there."""
+    rng = np.random.default_rng(0)
+    obs = rng.normal(size=(4000, 3))
+    law = np.stack([0.01 * obs[:, 0] - 0.005 * obs[:, 1], 0.008 * obs[:, 2]], axis=1)
+    labels = law.astype(np.float32).copy()
+    outliers = rng.choice(len(obs), 20, replace=False)
+    labels[outliers] = 1.0
+    clean = np.setdiff1d(np.arange(len(obs)), outliers)
+    errors = {}
+    for robust in (False, True):
+        model = behaviour_clone(
+            _LineEnv(),
+            obs,
+            labels,
+            epochs=30,
+            net_arch=(32,),
+            seed=1,
+            progress=False,
+            robust=robust,
+        )
+        predicted = predicted_actions(model, obs[clean], clip=False)
+        errors[robust] = float(np.sqrt(np.mean((predicted - law[clean]) ** 2)))
+    assert errors[True] < 0.5 * errors[False]
+    assert errors[True] < 0.1 * np.abs(law).mean()
+
+
 def test_policy_kwargs_build_sac() -> None:
     from stable_baselines3 import SAC
 

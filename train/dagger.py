@@ -118,6 +118,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="train one learner on over the iterations (else a new one each iteration); "
         "the BC baseline then gets DAgger's total number of Adam steps",
     )
+    parser.add_argument(
+        "--loss",
+        choices=("huber", "mse"),
+        default="huber",
+        help="cloning loss of DAgger and of the BC baseline: Huber's (a few of the expert's "
+        "near-saturated labels cannot dominate the fit) or the squared error",
+    )
     parser.add_argument("--no-randomisation", action="store_true", help="nominal dynamics only")
     parser.add_argument(
         "--families",
@@ -276,6 +283,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         epochs=args.epochs,
         max_gradient_steps=max_steps,
         warm_start=args.warm_start,
+        robust=args.loss == "huber",
         on_iteration=on_iteration,
     )
     dagger_s = time.perf_counter() - start
@@ -307,6 +315,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             epochs=baseline_epochs,
             seed=args.seed,
             progress=False,
+            robust=args.loss == "huber",
         )
         baseline.save(baseline_path(out))
         bc_s = time.perf_counter() - start
@@ -338,6 +347,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "epochs": args.epochs,
         "max_gradient_steps": max_steps,
         "warm_start": args.warm_start,
+        "loss": args.loss,
         "bc_epochs": baseline_epochs,
         "expert_labels": labels,
         "randomisation": dataclasses.asdict(randomisation),

@@ -105,6 +105,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--epochs", type=int, default=100, help="cloning: passes over the data")
     parser.add_argument("--net-arch", default="256,256", help="hidden layers of actor, critic")
     parser.add_argument(
+        "--loss",
+        choices=("mse", "huber"),
+        default="mse",
+        help="cloning loss: the squared error or Huber's (a few of the expert's near-saturated "
+        "labels, e.g. under --randomise, cannot dominate the fit)",
+    )
+    parser.add_argument(
         "--ppo-steps", type=int, default=8192, help="PPO fine-tuning environment steps"
     )
     parser.add_argument(
@@ -466,6 +473,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         epochs=args.epochs,
         net_arch=[int(n) for n in args.net_arch.split(",")],
         seed=args.seed,
+        robust=args.loss == "huber",
     )
     with atomic_output(out / "bc.zip", overwrite=True) as tmp:
         model.save(tmp)
@@ -573,6 +581,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "randomise": _names(args.randomise),
         "noise": args.noise,
         "epochs": args.epochs,
+        "loss": args.loss,
         "ppo_steps": int(model.num_timesteps),
         "validation": [list(h) for h in history],
         "eval_seeds": eval_seeds,

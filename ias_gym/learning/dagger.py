@@ -63,7 +63,8 @@ class IterationRecord:
         iteration: its index (0: expert rollouts only).
         beta: probability the expert acted on a step [-].
         episodes: episodes collected.
-        labels_added: pairs added (the steps visited).
+        labels_added: pairs added (the visited states where the expert's grasp model held,
+            :meth:`~ias_gym.learning.expert_labelling.LabelledEpisode.teaching_pairs`).
         dataset_size: pairs after aggregation.
         rollout_success_rate: fraction of its episodes that succeeded (mixture acting) [-].
         expert_fraction: fraction of its steps where the expert's action was executed [-].
@@ -144,6 +145,7 @@ def dagger(
     lr: float = 1e-3,
     net_arch: Sequence[int] = DEFAULT_NET_ARCH,
     warm_start: bool = False,
+    robust: bool = True,
     keep_models: bool = False,
     progress: bool = True,
     on_iteration: Callable[[IterationRecord, PPO], None] | None = None,
@@ -179,6 +181,9 @@ def dagger(
         warm_start: continue fitting the previous iteration's learner on the aggregated
             dataset (its observation normalisation, from iteration 0's data, kept) instead
             of cloning a new one; the optimisation then accumulates over the iterations.
+        robust: clone by Huber's loss (:func:`~ias_gym.learning.cloning.behaviour_clone`'s
+            ``robust``); ``False``: the squared error, which a few of the expert's
+            near-saturated labels on the learner's failing states can dominate.
         keep_models: keep the learner of every iteration in the result (not with
             ``warm_start``, which trains one learner on).
         progress: a progress bar over the episodes.
@@ -238,7 +243,7 @@ def dagger(
                     env_kwargs=env_kwargs,
                     expert_noise=expert_noise,
                 )
-                dataset.extend(episode.observations, episode.labels)
+                dataset.extend(*episode.teaching_pairs())
                 episodes.append(episode)
                 bar.update(1)
                 bar.set_postfix(iteration=iteration, beta=f"{beta:.2g}", pairs=len(dataset))
@@ -256,6 +261,7 @@ def dagger(
                 seed=seed + iteration if warm_start else seed,
                 progress=False,
                 model=learner if warm_start else None,
+                robust=robust,
             )
             families: dict[str, int] = {}
             family_successes: dict[str, int] = {}
@@ -268,7 +274,7 @@ def dagger(
                 iteration=iteration,
                 beta=beta,
                 episodes=len(episodes),
-                labels_added=steps,
+                labels_added=sum(int(e.held.sum()) for e in episodes),
                 dataset_size=len(dataset),
                 rollout_success_rate=float(np.mean([e.trajectory.is_success for e in episodes])),
                 expert_fraction=float(
