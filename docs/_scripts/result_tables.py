@@ -413,33 +413,39 @@ def evaluation(results: Sequence[Mapping[str, Any]]) -> str:
 
 
 def dagger(result: Mapping[str, Any]) -> str:
-    """Each DAgger run beside its behaviour-cloning baseline, per disturbance class."""
-    runs = result["runs"]
+    """Each DAgger run beside its behaviour-cloning baseline, per disturbance class; one table
+    per env."""
     learners = ("dagger", "bc")
-    classes = list(runs[0]["evaluation"]["dagger"])
-    body = []
-    for name in classes:
-        row = [f"`{name}`"]
-        for run in runs:
-            for learner in learners:
-                s = run["evaluation"][learner][name]
-                row.append(
-                    f"{percent(s['success_rate'])} [{100 * s['ci95_low']:.0f}, "
-                    f"{100 * s['ci95_high']:.0f}]"
-                )
-        body.append(row)
-    header = ["disturbance"]
-    header += [
-        f"{'DAgger' if lr == 'dagger' else 'BC'} ({run['run']})" for run in runs for lr in learners
-    ]
-    intro = "".join(
-        f"- `{run['run']}`: {run['note']}; {run['expert_labels']} expert labels, "
-        f"{run['evaluation_set']} seeds from {run['evaluation_first_seed']}, "
-        f"{run['evaluation_episodes_per_class']} episodes per class: "
-        f"`{result['reproduce'][run['run']]}`\n"
-        for run in runs
-    )
-    return f"{runs[0]['env']}; success [95 % interval].\n\n" + intro + "\n" + rows(header, body)
+    parts = []
+    for env in dict.fromkeys(run["env"] for run in result["runs"]):
+        runs = [run for run in result["runs"] if run["env"] == env]
+        classes = list(runs[0]["evaluation"]["dagger"])
+        body = []
+        for name in classes:
+            row = [f"`{name}`"]
+            for run in runs:
+                for learner in learners:
+                    s = run["evaluation"][learner][name]
+                    row.append(
+                        f"{percent(s['success_rate'])} [{100 * s['ci95_low']:.0f}, "
+                        f"{100 * s['ci95_high']:.0f}]"
+                    )
+            body.append(row)
+        header = ["disturbance"]
+        header += [
+            f"{'DAgger' if lr == 'dagger' else 'BC'} ({run['run']})"
+            for run in runs
+            for lr in learners
+        ]
+        intro = "".join(
+            f"- `{run['run']}`: {run['note']}; {run['expert_labels']} expert labels, "
+            f"{run['evaluation_set']} seeds from {run['evaluation_first_seed']}, "
+            f"{run['evaluation_episodes_per_class']} episodes per class: "
+            f"`{result['reproduce'][run['run']]}`\n"
+            for run in runs
+        )
+        parts.append(f"{env}; success [95 % interval].\n\n" + intro + "\n" + rows(header, body))
+    return "\n\n".join(parts)
 
 
 def benchmark(result: Mapping[str, Any]) -> str:
