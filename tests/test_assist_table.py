@@ -51,13 +51,13 @@ def test_the_residual_refuses_a_bad_population_and_writes_nothing(
 
 
 def test_a_score_gives_its_successes_with_intervals() -> None:
-    score = ImpairmentScore(0.5, 1.0, 0.1, sessions=30, excluded=2)
+    score = ImpairmentScore(15, 30, 0.1, sessions=30, excluded=2)
     row = score.to_json()
     assert row["unassisted"]["successes"] == 15 and row["unassisted"]["trials"] == 30
     assert row["assisted"]["successes"] == 30
     low, high = row["unassisted"]["ci95_low"], row["unassisted"]["ci95_high"]
     assert low < 0.5 < high and high - low > 0.3  # 30 sessions: a wide interval
     assert row["assisted"]["ci95_high"] == 1.0 and row["assisted"]["ci95_low"] < 0.9
-    assert (
-        ImpairmentScore(float("nan"), float("nan"), float("nan"), 0).to_json()["assisted"] is None
-    )
+    assert row["success_unassisted"] == 0.5 and row["sessions"] == 30
+    empty = ImpairmentScore(0, 0, float("nan"), 0).to_json()
+    assert empty["assisted"] is None and empty["success_assisted"] is None

@@ -47,11 +47,11 @@ def percent(value: float | None) -> str:
 
 
 def interval(rate: Mapping[str, Any]) -> str:
-    """A rate of the JSON (:meth:`ias_gym.rates.Rate.to_dict`) as ``84 % [75, 90] (42/50)``."""
-    return (
-        f"{percent(rate['success_rate'])} [{100 * rate['ci95_low']:.0f}, "
-        f"{100 * rate['ci95_high']:.0f}] ({rate['successes']}/{rate['trials']})"
-    )
+    """A rate of the JSON (:meth:`ias_gym.rates.Rate.to_dict`) as ``84 % [75, 90] (42/50)``:
+    its counts, checked and printed by :class:`ias_gym.rates.Rate`."""
+    from ias_gym.rates import Rate
+
+    return str(Rate(int(rate["successes"]), int(rate["trials"])))
 
 
 def number(value: float | None, digits: int) -> str:

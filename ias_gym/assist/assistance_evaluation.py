@@ -31,8 +31,8 @@ class ImpairmentScore:
     """Success with and without the assistant for one impairment.
 
     Attributes:
-        success_unassisted: share of sessions that succeed without the assistant [-].
-        success_assisted: with it [-].
+        successes_unassisted: sessions that succeed without the assistant.
+        successes_assisted: with it.
         intervention: the assistant's mean intervention [-] (:mod:`ias_gym.assist.sessions`).
         sessions: number of sessions of each kind that count.
         excluded: sessions left out for want of a reference (:func:`reference_session`): the
@@ -42,12 +42,22 @@ class ImpairmentScore:
             ones included (not part of :meth:`to_json`: a table's per-session file).
     """
 
-    success_unassisted: float
-    success_assisted: float
+    successes_unassisted: int
+    successes_assisted: int
     intervention: float
     sessions: int
     excluded: int = 0
     records: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def success_unassisted(self) -> float:
+        """Share of the sessions that succeed without the assistant (NaN: no session) [-]."""
+        return self.successes_unassisted / self.sessions if self.sessions else math.nan
+
+    @property
+    def success_assisted(self) -> float:
+        """Share of the sessions that succeed with it (NaN: no session) [-]."""
+        return self.successes_assisted / self.sessions if self.sessions else math.nan
 
     def to_json(self) -> dict[str, Any]:
         """The three shares as a JSON object (``sessions`` and ``excluded`` as well; null
@@ -66,12 +76,10 @@ class ImpairmentScore:
             "sessions": self.sessions,
             "excluded": self.excluded,
             **{
-                name: Rate(round(share * self.sessions), self.sessions).to_dict()
-                if self.sessions
-                else None
-                for name, share in (
-                    ("unassisted", self.success_unassisted),
-                    ("assisted", self.success_assisted),
+                name: Rate(successes, self.sessions).to_dict() if self.sessions else None
+                for name, successes in (
+                    ("unassisted", self.successes_unassisted),
+                    ("assisted", self.successes_assisted),
                 )
             },
         }
@@ -188,11 +196,10 @@ def evaluate_assistance(
                 interv.append(assisted.intervention)
                 if progress is not None:
                     progress()
-        nan = math.nan
         out[imp] = ImpairmentScore(
-            float(np.mean(ok_u)) if ok_u else nan,
-            float(np.mean(ok_a)) if ok_a else nan,
-            float(np.mean(interv)) if interv else nan,
+            sum(ok_u),
+            sum(ok_a),
+            float(np.mean(interv)) if interv else math.nan,
             len(ok_u),
             excluded,
             records,
