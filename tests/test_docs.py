@@ -103,6 +103,7 @@ def test_every_results_table_is_made_from_its_json() -> None:
         "robustness_shadow.md",
         "robustness_leap.md",
         "dagger.md",
+        "offline_rl.md",
         *(f"{name}.md" for name in result_tables.BENCHMARKS),
     }
     for name, table in tables.items():

@@ -15,6 +15,8 @@ JSON in ``docs/``                      written by                          table
 ``assist_population.json``             ``train/assist_population.py``      ``assist_population.md``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
+``offline_rl_results.json``            ``train/offline_rl.py`` (runs),      ``offline_rl.md``
+                                       ``train/offline_table.py``
 ``robustness_{penslide,penrotate}_     ``ias-gym robustness --json`` kept   ``robustness_pen.md``
 {expert,bc,random}.json``              by ``train/keep_run.py``
 ``evaluation_{penslide,penrotate}_     ``ias-gym evaluate --json``, the     ``evaluation_pen.md``
@@ -347,6 +349,70 @@ def completion(result: Mapping[str, Any]) -> str:
     return intro + rows(header, body)
 
 
+#: The columns of the offline-RL table: (algorithm key of the JSON, heading).
+OFFLINE_COLUMNS = (
+    ("bc", "BC"),
+    ("iql", "IQL"),
+    ("cql", "CQL"),
+    ("awac", "AWAC"),
+    ("sb3_bc", "BC (ias-gym)"),
+)
+
+
+def offline_rl(result: Mapping[str, Any]) -> str:
+    """CORL's layout: a row per dataset, a column per method, the normalised score (random
+    0, expert 100) as mean +- std over training seeds, the success rate below; the
+    published D4RL pen-human scores as a reference row."""
+    cells = {(c["dataset_id"], c["algorithm"]): c for c in result["cells"]}
+    datasets = list(dict.fromkeys(c["dataset_id"] for c in result["cells"]))
+    header = ["dataset", *(name for _, name in OFFLINE_COLUMNS)]
+
+    def cell(dataset: str, algo: str, key: str, scale: float, digits: int) -> str:
+        c = cells.get((dataset, algo))
+        if c is None:
+            return "-"
+        mean, std = scale * c[f"{key}_mean"], scale * c[f"{key}_std"]
+        return f"{mean:.{digits}f} ± {std:.{digits}f}"
+
+    scores = [
+        [f"`{d}`", *(cell(d, a, "normalised_score", 1.0, 1) for a, _ in OFFLINE_COLUMNS)]
+        for d in datasets
+    ]
+    ref = result["reference"]
+    scores.append(
+        [
+            f"{ref['dataset']} (D4RL Adroit, published: reference)",
+            *(
+                "-"
+                if a not in ref["normalised_score"]
+                else "{:.1f} ± {:.1f}".format(*ref["normalised_score"][a])
+                for a, _ in OFFLINE_COLUMNS
+            ),
+        ]
+    )
+    success = [
+        [f"`{d}`", *(cell(d, a, "success_rate", 100.0, 0) for a, _ in OFFLINE_COLUMNS)]
+        for d in datasets
+    ]
+    runs = "".join(
+        f"- `{c['dataset_id']}`, {c['algorithm']}: {c['steps']} {c['steps_unit']}, seeds "
+        f"{', '.join(str(r['seed']) for r in c['runs'])}, {c['eval_episodes']} {c['set']} "
+        f"episodes (seeds {c['eval_seeds'][0]}-{c['eval_seeds'][1]}), "
+        f"{max(r['train_seconds'] for r in c['runs']) / 60:.1f} min a run at most: "
+        f"`{c['command']}`\n"
+        for c in result["cells"]
+    )
+    return (
+        "Normalised score (random 0, expert 100), mean ± std over training seeds:\n\n"
+        + rows(header, scores)
+        + "\nSuccess rate [%], mean ± std over the same runs:\n\n"
+        + rows(header, success)
+        + "\n"
+        + runs
+        + f"\nReference: {ref['source']}.\n"
+    )
+
+
 def robustness(results: Sequence[Mapping[str, Any]]) -> str:
     """Success with its 95 % Wilson interval per disturbance class, one column per run of
     ``ias-gym robustness --json`` (kept by ``train/keep_run.py`` with the command and
@@ -527,6 +593,7 @@ def tables(docs: Path) -> dict[str, str]:
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "pen_skill_bc_robustness.md": pen_skill_bc_robustness(load("pen_skill_bc_results.json")),
         "completion.md": completion(load("completion_table.json")),
+        "offline_rl.md": offline_rl(load("offline_rl_results.json")),
         "evaluation_pen.md": evaluation([load(name) for name in PEN_EVALUATION]),
         "learning.md": evaluation([load(name) for name in PEN_LEARNING]),
         "robustness_pen.md": robustness([load(name) for name in PEN_ROBUSTNESS]),

@@ -22,6 +22,8 @@ commands), one module each:
   ~20k pairs: 100 %; 30 epochs: 2 %) and an exploration noise the task tolerates.
 - :mod:`ias_gym.learning.finetune`: PPO with tiny steps, the actor frozen while the critic
   warms up, the best policy on validation seeds kept; SB3 training envs and callbacks.
+- :mod:`ias_gym.learning.offline`: offline RL on Minari datasets with d3rlpy (BC, IQL, CQL;
+  the ``[offline]`` extra) beside the cloning above, on the same data.
 """
 
 # Checked once here, before any module of the package loads, for one clear message instead
