@@ -96,6 +96,7 @@ def test_every_results_table_is_made_from_its_json() -> None:
         "assist_population.md",
         "pen_skill_bc.md",
         "pen_skill_bc_robustness.md",
+        "dagger_seeds.md",
         "completion.md",
         "evaluation_pen.md",
         "learning.md",
@@ -180,7 +181,9 @@ def test_every_readme_snippet_runs(index: int, tmp_path: Path) -> None:
 
 
 def test_the_robustness_table_follows_its_numbers() -> None:
-    row = {"success_rate": 0.5, "ci95_low": 0.1, "ci95_high": 0.9, "successes": 1, "trials": 2}
+    from ias_gym.rates import Rate
+
+    row = Rate(1, 2).to_dict()  # the table prints a rate from its counts
     result = {
         "env": "E",
         "policy": "expert",
@@ -189,14 +192,14 @@ def test_the_robustness_table_follows_its_numbers() -> None:
         "set": "held-out",
         "command": "ias-gym robustness ...",
         "rows": [
-            {"disturbance": "nominal", **row, "success_rate": 1.0},
+            {"disturbance": "nominal", **Rate(2, 2).to_dict()},
             {"disturbance": "push", **row},
             {"disturbance": "all", "success_rate": 0.75},
         ],
     }
     table = result_tables.robustness([result, {**result, "policy": "random"}])
     assert "held-out seeds 7-8" in table
-    assert "| `push` | 50 % [10, 90] (1/2) | 50 % [10, 90] (1/2) |" in table
+    assert "| `push` | 50 % [9, 91] (1/2) | 50 % [9, 91] (1/2) |" in table
     assert "| **minimum** | 50 % | 50 % |" in table and "`all`" not in table
     assert "| disturbance | expert `E` | random `E` |" in table
 

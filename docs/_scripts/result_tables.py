@@ -26,6 +26,7 @@ JSON in ``docs/``                      written by                          table
 ``robustness_shadow.json``             the same                            ``robustness_shadow.md``
 ``robustness_leap.json``               the same                            ``robustness_leap.md``
 ``dagger_results.json``                ``train/dagger.py`` (runs)          ``dagger.md``
+``dagger_results.json``                ``train/dagger.py`` (seed_runs)     ``dagger_seeds.md``
 ``benchmarks/NAME.json``               ``bench/NAME.py --json``            ``NAME.md``
                                        (``make bench``: all of them)
 =====================================  ==================================  =================
@@ -514,6 +515,37 @@ def dagger(result: Mapping[str, Any]) -> str:
     return "\n\n".join(parts)
 
 
+def dagger_seeds(result: Mapping[str, Any]) -> str:
+    """Per env and class, DAgger's and BC's success over training seeds: mean +- standard
+    deviation (the seeds' own values in brackets)."""
+    import statistics
+
+    runs = result["seed_runs"]
+    parts = []
+    for env in dict.fromkeys(run["env"] for run in runs):
+        mine = sorted((r for r in runs if r["env"] == env), key=lambda r: r["train_seed"])
+        first = mine[0]
+        body = []
+        for name in first["evaluation"]["dagger"]:
+            row = [f"`{name}`"]
+            for learner in ("dagger", "bc"):
+                values = [100 * r["evaluation"][learner][name]["success_rate"] for r in mine]
+                each = ", ".join(f"{v:.0f}" for v in values)
+                row.append(
+                    f"{statistics.mean(values):.0f} +- {statistics.stdev(values):.0f} ({each})"
+                )
+            body.append(row)
+        seeds = ", ".join(str(r["train_seed"]) for r in mine)
+        parts.append(
+            f"{env}: training seeds {seeds}; {first['evaluation_set']} seeds from "
+            f"{first['evaluation_first_seed']}, {first['evaluation_episodes_per_class']} "
+            "episodes per class; success [%], mean +- standard deviation over the training "
+            f"seeds (each seed's): `{result['reproduce_seed_runs'][env]}`\n\n"
+            + rows(["disturbance", "DAgger", "BC"], body)
+        )
+    return "\n\n".join(parts)
+
+
 def benchmark(result: Mapping[str, Any]) -> str:
     """One run of a ``bench/`` script (``bench/report.py``): its tables, goals and machine."""
     if result.get("schema") != "ias-gym/bench-v1":
@@ -600,6 +632,7 @@ def tables(docs: Path) -> dict[str, str]:
         "robustness_shadow.md": robustness([load("robustness_shadow.json")]),
         "robustness_leap.md": robustness([load("robustness_leap.json")]),
         "dagger.md": dagger(load("dagger_results.json")),
+        "dagger_seeds.md": dagger_seeds(load("dagger_results.json")),
         **{f"{name}.md": benchmark(load(f"benchmarks/{name}.json")) for name in BENCHMARKS},
     }
 
