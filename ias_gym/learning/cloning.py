@@ -142,7 +142,6 @@ def behaviour_clone(
     obs_t = torch.as_tensor(obs)
     act_t = torch.as_tensor(act)
     act_scale = torch.as_tensor(np.maximum(act.std(axis=0), ACTION_STD_FLOOR))
-    huber = torch.nn.HuberLoss(delta=HUBER_DELTA)
     fit_value = returns is not None
     if fit_value:
         ret_t = torch.as_tensor(np.asarray(returns, dtype=np.float32) * reward_scale)
@@ -169,7 +168,11 @@ def behaviour_clone(
             features = policy.extract_features(obs_t[idx])
             latent_pi, latent_vf = policy.mlp_extractor(features)
             error = (policy.action_net(latent_pi) - act_t[idx]) / act_scale
-            loss_pi = huber(error, torch.zeros_like(error)) if robust else (error**2).mean()
+            loss_pi = (
+                torch.nn.functional.huber_loss(error, torch.zeros_like(error), delta=HUBER_DELTA)
+                if robust
+                else (error**2).mean()
+            )
             loss = loss_pi
             if fit_value:
                 value = policy.value_net(latent_vf).squeeze(-1)
