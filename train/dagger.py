@@ -125,6 +125,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="cloning loss of DAgger and of the BC baseline: Huber's (a few of the expert's "
         "near-saturated labels cannot dominate the fit) or the squared error",
     )
+    parser.add_argument(
+        "--ensemble",
+        type=int,
+        default=1,
+        help="clones per iteration (and for the BC baseline), acting as their mean, saved as "
+        "one SB3 model (ias_gym.learning.ensemble)",
+    )
     parser.add_argument("--no-randomisation", action="store_true", help="nominal dynamics only")
     parser.add_argument(
         "--families",
@@ -206,8 +213,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     import torch
 
     from ias_gym.errors import InputError
-    from ias_gym.learning.cloning import behaviour_clone
     from ias_gym.learning.dagger import cloning_epochs, dagger
+    from ias_gym.learning.ensemble import clone_ensemble
     from ias_gym.learning.expert_labelling import check_pen_task, expert_dataset
     from ias_gym.learning.randomised_dynamics import (
         DEFAULT_RANDOMISATION,
@@ -230,6 +237,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise InputError(
                 f"--eval-seed must be >= {HELD_OUT_SEED_START} (training seeds lie below it)"
             )
+        if args.ensemble < 1:
+            raise InputError(f"--ensemble must be >= 1, got {args.ensemble}")
+        if args.ensemble > 1 and args.warm_start:
+            raise InputError("--ensemble > 1 clones afresh each iteration; drop --warm-start")
         if out.suffix != ".zip":
             raise InputError(f"--out must end in .zip, got {out}")
         outputs = [out, results_path] + ([] if args.no_baseline else [baseline_path(out)])
@@ -253,6 +264,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     torch.set_num_threads(args.threads)
     max_steps = args.max_gradient_steps or None
     curve: list[dict[str, Any]] = []
+    totals = {"env_steps": 0, "wall_time_s": 0.0}  # so far, for the curve (no evaluation time)
 
     def on_iteration(record: Any, model: Any) -> None:
         print(
@@ -261,12 +273,19 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"collect {record.collect_s:.0f} s, train {record.train_s:.0f} s",
             flush=True,
         )
+        totals["env_steps"] += record.env_steps
+        totals["wall_time_s"] += record.collect_s + record.train_s
         if args.curve_episodes:
             point = development_curve_point(
                 args.env, model, args.seed, args.curve_episodes, randomisation
             )
             curve.append(
-                {"iteration": record.iteration, "dataset_size": record.dataset_size, **point}
+                {
+                    "iteration": record.iteration,
+                    "dataset_size": record.dataset_size,
+                    **totals,
+                    **point,
+                }
             )
             print(f"  development success {point['success_rate']:.2f}", flush=True)
 
@@ -284,6 +303,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         max_gradient_steps=max_steps,
         warm_start=args.warm_start,
         robust=args.loss == "huber",
+        ensemble=args.ensemble,
         on_iteration=on_iteration,
     )
     dagger_s = time.perf_counter() - start
@@ -293,10 +313,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     labels = len(result.dataset)
     bc_s = None
+    bc_point: dict[str, Any] | None = None
     baseline_epochs: int | None = None
     if not args.no_baseline:
         start = time.perf_counter()
-        data, _ = expert_dataset(
+        data, bc_episodes = expert_dataset(
             args.env,
             labels,
             args.seed,
@@ -308,18 +329,29 @@ def main(argv: Sequence[str] | None = None) -> int:
             baseline_epochs = max(1, round(total / math.ceil(labels / 256)))
         else:  # as many as DAgger's last cloning
             baseline_epochs = cloning_epochs(labels, args.epochs, 256, max_steps)
-        baseline = behaviour_clone(
+        baseline = clone_ensemble(
             gym.make(args.env),
             data.observations,
             data.actions,
+            args.ensemble,
+            args.seed,
             epochs=baseline_epochs,
-            seed=args.seed,
             progress=False,
             robust=args.loss == "huber",
         )
         baseline.save(baseline_path(out))
         bc_s = time.perf_counter() - start
         print(f"saved the BC baseline to {baseline_path(out)} ({bc_s:.0f} s)", flush=True)
+        if args.curve_episodes:
+            bc_point = {
+                "dataset_size": labels,
+                "env_steps": sum(e.trajectory.length for e in bc_episodes),
+                "wall_time_s": bc_s,
+                **development_curve_point(
+                    args.env, baseline, args.seed, args.curve_episodes, randomisation
+                ),
+            }
+            print(f"  development success of BC {bc_point['success_rate']:.2f}", flush=True)
 
     evaluation: dict[str, Any] = {}
     eval_s = None
@@ -348,11 +380,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         "max_gradient_steps": max_steps,
         "warm_start": args.warm_start,
         "loss": args.loss,
+        "ensemble": args.ensemble,
         "bc_epochs": baseline_epochs,
         "expert_labels": labels,
         "randomisation": dataclasses.asdict(randomisation),
         "history": [r.as_json() for r in result.history],
         "development_curve": curve,
+        "bc_development_point": bc_point,
         "evaluation_set": "held-out",
         "evaluation_first_seed": args.eval_seed,
         "evaluation_episodes_per_class": args.eval_episodes,

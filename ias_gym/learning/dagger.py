@@ -46,6 +46,7 @@ from tqdm import tqdm
 
 from ias_gym.errors import InputError
 from ias_gym.learning.cloning import behaviour_clone
+from ias_gym.learning.ensemble import clone_ensemble
 from ias_gym.learning.expert_labelling import Dataset, check_pen_task, collect_episode
 from ias_gym.learning.normalisation import DEFAULT_NET_ARCH
 from ias_gym.learning.randomised_dynamics import (
@@ -63,13 +64,14 @@ class IterationRecord:
         iteration: its index (0: expert rollouts only).
         beta: probability the expert acted on a step [-].
         episodes: episodes collected.
+        env_steps: env steps of those episodes (every visited state, held or not).
         labels_added: pairs added (the visited states where the expert's grasp model held,
             :meth:`~ias_gym.learning.expert_labelling.LabelledEpisode.teaching_pairs`).
         dataset_size: pairs after aggregation.
         rollout_success_rate: fraction of its episodes that succeeded (mixture acting) [-].
         expert_fraction: fraction of its steps where the expert's action was executed [-].
         families: episodes per drawn family.
-        gradient_steps: the cloning's Adam steps this iteration.
+        gradient_steps: the cloning's Adam steps this iteration (per ensemble member).
         family_successes: successful episodes per drawn family.
         collect_s: wall time of the rollouts [s].
         train_s: wall time of the cloning [s].
@@ -78,6 +80,7 @@ class IterationRecord:
     iteration: int
     beta: float
     episodes: int
+    env_steps: int
     labels_added: int
     dataset_size: int
     rollout_success_rate: float
@@ -94,6 +97,7 @@ class IterationRecord:
             "iteration": self.iteration,
             "beta": self.beta,
             "episodes": self.episodes,
+            "env_steps": self.env_steps,
             "labels_added": self.labels_added,
             "dataset_size": self.dataset_size,
             "rollout_success_rate": self.rollout_success_rate,
@@ -146,6 +150,7 @@ def dagger(
     net_arch: Sequence[int] = DEFAULT_NET_ARCH,
     warm_start: bool = False,
     robust: bool = True,
+    ensemble: int = 1,
     keep_models: bool = False,
     progress: bool = True,
     on_iteration: Callable[[IterationRecord, PPO], None] | None = None,
@@ -184,6 +189,9 @@ def dagger(
         robust: clone by Huber's loss (:func:`~ias_gym.learning.cloning.behaviour_clone`'s
             ``robust``); ``False``: the squared error, which a few of the expert's
             near-saturated labels on the learner's failing states can dominate.
+        ensemble: clone this many learners per iteration (seeds
+            :func:`~ias_gym.learning.ensemble.member_seed`) and act with their mean
+            (:func:`~ias_gym.learning.ensemble.clone_ensemble`, one SB3 model); 1: one clone.
         keep_models: keep the learner of every iteration in the result (not with
             ``warm_start``, which trains one learner on).
         progress: a progress bar over the episodes.
@@ -195,7 +203,7 @@ def dagger(
     Raises:
         InputError: ``env_id`` is not a pen task, ``iterations`` or
             ``episodes_per_iteration`` < 1, ``seed`` < 0, ``beta_decay`` outside [0, 1],
-            ``keep_models`` with ``warm_start``.
+            ``ensemble`` < 1, ``keep_models`` or ``ensemble`` > 1 with ``warm_start``.
     """
     check_pen_task(env_id)
     if iterations < 1:
@@ -206,6 +214,10 @@ def dagger(
         raise InputError(f"seed must be >= 0, got {seed}")
     if warm_start and keep_models:
         raise InputError("keep_models needs warm_start=False (a warm start trains one learner on)")
+    if ensemble < 1:
+        raise InputError(f"ensemble must be >= 1, got {ensemble}")
+    if warm_start and ensemble > 1:
+        raise InputError("an ensemble needs warm_start=False (its members are cloned afresh)")
     first = episodes_per_iteration if initial_episodes is None else initial_episodes
     if first < 1:
         raise InputError(f"initial_episodes must be >= 1, got {initial_episodes}")
@@ -250,19 +262,33 @@ def dagger(
             collect_s = time.perf_counter() - start
             start = time.perf_counter()
             n_epochs = cloning_epochs(len(dataset), epochs, batch_size, max_gradient_steps)
-            learner = behaviour_clone(
-                probe,
-                dataset.observations,
-                dataset.actions,
-                epochs=n_epochs,
-                batch_size=batch_size,
-                lr=lr,
-                net_arch=net_arch,
-                seed=seed + iteration if warm_start else seed,
-                progress=False,
-                model=learner if warm_start else None,
-                robust=robust,
-            )
+            fit: dict[str, Any] = {
+                "epochs": n_epochs,
+                "batch_size": batch_size,
+                "lr": lr,
+                "progress": False,
+            }
+            if warm_start:
+                learner = behaviour_clone(
+                    probe,
+                    dataset.observations,
+                    dataset.actions,
+                    seed=seed + iteration,
+                    model=learner,
+                    robust=robust,
+                    **fit,
+                )
+            else:
+                learner = clone_ensemble(
+                    probe,
+                    dataset.observations,
+                    dataset.actions,
+                    ensemble,
+                    seed,
+                    net_arch=net_arch,
+                    robust=robust,
+                    **fit,
+                )
             families: dict[str, int] = {}
             family_successes: dict[str, int] = {}
             for e in episodes:
@@ -274,6 +300,7 @@ def dagger(
                 iteration=iteration,
                 beta=beta,
                 episodes=len(episodes),
+                env_steps=steps,
                 labels_added=sum(int(e.held.sum()) for e in episodes),
                 dataset_size=len(dataset),
                 rollout_success_rate=float(np.mean([e.trajectory.is_success for e in episodes])),
