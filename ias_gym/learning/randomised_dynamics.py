@@ -31,8 +31,9 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, SupportsFloat
 
+import gymnasium as gym
 import numpy as np
 
 from ias_gym.errors import InputError
@@ -180,6 +181,61 @@ def episode_dynamics(
     return EpisodeDynamics(family, kwargs, int(rng.integers(HELD_OUT_SEED_START)))
 
 
+class RandomisedDynamicsEnv(gym.Env[Any, Any]):
+    """A pen task whose every episode runs under newly drawn dynamics, for RL agents.
+
+    Reset ``k`` of the run ``seed`` makes the env of
+    :func:`episode_dynamics` ``(seed, k)`` (its env kwargs on top of ``env_kwargs``) and
+    resets it with that draw's seed (below :data:`HELD_OUT_SEED_START`), as DAgger's
+    training episodes do; a seed passed to :meth:`reset` starts the run over under that
+    seed. ``info["dynamics_family"]`` names the drawn family.
+
+    Args:
+        env_id: a pen task.
+        seed: the run's seed.
+        randomisation: the ranges.
+        env_kwargs: further env kwargs of every episode.
+    """
+
+    def __init__(
+        self,
+        env_id: str,
+        seed: int = 0,
+        randomisation: Randomisation = DEFAULT_RANDOMISATION,
+        env_kwargs: Mapping[str, Any] | None = None,
+    ) -> None:
+        self.env_id, self.randomisation = env_id, randomisation
+        self.env_kwargs = dict(env_kwargs or {})
+        self._run, self._episode = int(seed), 0
+        self._env: gym.Env[Any, Any] = gym.make(env_id, **self.env_kwargs)
+        self.observation_space = self._env.observation_space
+        self.action_space = self._env.action_space
+        self.family = "nominal"
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        """Draw the next episode's dynamics, make its env and reset it."""
+        super().reset(seed=seed)
+        if seed is not None:
+            self._run, self._episode = int(seed), 0
+        dynamics = episode_dynamics(self._run, self._episode, self.randomisation)
+        self._episode += 1
+        self._env.close()
+        self._env = gym.make(self.env_id, **{**self.env_kwargs, **dynamics.env_kwargs})
+        self.family = dynamics.family
+        obs, info = self._env.reset(seed=dynamics.seed, options=options)
+        return obs, {**info, "dynamics_family": self.family}
+
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
+        """Step the current episode's env."""
+        return self._env.step(action)
+
+    def close(self) -> None:
+        """Close the current env."""
+        self._env.close()
+
+
 __all__ = [
     "DEFAULT_RANDOMISATION",
     "FAMILIES",
@@ -188,5 +244,6 @@ __all__ = [
     "OBSERVATION_NOISE",
     "EpisodeDynamics",
     "Randomisation",
+    "RandomisedDynamicsEnv",
     "episode_dynamics",
 ]
