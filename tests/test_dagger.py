@@ -5,6 +5,7 @@ bad input. Tiny budgets (episodes of 30 steps, a few cloning epochs); properties
 from __future__ import annotations
 
 import importlib.util
+import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -323,3 +324,54 @@ def test_a_warm_start_trains_one_learner_on() -> None:
     expected = result.dataset.observations[:first].mean(axis=0)
     np.testing.assert_allclose(extractor.mean.numpy(), expected, rtol=1e-4, atol=1e-6)
     assert all(r.gradient_steps >= 1 for r in result.history)
+
+
+def _curve_run(env: str, ensemble: int, seed: int) -> dict[str, Any]:
+    points = [
+        {
+            "env_steps": 1000 * (i + 1),
+            "wall_time_s": 30.0 * (i + 1),
+            "success_rate": r,
+            "ci95_low": max(0.0, r - 0.2),
+            "ci95_high": min(1.0, r + 0.2),
+        }
+        for i, r in enumerate((0.2, 0.6, 0.9))
+    ]
+    bc = {
+        "env_steps": 3000,
+        "wall_time_s": 40.0,
+        "success_rate": 0.7,
+        "ci95_low": 0.5,
+        "ci95_high": 0.85,
+    }
+    return {
+        "env": env,
+        "ensemble": ensemble,
+        "train_seed": seed,
+        "history": [],
+        "development_curve": points,
+        "bc_development_point": bc,
+    }
+
+
+def test_the_curve_script_draws_runs_and_refuses_files_without_a_curve(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("matplotlib")
+    from tests.train_scripts import load_train_script
+
+    script = load_train_script("dagger_curves")
+    paths = []
+    for k, (env, size) in enumerate([(ENV_ID, 1), (ENV_ID, 3), ("IAS-PenSlide-v0", 3)]):
+        paths.append(tmp_path / f"run{k}.json")
+        paths[-1].write_text(json.dumps(_curve_run(env, size, k)))
+    out = tmp_path / "curves.png"
+    assert script.main([*map(str, paths), "--out", str(out)]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert script.main([*map(str, paths), "--out", str(out)]) == 2  # exists: not overwritten
+    bare = tmp_path / "bare.json"
+    bare.write_text(json.dumps({**_curve_run(ENV_ID, 1, 0), "development_curve": []}))
+    assert script.main([str(bare), "--out", str(tmp_path / "b.png")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and "--curve-episodes" in err[-1]
+    assert not (tmp_path / "b.png").exists()

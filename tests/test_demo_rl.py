@@ -20,6 +20,7 @@ from ias_gym.learning.demo_rl import (  # noqa: E402
     CriticWarmup,
     DemoReplayBuffer,
     Transitions,
+    add_cloning_term,
     episode_transitions,
     make_sac,
     pretrain_actor,
@@ -174,3 +175,30 @@ def test_the_script_refuses_bad_input_with_one_line(
     assert _script_main()(["--out", str(tmp_path / "p.zip"), *args]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and match in lines[0], lines
+
+
+def test_the_cloning_term_pulls_the_actor_to_the_demonstrations_unless_frozen(
+    episodes: list[Any],
+) -> None:
+    model = _sac(episodes)
+    obs = np.concatenate([e.observations for e in episodes]).astype(np.float32)
+    labels = np.concatenate([e.labels for e in episodes])
+    add_cloning_term(model, obs, labels, seed=1)
+    optimizer = model.actor.optimizer
+
+    def error() -> float:
+        return float(np.mean((model.predict(obs, deterministic=True)[0] - labels) ** 2))
+
+    for p in model.actor.parameters():  # frozen (the critic's warm-up): nothing moves
+        p.requires_grad_(False)
+    frozen = _actor_weights(model)
+    optimizer.step()
+    assert all(torch.equal(a, b) for a, b in zip(frozen, _actor_weights(model), strict=True))
+    for p in model.actor.parameters():
+        p.requires_grad_(True)
+    before = error()
+    for _ in range(30):  # no SAC loss: the steps follow the cloning term alone
+        optimizer.zero_grad()
+        optimizer.step()
+    assert error() < 0.7 * before
+    assert optimizer.last_weight > 0  # mean |Q| / 2.5 of an untrained critic, not zero

@@ -1,39 +1,12 @@
 """DAgger with the analytic expert as teacher under randomised dynamics, beside behaviour
 cloning from as many expert labels; both evaluated on the robustness suite, held-out seeds.
 
-    python train/dagger.py --env IAS-PenSlide-v0 --iterations 6 --episodes-per-iteration 15 \\
-        --seed 0 --out out/dagger_slide.zip --results docs/dagger_results.json
+    python train/dagger.py --env IAS-PenSlide-v0 --iterations 6 --initial-episodes 30 \\
+        --episodes-per-iteration 15 --max-gradient-steps 12000 --ensemble 3 \\
+        --curve-episodes 20 --seed 7 --out out/dagger_slide.zip
 
-## Results so far (IAS-PenSlide-v0, training seed 0; docs/dagger_results.json)
-
-Success on 50 held-out seeds per class, 95 % Wilson interval; the expert holds >= 99 % in
-every class. Run 3 (``--warm-start --families`` without ``action_delay``, 5 iterations,
-30 + 4 x 10 episodes, 16724 expert labels, 392 s DAgger + 198 s BC on 2 shared cores):
-
-| class | DAgger | BC, same labels and Adam steps |
-|---|---|---|
-| nominal | 2 % [0, 10] | 38 % [26, 52] |
-| internal_force_steps_0.1N | 2 % [0, 10] | 38 % [26, 52] |
-| observation_noise | 0 % [0, 7] | 16 % [8, 29] |
-| push_0.3N_50ms | 2 % [0, 10] | 4 % [1, 13] |
-| friction_x0.7, friction_x1.3, mass_x0.7, mass_x1.3 | 0 % [0, 7] | 0 % [0, 7] |
-| action_delay_1_step, action_noise_0.002 | 0 % [0, 7] | 0 % [0, 7] |
-
-With all eight families (runs 1 and 2, 16792 and 26572 labels) BC reached 0 % and 20 %
-[11, 33] nominal, DAgger 0 % and 6 % [2, 16]. Measured on development seeds, not fixed yet:
-
-- **DAgger gathers few labels.** The learner drops the pen within 0.1-0.5 s, so its
-  iterations add 250-2000 pairs each against the 13-22k of the expert's iteration 0, and
-  the per-step mixture (``beta = 0.5``) fails too (0-8 % of its episodes). Every run's
-  learning curve stays at 0 %: DAgger has not beaten BC at equal labels and Adam steps.
-- **The action-delay family breaks cloning.** BC on 12840 labels (6000 steps), judged on
-  8 nominal episodes: nominal-only data 3/8, the physical families (friction, mass, push,
-  action noise, internal-force steps) 8/8, + observation noise 7/8, + action delay 0/8
-  (dropped in 11-15 steps). A likely reason, not tested: the observation has no action
-  history, so under a delay the expert's labels are not a function of what the learner
-  sees.
-- **Precision needs optimisation**: BC from more labels and more Adam steps did better in
-  every run (run 2's BC: 36k steps).
+The results of the runs in docs/dagger_results.json, with the commands that reproduce them
+and their held-out seeds, are on docs/results-learning.md.
 
 What it does (:mod:`ias_gym.learning.dagger`, :mod:`ias_gym.learning.expert_labelling` and
 :mod:`ias_gym.learning.randomised_dynamics` have the details):

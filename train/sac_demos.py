@@ -10,7 +10,10 @@ What it does (:mod:`ias_gym.learning.demo_rl` has the method and its sources):
    baseline of ``train/dagger.py`` collects them (DART noise on the executed actions);
    their transitions go into every minibatch, ``--demo-fraction`` of it;
 2. the actor starts as a clone of them (``--pretrain-steps`` Adam steps of Huber's loss;
-   0: from scratch), the critic learns alone for ``--critic-warmup`` env steps;
+   0: from scratch), the critic learns alone for ``--critic-warmup`` env steps, and the
+   actor's loss then carries TD3+BC's cloning term on the demonstrations
+   (``--no-cloning-term``: SAC's loss alone, which lost the pretrained policy within 5000
+   steps on development seeds);
 3. SAC trains on :class:`~ias_gym.learning.randomised_dynamics.RandomisedDynamicsEnv`
    (every episode new dynamics) until ``--steps`` or ``--max-minutes`` (what DAgger's run
    took, for a comparison at the same wall-clock);
@@ -32,7 +35,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from dagger import evaluate_rows, print_table
+from dagger import development_curve_point, evaluate_rows, print_table
+from stable_baselines3.common.callbacks import BaseCallback
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -64,6 +68,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--critic-warmup", type=int, default=5_000, help="env steps before the actor moves"
     )
     parser.add_argument(
+        "--no-cloning-term",
+        action="store_true",
+        help="SAC's actor loss alone (else TD3+BC's cloning term on the demonstrations)",
+    )
+    parser.add_argument(
         "--exploration-std",
         type=float,
         default=1e-3,
@@ -75,6 +84,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--gradient-steps", type=int, default=1, help="updates per env step")
     parser.add_argument("--lr", type=float, default=3e-4, help="learning rate of SAC")
+    parser.add_argument(
+        "--curve-every",
+        type=int,
+        default=0,
+        help="env steps between points of the learning curve (0: none)",
+    )
+    parser.add_argument(
+        "--curve-episodes", type=int, default=20, help="development episodes per curve point"
+    )
     parser.add_argument("--no-randomisation", action="store_true", help="nominal dynamics only")
     parser.add_argument(
         "--eval-episodes", type=int, default=50, help="held-out episodes per class (0: skip)"
@@ -107,8 +125,10 @@ def check(args: argparse.Namespace) -> list[Path]:
         raise InputError(f"--demo-fraction must be in [0, 1], got {args.demo_fraction}")
     if not (math.isfinite(args.exploration_std) and args.exploration_std > 0):
         raise InputError(f"--exploration-std must be > 0, got {args.exploration_std}")
-    if min(args.pretrain_steps, args.critic_warmup, args.steps) < 0 or args.max_minutes <= 0:
-        raise InputError("--pretrain-steps, --critic-warmup, --steps >= 0, --max-minutes > 0")
+    if min(args.pretrain_steps, args.critic_warmup, args.steps, args.curve_every) < 0:
+        raise InputError("--pretrain-steps, --critic-warmup, --steps, --curve-every must be >= 0")
+    if args.max_minutes <= 0 or args.curve_episodes < 1:
+        raise InputError("--max-minutes must be > 0 and --curve-episodes >= 1")
     if args.eval_episodes and args.eval_seed < HELD_OUT_SEED_START:
         raise InputError(
             f"--eval-seed must be >= {HELD_OUT_SEED_START} (training seeds lie below it)"
@@ -139,6 +159,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ias_gym.learning.dagger import cloning_epochs
     from ias_gym.learning.demo_rl import (
         CriticWarmup,
+        add_cloning_term,
         episode_transitions,
         make_sac,
         pretrain_actor,
@@ -183,15 +204,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     timings["pretrain"] = time.perf_counter() - start
     out.parent.mkdir(parents=True, exist_ok=True)
     model.save(pretrained)
+    if not args.no_cloning_term:
+        add_cloning_term(model, data.observations, data.actions, seed=args.seed)
 
+    curve = CurvePoints(
+        args, randomisation, timings["demonstrations"] + timings["pretrain"], len(demos)
+    )
+    if args.curve_every:
+        curve.point(model, 0)
     start = time.perf_counter()
     limit = WallClockLimit(60.0 * args.max_minutes)
+    callbacks = [CriticWarmup(args.critic_warmup), limit]
     model.learn(
         total_timesteps=args.steps,
-        callback=CallbackList([CriticWarmup(args.critic_warmup), limit]),
+        callback=CallbackList([*callbacks, curve] if args.curve_every else callbacks),
         progress_bar=True,
     )
-    timings["rl"] = time.perf_counter() - start
+    timings["rl"] = time.perf_counter() - start - curve.evaluation_s
     model.save(out)
     env.close()
     print(
@@ -210,6 +239,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     report = {
         "env": args.env,
+        "learner": "sac_demos",
         "method": "SAC with demonstrations in the replay buffer (RLPD's symmetric sampling), "
         "actor pretrained by cloning, randomised dynamics",
         "train_seed": args.seed,
@@ -219,12 +249,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         "demo_fraction": args.demo_fraction,
         "pretrain_steps": args.pretrain_steps,
         "critic_warmup_steps": args.critic_warmup,
+        "cloning_term": not args.no_cloning_term,
         "exploration_std": args.exploration_std,
         "gradient_steps_per_env_step": args.gradient_steps,
         "lr": args.lr,
         "env_steps": int(model.num_timesteps),
         "stopped_by_wall_clock": limit.stopped,
         "randomisation": "nominal" if args.no_randomisation else "default",
+        "development_curve": curve.points,
         "evaluation_set": "held-out",
         "evaluation_first_seed": args.eval_seed,
         "evaluation_episodes_per_class": args.eval_episodes,
@@ -242,6 +274,43 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 #: Offset of the run seed that draws the agent's training episodes (not the demos' draws).
 RL_RUN = 500_000
+
+
+class CurvePoints(BaseCallback):
+    """Every ``--curve-every`` env steps, the deterministic policy on ``--curve-episodes``
+    development episodes (``train/dagger.py``'s :func:`development_curve_point`), with the
+    env steps and the training wall-clock so far (the demonstrations' steps and time and the
+    pretraining's time included, these evaluations not)."""
+
+    def __init__(
+        self, args: argparse.Namespace, randomisation: Any, offset_s: float, offset_steps: int
+    ) -> None:
+        super().__init__()
+        self.args, self.randomisation = args, randomisation
+        self.offset_s, self.offset_steps, self.evaluation_s = offset_s, offset_steps, 0.0
+        self.start = time.perf_counter()
+        self.points: list[dict[str, Any]] = []
+
+    def point(self, model: Any, steps: int) -> None:
+        """Judge ``model`` now and record the point."""
+        begin = time.perf_counter()
+        rate = development_curve_point(
+            self.args.env, model, self.args.seed, self.args.curve_episodes, self.randomisation
+        )
+        self.points.append(
+            {
+                "env_steps": self.offset_steps + steps,
+                "wall_time_s": self.offset_s + begin - self.start - self.evaluation_s,
+                **rate,
+            }
+        )
+        self.evaluation_s += time.perf_counter() - begin
+        print(f"  {steps} steps: development success {rate['success_rate']:.2f}", flush=True)
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps % self.args.curve_every == 0:
+            self.point(self.model, self.num_timesteps)
+        return True
 
 
 if __name__ == "__main__":

@@ -23,12 +23,12 @@ from the robustness suite's families
 (:class:`~ias_gym.learning.randomised_dynamics.Randomisation`, whose module has the table
 of ranges), its reset seed below the held-out evaluation seeds.
 
-**Measured** (IAS-PenSlide-v0, ``train/dagger.py``'s docstring and docs/dagger_results.json):
-with ~15-25k expert labels neither DAgger nor behaviour cloning comes near the expert's
->= 99 %; DAgger stays below BC at equal labels and Adam steps (its learners drop the pen
-within 0.1-0.5 s, so its iterations add few labels), and training episodes of the
-``action_delay`` family break the cloning (drop that family with ``Randomisation(families=
-...)``).
+Only the states where the expert's grasp model held teach, and the clones fit Huber's
+loss: without either, a few labels of a learner's failing episode decide the fit
+(:mod:`~ias_gym.learning.expert_labelling`, :func:`~ias_gym.learning.cloning.behaviour_clone`).
+``ensemble`` clones several learners per iteration and acts with their mean
+(:mod:`~ias_gym.learning.ensemble`). The measured results, with their seeds, are in
+docs/results-learning.md.
 """
 
 from __future__ import annotations

@@ -14,7 +14,11 @@ episodes, :data:`~ias_gym.learning.cloning.MIN_ACTION_NOISE`):
   squashed mean by Huber's loss as :func:`~ias_gym.learning.cloning.behaviour_clone` does;
   the critic then learns on the clone's transitions for ``critic_warmup`` steps before the
   actor moves (Nair et al. 2020, AWAC, and Uchendu et al. 2023 on fine-tuning from a prior
-  policy: an untrained critic destroys the prior in its first updates).
+  policy: an untrained critic destroys the prior in its first updates);
+- the actor's loss can carry a cloning term on the demonstrations, weighted as in TD3+BC
+  (Fujimoto & Gu 2021; :class:`CloningTermAdam`): measured on development seeds without
+  it, SAC lost the pretrained policy (70 % of development episodes) within 5000 steps after
+  the warm-up (0 %).
 
 Not RLPD's: its critic ensemble, LayerNorm and update-to-data ratio of 20 (SB3's SAC has
 one critic pair and no LayerNorm; ``gradient_steps`` sets the ratio).
@@ -215,6 +219,80 @@ class CriticWarmup(BaseCallback):
         self._freeze(False)
 
 
+#: TD3+BC's weight of the Q term against the cloning term, ``lambda = alpha / mean |Q|``
+#: (Fujimoto & Gu 2021, "A Minimalist Approach to Offline Reinforcement Learning") [-].
+TD3_BC_ALPHA = 2.5
+
+
+def _squashed_mean(actor: Any, observations: torch.Tensor) -> torch.Tensor:
+    """SAC's deterministic action: the tanh of the actor's Gaussian mean."""
+    features = actor.extract_features(observations, actor.features_extractor)
+    result: torch.Tensor = torch.tanh(actor.mu(actor.latent_pi(features)))
+    return result
+
+
+class CloningTermAdam(torch.optim.Adam):
+    """Adam for SAC's actor that adds a cloning term's gradient before every step.
+
+    SAC's actor step minimises ``alpha log pi - Q``; this adds ``mean|Q| / TD3_BC_ALPHA``
+    times Huber's loss of the actor's action on a minibatch of demonstrations (standardised
+    per component), TD3+BC's balance of the two terms, so that the actor keeps to the
+    demonstrations where the critic has no better advice (SB3's SAC has no such term, and
+    its training loop is one function: adding the gradient at the optimiser's step leaves it
+    untouched). While the actor is frozen (:class:`CriticWarmup`) nothing is added.
+    """
+
+    def __init__(
+        self,
+        params: Any,
+        model: SAC,
+        observations: NDArray[Any],
+        actions: NDArray[Any],
+        *,
+        lr: float,
+        batch_size: int = 256,
+        seed: int = 0,
+    ) -> None:
+        super().__init__(params, lr=lr)
+        self.model = model
+        self.observations = torch.as_tensor(np.asarray(observations, dtype=np.float32))
+        self.actions = torch.as_tensor(np.asarray(actions, dtype=np.float32))
+        spread = np.maximum(np.asarray(actions).std(axis=0), 1e-3)
+        self.scale = torch.as_tensor(spread, dtype=torch.float32)
+        self.batch_size = batch_size
+        self.generator = torch.Generator().manual_seed(seed)
+        self.last_weight = 0.0
+
+    def step(self, closure: Any = None) -> Any:
+        """Add the cloning term's gradient, then Adam's step."""
+        model: Any = self.model
+        if any(p.requires_grad for group in self.param_groups for p in group["params"]):
+            idx = torch.randint(len(self.actions), (self.batch_size,), generator=self.generator)
+            obs = self.observations[idx]
+            with torch.enable_grad():
+                action = _squashed_mean(model.actor, obs)
+                with torch.no_grad():
+                    q = torch.min(torch.cat(model.critic(obs, action), dim=1), dim=1).values
+                self.last_weight = float(q.abs().mean()) / TD3_BC_ALPHA
+                error = (action - self.actions[idx]) / self.scale
+                loss = torch.nn.functional.huber_loss(
+                    error, torch.zeros_like(error), delta=HUBER_DELTA
+                )
+                (self.last_weight * loss).backward()
+        return super().step(closure)
+
+
+def add_cloning_term(
+    model: SAC, observations: NDArray[Any], actions: NDArray[Any], seed: int = 0
+) -> None:
+    """Give SAC's actor the cloning term of :class:`CloningTermAdam` on these pairs."""
+    actor: Any = model.actor
+    lr = actor.optimizer.param_groups[0]["lr"]
+    actor.optimizer = CloningTermAdam(
+        actor.parameters(), model, observations, actions, lr=lr, seed=seed
+    )
+
+
 def pretrain_actor(
     model: SAC,
     observations: NDArray[Any],
@@ -227,9 +305,9 @@ def pretrain_actor(
 ) -> None:
     """Fit SAC's actor mean (after tanh) to demonstrated actions by Huber's loss.
 
-    The errors are standardised per action component (as in
-    :func:`~ias_gym.learning.cloning.behaviour_clone`); the log-std head is left alone (the
-    entropy target sets it).
+    The errors are standardised per action component and the learning rate decays to 0 on a
+    cosine, as in :func:`~ias_gym.learning.cloning.behaviour_clone`; the log-std head is
+    left alone (the entropy target sets it).
     """
     actor: Any = model.actor
     obs_t = torch.as_tensor(np.asarray(observations, dtype=np.float32))
@@ -237,21 +315,19 @@ def pretrain_actor(
     scale = torch.as_tensor(np.maximum(np.asarray(actions).std(axis=0), 1e-3), dtype=torch.float32)
     params = [*actor.latent_pi.parameters(), *actor.mu.parameters()]
     optimizer = torch.optim.Adam(params, lr=lr)
+    batches = math.ceil(len(obs_t) / batch_size)  # decayed to 0 as behaviour_clone's
+    scheduler = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, T_max=epochs * batches)
     generator = torch.Generator().manual_seed(seed)
     for _ in range(epochs):
         order = torch.randperm(len(obs_t), generator=generator)
         for start in range(0, len(obs_t), batch_size):
             idx = order[start : start + batch_size]
-            mean = torch.tanh(
-                actor.mu(
-                    actor.latent_pi(actor.extract_features(obs_t[idx], actor.features_extractor))
-                )
-            )
-            error = (mean - act_t[idx]) / scale
+            error = (_squashed_mean(actor, obs_t[idx]) - act_t[idx]) / scale
             loss = torch.nn.functional.huber_loss(error, torch.zeros_like(error), delta=HUBER_DELTA)
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
+            scheduler.step()
 
 
 def make_sac(
