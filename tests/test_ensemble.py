@@ -58,6 +58,8 @@ def test_the_wide_model_acts_as_the_mean_of_its_members(env: gym.Env) -> None:
     # the hidden layers are the members' side by side
     hidden = [m.out_features for m in wide.policy.mlp_extractor.policy_net if hasattr(m, "weight")]
     assert hidden == [48, 24]
+    critic = [m.out_features for m in wide.policy.mlp_extractor.value_net if hasattr(m, "weight")]
+    assert critic == [16, 8]  # the unfitted critic is not widened
     x = np.random.default_rng(1).normal(scale=3.0, size=(40, *(env.observation_space.shape or ())))
     mean = np.mean([predicted_actions(m, x, clip=False) for m in members], axis=0)
     single = predicted_actions(members[0], x, clip=False)

@@ -51,7 +51,8 @@ def ensemble_model(members: Sequence[PPO], env: gym.Env[Any, Any] | VecEnv) -> P
     the observation normalisation (clones of one dataset do:
     :func:`~ias_gym.learning.cloning.behaviour_clone` takes the statistics from the data).
     The ensemble's exploration noise (``log_std``) is the members' mean standard
-    deviation; its critic is freshly initialised (cloning does not fit one).
+    deviation; its critic has a member's layers and is freshly initialised (cloning does
+    not fit one).
 
     Args:
         members: the cloned models (>= 1; one member gives a copy of itself).
@@ -89,6 +90,8 @@ def ensemble_model(members: Sequence[PPO], env: gym.Env[Any, Any] | VecEnv) -> P
     n = len(members)
     hidden = [shape[0] for shape in shapes[0][:-1]]
     kwargs = policy_kwargs(mean, std, [n * h for h in hidden])
+    # the critic (unfitted by cloning) keeps a member's size: only the actor is widened
+    kwargs["net_arch"] = {"pi": [n * h for h in hidden], "vf": hidden}
     kwargs["activation_fn"] = activation(first)
     wide = PPO("MlpPolicy", env, policy_kwargs=kwargs, device="cpu", verbose=0)
     layers = [_actor_linears(m) for m in members]
