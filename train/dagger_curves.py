@@ -103,7 +103,7 @@ def plot(runs: Sequence[dict[str, Any]], out: Path) -> None:
                     )
         row[0].set_ylabel(f"{env}\ndevelopment success [%]")
         row[0].set_xlabel("env steps collected [thousands]")
-        row[1].set_xlabel("wall-clock, collecting and cloning [min]")
+        row[1].set_xlabel("wall-clock of training [min]")
         for ax in row:
             ax.set_ylim(-3, 103)
             ax.grid(alpha=0.3)

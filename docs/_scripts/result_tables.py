@@ -27,6 +27,9 @@ JSON in ``docs/``                      written by                          table
 ``robustness_leap.json``               the same                            ``robustness_leap.md``
 ``dagger_results.json``                ``train/dagger.py`` (runs)          ``dagger.md``
 ``dagger_results.json``                ``train/dagger.py`` (seed_runs)     ``dagger_seeds.md``
+``dagger_results.json``                ``train/dagger.py --ensemble 3``    ``dagger_ensembles.md``
+                                       (ensemble_runs)
+``sac_demos_results.json``             ``train/sac_demos.py`` (runs)       ``sac_demos.md``
 ``benchmarks/NAME.json``               ``bench/NAME.py --json``            ``NAME.md``
                                        (``make bench``: all of them)
 =====================================  ==================================  =================
@@ -515,20 +518,29 @@ def dagger(result: Mapping[str, Any]) -> str:
     return "\n\n".join(parts)
 
 
-def dagger_seeds(result: Mapping[str, Any]) -> str:
-    """Per env and class, DAgger's and BC's success over training seeds: mean +- standard
-    deviation (the seeds' own values in brackets)."""
+def seed_table(
+    runs: Sequence[Mapping[str, Any]],
+    learners: Sequence[tuple[str, str]],
+    reproduce: Mapping[str, str],
+) -> str:
+    """Per env and disturbance class, each learner's success over training seeds: mean +-
+    standard deviation (the seeds' own values in brackets).
+
+    Args:
+        runs: one result per (env, training seed), each with ``evaluation[learner][class]``.
+        learners: ``(key in evaluation, column name)``.
+        reproduce: the command of an env's runs.
+    """
     import statistics
 
-    runs = result["seed_runs"]
     parts = []
     for env in dict.fromkeys(run["env"] for run in runs):
         mine = sorted((r for r in runs if r["env"] == env), key=lambda r: r["train_seed"])
         first = mine[0]
         body = []
-        for name in first["evaluation"]["dagger"]:
+        for name in first["evaluation"][learners[0][0]]:
             row = [f"`{name}`"]
-            for learner in ("dagger", "bc"):
+            for learner, _ in learners:
                 values = [100 * r["evaluation"][learner][name]["success_rate"] for r in mine]
                 each = ", ".join(f"{v:.0f}" for v in values)
                 row.append(
@@ -540,10 +552,47 @@ def dagger_seeds(result: Mapping[str, Any]) -> str:
             f"{env}: training seeds {seeds}; {first['evaluation_set']} seeds from "
             f"{first['evaluation_first_seed']}, {first['evaluation_episodes_per_class']} "
             "episodes per class; success [%], mean +- standard deviation over the training "
-            f"seeds (each seed's): `{result['reproduce_seed_runs'][env]}`\n\n"
-            + rows(["disturbance", "DAgger", "BC"], body)
+            f"seeds (each seed's): `{reproduce[env]}`\n\n"
+            + rows(["disturbance", *(name for _, name in learners)], body)
         )
     return "\n\n".join(parts)
+
+
+def dagger_seeds(result: Mapping[str, Any], key: str = "seed_runs") -> str:
+    """DAgger's and BC's success over training seeds (:func:`seed_table`); ``key``: the runs'
+    list in ``result`` (their command per env under ``reproduce_<key>``)."""
+    runs = result[key]
+    size = int(runs[0].get("ensemble", 1))
+    names = ("DAgger", "BC") if size == 1 else (f"DAgger, {size} clones", f"BC, {size} clones")
+    learners = (("dagger", names[0]), ("bc", names[1]))
+    return seed_table(runs, learners, result[f"reproduce_{key}"])
+
+
+def sac_demos(result: Mapping[str, Any]) -> str:
+    """SAC with demonstrations over training seeds: its pretrained actor and after RL
+    (:func:`seed_table`), and what the runs spent."""
+    runs = result["runs"]
+    table = seed_table(
+        runs,
+        (("pretrained", "actor pretrained by cloning"), ("sac_demos", "after SAC")),
+        result["reproduce"],
+    )
+    spent = [
+        [
+            r["env"],
+            str(r["train_seed"]),
+            str(r["demo_transitions"]),
+            str(r["env_steps"]),
+            f"{sum(r['wall_time_s'].values()) / 60:.1f}",
+        ]
+        for r in runs
+    ]
+    header = ["env", "seed", "demonstration steps", "RL env steps", "wall-clock [min]"]
+    return (
+        table
+        + "\n\nWhat each run spent (demonstrations, pretraining and RL):\n\n"
+        + rows(header, spent)
+    )
 
 
 def benchmark(result: Mapping[str, Any]) -> str:
@@ -633,6 +682,8 @@ def tables(docs: Path) -> dict[str, str]:
         "robustness_leap.md": robustness([load("robustness_leap.json")]),
         "dagger.md": dagger(load("dagger_results.json")),
         "dagger_seeds.md": dagger_seeds(load("dagger_results.json")),
+        "dagger_ensembles.md": dagger_seeds(load("dagger_results.json"), "ensemble_runs"),
+        "sac_demos.md": sac_demos(load("sac_demos_results.json")),
         **{f"{name}.md": benchmark(load(f"benchmarks/{name}.json")) for name in BENCHMARKS},
     }
 

@@ -22,6 +22,14 @@ commands), one module each:
   ~20k pairs: 100 %; 30 epochs: 2 %) and an exploration noise the task tolerates.
 - :mod:`ias_gym.learning.finetune`: PPO with tiny steps, the actor frozen while the critic
   warms up, the best policy on validation seeds kept; SB3 training envs and callbacks.
+- :mod:`ias_gym.learning.dagger`: **DAgger** with the analytic expert as teacher under
+  randomised dynamics (:mod:`~ias_gym.learning.expert_labelling`,
+  :mod:`~ias_gym.learning.randomised_dynamics`): labels only where the expert's grasp model
+  held, clones fitted by Huber's loss.
+- :mod:`ias_gym.learning.ensemble`: **ensembles of clones** as one SB3 model (the mean
+  action of K clones, exactly), which make a clone's robustness less a matter of its seed.
+- :mod:`ias_gym.learning.demo_rl`: **SAC with demonstrations** in its replay buffer (RLPD's
+  symmetric sampling), a pretrained actor and TD3+BC's cloning term.
 - :mod:`ias_gym.learning.offline`: offline RL on Minari datasets with d3rlpy (BC, IQL, CQL;
   the ``[offline]`` extra) beside the cloning above, on the same data.
 """
