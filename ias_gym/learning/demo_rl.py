@@ -109,11 +109,11 @@ def episode_transitions(
 class DemoReplayBuffer(ReplayBuffer):
     """SB3's replay buffer, each minibatch a ``demo_fraction`` of fixed demonstrations.
 
-    Until the agent has stored a transition, minibatches are all demonstrations.
+    Until the agent has stored a transition, minibatches are all demonstrations. The
+    positional arguments (``buffer_size``, the spaces, ``device``, ``n_envs``,
+    ``optimize_memory_usage``, ``handle_timeout_termination``) are SB3's ``ReplayBuffer``'s.
 
     Args:
-        buffer_size, observation_space, action_space, device, n_envs, optimize_memory_usage,
-            handle_timeout_termination: as SB3's ``ReplayBuffer``.
         demonstrations: the demonstrations' transitions.
         demo_fraction: share of each minibatch drawn from them (RLPD: 0.5) [-].
     """
