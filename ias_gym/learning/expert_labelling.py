@@ -228,7 +228,7 @@ def check_pen_task(env_id: str) -> None:
         spec = gym.spec(env_id)
     except gym.error.Error:
         raise InputError(
-            f"unknown env id {env_id!r}; DAgger needs a pen task such as "
+            f"unknown env id {env_id!r}; the expert labels pen tasks such as "
             "IAS-PenSlide-v0 or IAS-PenRotate-v0"
         ) from None
     entry = spec.entry_point
