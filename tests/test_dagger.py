@@ -4,7 +4,6 @@ bad input. Tiny budgets (episodes of 30 steps, a few cloning epochs); properties
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -32,11 +31,11 @@ from ias_gym.learning.randomised_dynamics import (  # noqa: E402
     episode_dynamics,
 )
 from ias_gym.robustness import DISTURBANCES  # noqa: E402
+from tests.train_scripts import load_train_script  # noqa: E402
 
 ENV_ID = "IAS-PenRotate-v0"
 #: 30 steps of 10 ms; the tilt judged over the last 0.1 s (as in test_learning).
 ENV_KWARGS: dict[str, Any] = {"duration": 0.3, "settle_time": 0.2}
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(autouse=True)
@@ -280,11 +279,7 @@ def test_cloning_epochs_caps_the_gradient_steps() -> None:
 
 def _script_main() -> Callable[[list[str]], int]:
     """``main`` of ``train/dagger.py``, imported in this process (no second torch import)."""
-    spec = importlib.util.spec_from_file_location("train_dagger", ROOT / "train" / "dagger.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    main: Callable[[list[str]], int] = module.main
+    main: Callable[[list[str]], int] = load_train_script("dagger").main
     return main
 
 
@@ -358,8 +353,6 @@ def test_the_curve_script_draws_runs_and_refuses_files_without_a_curve(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     pytest.importorskip("matplotlib")
-    from tests.train_scripts import load_train_script
-
     script = load_train_script("dagger_curves")
     paths = []
     for k, (env, size) in enumerate([(ENV_ID, 1), (ENV_ID, 3), ("IAS-PenSlide-v0", 3)]):

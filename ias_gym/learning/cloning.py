@@ -49,6 +49,24 @@ MIN_ACTION_NOISE = 3e-4
 HUBER_DELTA = 1.345
 
 
+def action_scale(actions: NDArray[Any]) -> torch.Tensor:
+    """Per-component standard deviation of labels (at least :data:`ACTION_STD_FLOOR`): the
+    scale the cloning loss standardises errors by."""
+    spread = np.maximum(np.asarray(actions).std(axis=0), ACTION_STD_FLOOR)
+    return torch.as_tensor(spread, dtype=torch.float32)
+
+
+def cloning_loss(
+    predicted: torch.Tensor, labels: torch.Tensor, scale: torch.Tensor, robust: bool = True
+) -> torch.Tensor:
+    """The cloning loss on errors standardised by ``scale``: Huber's
+    (:data:`HUBER_DELTA`) if ``robust``, else the mean squared error."""
+    error = (predicted - labels) / scale
+    if robust:
+        return torch.nn.functional.huber_loss(error, torch.zeros_like(error), delta=HUBER_DELTA)
+    return (error**2).mean()
+
+
 def behaviour_clone(
     env: gym.Env[Any, Any] | VecEnv,
     observations: NDArray[Any],
@@ -141,7 +159,7 @@ def behaviour_clone(
 
     obs_t = torch.as_tensor(obs)
     act_t = torch.as_tensor(act)
-    act_scale = torch.as_tensor(np.maximum(act.std(axis=0), ACTION_STD_FLOOR))
+    act_scale = action_scale(act)
     fit_value = returns is not None
     if fit_value:
         ret_t = torch.as_tensor(np.asarray(returns, dtype=np.float32) * reward_scale)
@@ -167,12 +185,7 @@ def behaviour_clone(
             idx = order[start : start + batch_size]
             features = policy.extract_features(obs_t[idx])
             latent_pi, latent_vf = policy.mlp_extractor(features)
-            error = (policy.action_net(latent_pi) - act_t[idx]) / act_scale
-            loss_pi = (
-                torch.nn.functional.huber_loss(error, torch.zeros_like(error), delta=HUBER_DELTA)
-                if robust
-                else (error**2).mean()
-            )
+            loss_pi = cloning_loss(policy.action_net(latent_pi), act_t[idx], act_scale, robust)
             loss = loss_pi
             if fit_value:
                 value = policy.value_net(latent_vf).squeeze(-1)

@@ -44,7 +44,7 @@ from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.type_aliases import ReplayBufferSamples
 
-from ias_gym.learning.cloning import HUBER_DELTA
+from ias_gym.learning.cloning import action_scale, cloning_loss
 from ias_gym.learning.expert_labelling import LabelledEpisode
 from ias_gym.learning.normalisation import DEFAULT_NET_ARCH, observation_statistics, policy_kwargs
 
@@ -257,8 +257,7 @@ class CloningTermAdam(torch.optim.Adam):
         self.model = model
         self.observations = torch.as_tensor(np.asarray(observations, dtype=np.float32))
         self.actions = torch.as_tensor(np.asarray(actions, dtype=np.float32))
-        spread = np.maximum(np.asarray(actions).std(axis=0), 1e-3)
-        self.scale = torch.as_tensor(spread, dtype=torch.float32)
+        self.scale = action_scale(actions)
         self.batch_size = batch_size
         self.generator = torch.Generator().manual_seed(seed)
         self.last_weight = 0.0
@@ -274,10 +273,7 @@ class CloningTermAdam(torch.optim.Adam):
                 with torch.no_grad():
                     q = torch.min(torch.cat(model.critic(obs, action), dim=1), dim=1).values
                 self.last_weight = float(q.abs().mean()) / TD3_BC_ALPHA
-                error = (action - self.actions[idx]) / self.scale
-                loss = torch.nn.functional.huber_loss(
-                    error, torch.zeros_like(error), delta=HUBER_DELTA
-                )
+                loss = cloning_loss(action, self.actions[idx], self.scale)
                 (self.last_weight * loss).backward()
         return super().step(closure)
 
@@ -312,7 +308,7 @@ def pretrain_actor(
     actor: Any = model.actor
     obs_t = torch.as_tensor(np.asarray(observations, dtype=np.float32))
     act_t = torch.as_tensor(np.asarray(actions, dtype=np.float32))
-    scale = torch.as_tensor(np.maximum(np.asarray(actions).std(axis=0), 1e-3), dtype=torch.float32)
+    scale = action_scale(actions)
     params = [*actor.latent_pi.parameters(), *actor.mu.parameters()]
     optimizer = torch.optim.Adam(params, lr=lr)
     batches = math.ceil(len(obs_t) / batch_size)  # decayed to 0 as behaviour_clone's
@@ -322,8 +318,7 @@ def pretrain_actor(
         order = torch.randperm(len(obs_t), generator=generator)
         for start in range(0, len(obs_t), batch_size):
             idx = order[start : start + batch_size]
-            error = (_squashed_mean(actor, obs_t[idx]) - act_t[idx]) / scale
-            loss = torch.nn.functional.huber_loss(error, torch.zeros_like(error), delta=HUBER_DELTA)
+            loss = cloning_loss(_squashed_mean(actor, obs_t[idx]), act_t[idx], scale)
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
