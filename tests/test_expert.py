@@ -56,6 +56,27 @@ def test_expert_slide_metrics_meet_the_task() -> None:
         assert summary["max_pen_tilt_max_deg"] < 5.0, start
 
 
+@pytest.mark.closed_loop
+def test_a_wrong_friction_leaves_the_sliding_fingers_inside_the_tolerance_with_margin() -> None:
+    """The sliding friction the controller keeps is computed with the nominal mu, so at mu x 0.7
+    only the slide servo's spring ends a finger near its target (``mismatch / kp_slide``). The
+    first servo (30 N/m) ended 1.9 mm off against the 2 mm tolerance: a pass any learner that
+    copies it loses. 90 N/m ends 0.7-0.9 mm off; 1.5 mm catches the weaker servo."""
+    env_id, seed = "IAS-PenSlide-v0", 100
+    env = gym.make(env_id, friction_scale=0.7)
+    for start, options in enumerate(perturbed_starts(env, seed)):
+        result = evaluate_spec(
+            env_id,
+            "expert",
+            episodes=1,
+            seed=seed,
+            reset_options=options,
+            env_kwargs={"friction_scale": 0.7},
+        )
+        assert result.successes == [True], start
+        assert result.summary()["final_slide_error_max_mm"] < 1.5, (start, result.summary())
+
+
 def test_evaluate_starts_its_episodes_from_reset_options() -> None:
     """``reset_options`` reaches ``env.reset``: an episode started from seed 6's state with
     seed 5 is seed 6's episode (the expert acts on the state alone), bit for bit."""
