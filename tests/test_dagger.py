@@ -146,6 +146,24 @@ def test_states_the_expert_cannot_hold_teach_nothing() -> None:
     assert np.abs(episode.labels[~episode.held]).max() > 2 * np.abs(labels).max()
 
 
+def test_the_takeover_gate_hands_the_expert_the_states_a_learner_would_lose() -> None:
+    """With the gate, the learner acts only where its action is within the gate of the
+    expert's label: a learner that lets go then never loses the pen, which it drops without
+    the gate (the test above)."""
+    dynamics = episode_dynamics(0, 0)
+    gate = 0.05
+    episode = collect_episode(
+        ENV_ID, dynamics, _NoTorque(), 0.0, env_kwargs=ENV_KWARGS, takeover=gate
+    )
+    assert not episode.trajectory.terminated and episode.held.all()
+    learner_acted = np.all(episode.trajectory.actions == 0.0, axis=1)
+    assert learner_acted.any() and episode.expert_fraction > 0.5
+    assert np.abs(episode.labels[learner_acted]).max() <= gate
+    # a gate wider than any label lets the learner act, and it lets go
+    loose = collect_episode(ENV_ID, dynamics, _NoTorque(), 0.0, env_kwargs=ENV_KWARGS, takeover=2.0)
+    assert loose.trajectory.terminated and loose.expert_fraction < 1.0
+
+
 def test_noise_on_the_expert_acts_but_never_reaches_the_labels() -> None:
     dynamics = episode_dynamics(0, 0)
     episode = collect_episode(ENV_ID, dynamics, None, 1.0, env_kwargs=ENV_KWARGS, expert_noise=0.01)
@@ -254,6 +272,7 @@ def test_the_saved_policy_loads_with_the_safe_loader_and_acts(
         ({"episodes_per_iteration": 0}, "episodes_per_iteration must be >= 1"),
         ({"seed": -1}, "seed must be >= 0"),
         ({"beta_decay": 1.5}, "beta_decay"),
+        ({"takeover": 0.0}, "takeover must be finite and > 0"),
         ({"env_id": "IAS-GloveGrasp-v0"}, "not a pen task"),
         ({"env_id": "NoSuchEnv-v0"}, "unknown env id"),
     ],
@@ -289,6 +308,7 @@ def _script_main() -> Callable[[list[str]], int]:
         (["--iterations", "0"], "--iterations must be >= 1"),
         (["--env", "IAS-GloveGrasp-v0"], "not a pen task"),
         (["--eval-seed", "5"], "--eval-seed must be >= 100000"),
+        (["--takeover", "nan"], "--takeover must be a positive number"),
     ],
 )
 def test_the_script_refuses_bad_input_with_one_line(

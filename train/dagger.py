@@ -78,6 +78,13 @@ def build_parser() -> argparse.ArgumentParser:
         default=0.001,
         help="noise on the expert's executed actions, labels clean (DART) [normalised torque]",
     )
+    parser.add_argument(
+        "--takeover",
+        type=float,
+        default=None,
+        help="the expert acts where the learner's action is further than this from its label "
+        "in any joint (HG-DAgger's gate) [normalised torque] (default: no gate)",
+    )
     parser.add_argument("--epochs", type=int, default=100, help="cloning epochs per iteration")
     parser.add_argument(
         "--max-gradient-steps",
@@ -214,6 +221,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise InputError(f"--ensemble must be >= 1, got {args.ensemble}")
         if args.ensemble > 1 and args.warm_start:
             raise InputError("--ensemble > 1 clones afresh each iteration; drop --warm-start")
+        if args.takeover is not None and not (math.isfinite(args.takeover) and args.takeover > 0):
+            raise InputError(f"--takeover must be a positive number, got {args.takeover}")
         if out.suffix != ".zip":
             raise InputError(f"--out must end in .zip, got {out}")
         outputs = [out, results_path] + ([] if args.no_baseline else [baseline_path(out)])
@@ -271,6 +280,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         beta_decay=args.beta_decay,
         initial_episodes=args.initial_episodes,
         expert_noise=args.expert_noise,
+        takeover=args.takeover,
         randomisation=randomisation,
         epochs=args.epochs,
         max_gradient_steps=max_steps,
@@ -349,6 +359,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "beta_decay": args.beta_decay,
         "initial_episodes": args.initial_episodes or args.episodes_per_iteration,
         "expert_noise": args.expert_noise,
+        "takeover": args.takeover,
         "epochs": args.epochs,
         "max_gradient_steps": max_steps,
         "warm_start": args.warm_start,

@@ -141,6 +141,7 @@ def dagger(
     beta_decay: float = 0.5,
     initial_episodes: int | None = None,
     expert_noise: float = 0.0,
+    takeover: float | None = None,
     randomisation: Randomisation = DEFAULT_RANDOMISATION,
     env_kwargs: Mapping[str, Any] | None = None,
     epochs: int = 100,
@@ -174,6 +175,10 @@ def dagger(
             ``episodes_per_iteration``).
         expert_noise: sigma of the noise on the expert's executed actions, labels clean
             (DART; :class:`~ias_gym.learning.expert_labelling.ShadowExpert`) [normalised torque].
+        takeover: the expert acts wherever the learner's action is further than this from
+            its label in any joint (HG-DAgger's gate,
+            :class:`~ias_gym.learning.expert_labelling.ShadowExpert`); ``None``: the coin of
+            ``beta`` alone [normalised torque].
         randomisation: the ranges of the training dynamics
             (:data:`~ias_gym.learning.randomised_dynamics.NOMINAL`: none).
         env_kwargs: further env kwargs of every episode (e.g. a shorter ``duration``).
@@ -223,6 +228,8 @@ def dagger(
         raise InputError(f"initial_episodes must be >= 1, got {initial_episodes}")
     if not 0.0 <= beta_decay <= 1.0:
         raise InputError(f"beta_decay must be in [0, 1], got {beta_decay}")
+    if takeover is not None and not (math.isfinite(takeover) and takeover > 0):
+        raise InputError(f"takeover must be finite and > 0, got {takeover}")
     probe = gym.make(env_id, **dict(env_kwargs or {}))
     obs_dim = int(np.prod(probe.observation_space.shape or ()))
     act_dim = int(np.prod(probe.action_space.shape or ()))
@@ -254,6 +261,7 @@ def dagger(
                     1.0 if acting is None else beta,
                     env_kwargs=env_kwargs,
                     expert_noise=expert_noise,
+                    takeover=takeover,
                 )
                 dataset.extend(*episode.teaching_pairs())
                 episodes.append(episode)

@@ -69,11 +69,17 @@ class ShadowExpert:
         expert_noise: sigma of Gaussian noise added to the expert's action when it is the
             one executed (noise injection, DART: Laskey et al. 2017; the label stays clean)
             [normalised torque].
+        takeover: where the learner's action differs from the label by more than this in
+            any joint, the expert acts whatever the coin says (the gate of HG-DAgger, Kelly
+            et al. 2019, and SafeDAgger, Zhang & Cho 2017): the episode keeps to states the
+            expert can still recover from, and their labels are the recoveries the learner
+            lacks; ``None``: no gate [normalised torque].
 
     Attributes:
         observations: the observations labelled, one per step (what ``predict`` was given).
         labels: the expert's actions on them.
         expert_acted: per step, whether the expert's action was the one executed.
+        taken_over: per step, whether the gate made the expert act.
         held: per step, whether the expert's grasp model held (its internal-force problem
             had a solution); a label where it did not teaches nothing (module docstring).
     """
@@ -85,21 +91,26 @@ class ShadowExpert:
         beta: float,
         seed: int = 0,
         expert_noise: float = 0.0,
+        takeover: float | None = None,
     ) -> None:
         if not 0.0 <= beta <= 1.0:
             raise InputError(f"beta must be in [0, 1], got {beta}")
         if not (math.isfinite(expert_noise) and expert_noise >= 0):
             raise InputError(f"expert_noise must be finite and >= 0, got {expert_noise}")
+        if takeover is not None and not (math.isfinite(takeover) and takeover > 0):
+            raise InputError(f"takeover must be finite and > 0, got {takeover}")
         if learner is None and beta < 1.0:
             raise InputError("without a learner the expert must always act (beta = 1)")
         self.expert = ExpertPolicy(env)
         self.learner = learner
         self.beta = float(beta)
         self.expert_noise = float(expert_noise)
+        self.takeover = takeover
         self._rng = np.random.default_rng([seed, 0xC01])
         self.observations: list[NDArray[Any]] = []
         self.labels: list[FloatArray] = []
         self.expert_acted: list[bool] = []
+        self.taken_over: list[bool] = []
         self.held: list[bool] = []
 
     def predict(
@@ -116,16 +127,22 @@ class ShadowExpert:
         last = self.expert.controller.last
         self.held.append(last is not None and bool(last.feasible))
         expert_acts = self.learner is None or bool(self._rng.random() < self.beta)
+        action = None
+        gated = False
+        if self.learner is not None and (not expert_acts or self.takeover is not None):
+            action, state = self.learner.predict(
+                observation, state=state, episode_start=episode_start, deterministic=True
+            )
+            if self.takeover is not None:
+                gated = bool(np.max(np.abs(np.asarray(action) - label)) > self.takeover)
+        self.taken_over.append(gated and not expert_acts)
+        expert_acts = expert_acts or gated
         self.expert_acted.append(expert_acts)
         if expert_acts:
             if self.expert_noise:
                 noise = self._rng.normal(0.0, self.expert_noise, np.shape(label))
                 return np.clip(label + noise, -1.0, 1.0).astype(np.float32), state
             return label, state
-        assert self.learner is not None
-        action, state = self.learner.predict(
-            observation, state=state, episode_start=episode_start, deterministic=True
-        )
         return np.asarray(action), state
 
 
@@ -189,6 +206,7 @@ def collect_episode(
     *,
     env_kwargs: Mapping[str, Any] | None = None,
     expert_noise: float = 0.0,
+    takeover: float | None = None,
 ) -> LabelledEpisode:
     """Run one episode of the mixture under ``dynamics``, the expert labelling every state.
 
@@ -200,13 +218,14 @@ def collect_episode(
         beta: probability the expert acts on a step [-].
         env_kwargs: further env kwargs (the drawn ones win).
         expert_noise: noise on the expert's executed actions (:class:`ShadowExpert`).
+        takeover: the gate of :class:`ShadowExpert` (``None``: none) [normalised torque].
 
     Returns:
         The episode with its labels.
     """
     env = gym.make(env_id, **{**dict(env_kwargs or {}), **dynamics.env_kwargs})
     try:
-        shadow = ShadowExpert(env, learner, beta, dynamics.seed, expert_noise)
+        shadow = ShadowExpert(env, learner, beta, dynamics.seed, expert_noise, takeover)
         trajectory = rollout(env, shadow, dynamics.seed, action_dtype=np.float32, keep_infos=False)
     finally:
         env.close()
