@@ -29,6 +29,8 @@ JSON in ``docs/``                      written by                          table
 ``dagger_results.json``                ``train/dagger.py`` (seed_runs)     ``dagger_seeds.md``
 ``dagger_results.json``                ``train/dagger.py --ensemble 3``    ``dagger_ensembles.md``
                                        (ensemble_runs)
+``dagger_results.json``                ``train/dagger.py --families ...``  ``dagger_push_``
+                                       (push_weighted_runs)                ``weighted.md``
 ``sac_demos_results.json``             ``train/sac_demos.py`` (runs)       ``sac_demos.md``
 ``benchmarks/NAME.json``               ``bench/NAME.py --json``            ``NAME.md``
                                        (``make bench``: all of them)
@@ -564,7 +566,12 @@ def dagger_seeds(result: Mapping[str, Any], key: str = "seed_runs") -> str:
     runs = result[key]
     size = int(runs[0].get("ensemble", 1))
     names = ("DAgger", "BC") if size == 1 else (f"DAgger, {size} clones", f"BC, {size} clones")
-    learners = (("dagger", names[0]), ("bc", names[1]))
+    # Runs without the BC baseline (``--no-baseline``) have DAgger's column alone.
+    learners = tuple(
+        (learner, name)
+        for learner, name in zip(("dagger", "bc"), names, strict=True)
+        if learner in runs[0]["evaluation"]
+    )
     return seed_table(runs, learners, result[f"reproduce_{key}"])
 
 
@@ -683,6 +690,7 @@ def tables(docs: Path) -> dict[str, str]:
         "dagger.md": dagger(load("dagger_results.json")),
         "dagger_seeds.md": dagger_seeds(load("dagger_results.json")),
         "dagger_ensembles.md": dagger_seeds(load("dagger_results.json"), "ensemble_runs"),
+        "dagger_push_weighted.md": dagger_seeds(load("dagger_results.json"), "push_weighted_runs"),
         "sac_demos.md": sac_demos(load("sac_demos_results.json")),
         **{f"{name}.md": benchmark(load(f"benchmarks/{name}.json")) for name in BENCHMARKS},
     }
