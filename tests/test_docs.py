@@ -98,6 +98,8 @@ def test_every_results_table_is_made_from_its_json() -> None:
         "pen_skill_bc_robustness.md",
         "dagger_seeds.md",
         "dagger_ensembles.md",
+        "dagger_push_weighted.md",
+        "dagger_gate.md",
         "sac_demos.md",
         "completion.md",
         "evaluation_pen.md",

@@ -27,7 +27,10 @@ Only the states where the expert's grasp model held teach, and the clones fit Hu
 loss: without either, a few labels of a learner's failing episode decide the fit
 (:mod:`~ias_gym.learning.expert_labelling`, :func:`~ias_gym.learning.cloning.behaviour_clone`).
 ``ensemble`` clones several learners per iteration and acts with their mean
-(:mod:`~ias_gym.learning.ensemble`). The measured results, with their seeds, are in
+(:mod:`~ias_gym.learning.ensemble`). ``takeover`` gates the mixture: the expert acts on any
+step where the learner's action is further than the gate from the label (HG-DAgger, Kelly
+et al. 2019), so the learner's episodes stay where the expert can still recover and their
+labels are those recoveries. The measured results, with their seeds, are in
 docs/results-learning.md.
 """
 
