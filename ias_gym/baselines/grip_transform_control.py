@@ -108,14 +108,8 @@ class ControllerGains:
     kp_rot: float = 400.0  # object orientation stiffness [1/s^2]
     kv_rot: float = 40.0  # object orientation damping [1/s]
     delta: float = 50.0  # internal-force error rate delta of eq. (44) [1/s]
-    # Sliding-finger tip stiffness along the pen [N/m] and damping [N s/m]. The friction a
-    # sliding finger is given is computed with the nominal mu, so where the pen's differs the
-    # servo's spring alone ends the finger near its target, ``mismatch / kp_slide`` off: 1.9 mm
-    # of PenSlide's 2 mm tolerance at mu x 0.7 with 30 N/m. Chosen by
-    # ``train/tune_slide_servo.py`` (every disturbance class at 100 %, the least worst-class
-    # error; 120 N/m and more lose the one-step action delay).
-    kp_slide: float = 90.0
-    kv_slide: float = 2.0
+    kp_slide: float = 90.0  # sliding-tip stiffness along the pen [N/m] (docs/controller.md)
+    kv_slide: float = 2.0  # sliding-tip damping [N s/m] (train/tune_slide_servo.py chose both)
     kp_lateral: float = 20.0  # tip stiffness across the pen, toward its top/bottom line [N/m]
     kv_lateral: float = 1.5  # tip damping across the pen [N s/m]
     friction_margin: float = 0.4  # sticking contacts use mu (1 - margin) [-]
