@@ -40,18 +40,15 @@ def run_one(job: tuple[float, float, str, int]) -> dict[str, object]:
     import gymnasium as gym
 
     import ias_gym  # noqa: F401 (registers the envs)
-    from ias_gym.baselines.expert import BatchedExpert
+    from ias_gym.baselines.expert import ExpertPolicy
     from ias_gym.baselines.grip_transform_control import ControllerGains
     from ias_gym.robustness import DISTURBANCES
+    from ias_gym.rollout import rollout
 
     kp, kv, name, seed = job
     env = gym.make("IAS-PenSlide-v0", **DISTURBANCES[name])
-    env.reset(seed=seed)
-    expert = BatchedExpert([env], ControllerGains(kp_slide=kp, kv_slide=kv))
-    done, info = False, {}
-    while not done:
-        _, _, terminated, truncated, info = env.step(expert.actions()[0])
-        done = terminated or truncated
+    expert = ExpertPolicy(env, ControllerGains(kp_slide=kp, kv_slide=kv))
+    info = rollout(env, expert, seed, keep_observations=False, keep_infos=False).final_info
     env.close()
     return {
         "kp_slide_N_per_m": kp,

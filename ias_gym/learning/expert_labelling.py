@@ -79,7 +79,6 @@ class ShadowExpert:
         observations: the observations labelled, one per step (what ``predict`` was given).
         labels: the expert's actions on them.
         expert_acted: per step, whether the expert's action was the one executed.
-        taken_over: per step, whether the gate made the expert act.
         held: per step, whether the expert's grasp model held (its internal-force problem
             had a solution); a label where it did not teaches nothing (module docstring).
     """
@@ -110,7 +109,6 @@ class ShadowExpert:
         self.observations: list[NDArray[Any]] = []
         self.labels: list[FloatArray] = []
         self.expert_acted: list[bool] = []
-        self.taken_over: list[bool] = []
         self.held: list[bool] = []
 
     def predict(
@@ -135,7 +133,6 @@ class ShadowExpert:
             )
             if self.takeover is not None:
                 gated = bool(np.max(np.abs(np.asarray(action) - label)) > self.takeover)
-        self.taken_over.append(gated and not expert_acts)
         expert_acts = expert_acts or gated
         self.expert_acted.append(expert_acts)
         if expert_acts:
