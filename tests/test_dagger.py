@@ -23,9 +23,9 @@ from ias_gym.learning.dagger import DaggerResult, cloning_epochs, dagger  # noqa
 from ias_gym.learning.expert_labelling import collect_episode, expert_dataset  # noqa: E402
 from ias_gym.learning.randomised_dynamics import (  # noqa: E402
     DEFAULT_RANDOMISATION,
-    FAMILIES,
     HELD_OUT_SEED_START,
     OBSERVATION_NOISE,
+    SINGLE_FAMILIES,
     EpisodeDynamics,
     Randomisation,
     episode_dynamics,
@@ -188,7 +188,7 @@ def _inside(value: float, bounds: tuple[float, float]) -> bool:
 def test_randomisation_samples_within_the_documented_ranges() -> None:
     r = DEFAULT_RANDOMISATION
     drawn = [episode_dynamics(7, k) for k in range(600)]
-    assert {d.family for d in drawn} == set(FAMILIES)
+    assert {d.family for d in drawn} == set(SINGLE_FAMILIES)  # one disturbance at a time
     for d in drawn:
         assert 0 <= d.seed < HELD_OUT_SEED_START
         kw = d.env_kwargs
@@ -212,6 +212,31 @@ def test_randomisation_samples_within_the_documented_ranges() -> None:
             assert _inside(kw["action_noise"], r.action_noise)
         else:
             assert _inside(kw["internal_force_step"], r.internal_force_step)
+
+
+def test_a_combined_draw_sets_every_disturbance_inside_its_range() -> None:
+    r = Randomisation(families=("combined",))
+    keys = set(OBSERVATION_NOISE) | {
+        "friction_scale",
+        "mass_scale",
+        "push_force",
+        "push_duration",
+        "action_delay",
+        "action_noise",
+        "internal_force_step",
+    }
+    drawn = [episode_dynamics(3, k, r) for k in range(100)]
+    for d in drawn:
+        kw = d.env_kwargs
+        assert d.family == "combined" and set(kw) == keys
+        for name in ("friction_scale", "mass_scale", "push_force", "push_duration"):
+            assert _inside(kw[name], getattr(r, name))
+        assert _inside(kw["action_noise"], r.action_noise)
+        assert _inside(kw["internal_force_step"], r.internal_force_step)
+    # the parameters vary between episodes, each on its own
+    assert np.ptp([d.env_kwargs["push_force"] for d in drawn]) > 0.2
+    assert {d.env_kwargs["action_delay"] for d in drawn} == {0, 1, 2}
+    gym.make(ENV_ID, **ENV_KWARGS, **drawn[0].env_kwargs).close()
 
 
 def test_the_suite_classes_lie_inside_the_ranges() -> None:
@@ -244,7 +269,7 @@ def test_every_family_makes_an_env() -> None:
     for k in range(200):
         d = episode_dynamics(5, k)
         seen.setdefault(d.family, d.env_kwargs)
-    assert set(seen) == set(FAMILIES)
+    assert set(seen) == set(SINGLE_FAMILIES)
     for kwargs in seen.values():
         gym.make(ENV_ID, **ENV_KWARGS, **kwargs).close()
 
@@ -309,6 +334,7 @@ def _script_main() -> Callable[[list[str]], int]:
         (["--env", "IAS-GloveGrasp-v0"], "not a pen task"),
         (["--eval-seed", "5"], "--eval-seed must be >= 100000"),
         (["--takeover", "nan"], "--takeover must be a positive number"),
+        (["--obs-clip", "0"], "--obs-clip must be a positive number"),
     ],
 )
 def test_the_script_refuses_bad_input_with_one_line(
@@ -317,6 +343,13 @@ def test_the_script_refuses_bad_input_with_one_line(
     assert _script_main()(["--out", str(tmp_path / "p.zip"), *args]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and match in lines[0], lines
+
+
+def test_the_script_clips_observations_as_the_library_does_by_default() -> None:
+    from ias_gym.learning.normalisation import OBS_CLIP
+
+    parser = load_train_script("dagger").build_parser()
+    assert parser.get_default("obs_clip") == OBS_CLIP
 
 
 def test_a_warm_start_trains_one_learner_on() -> None:

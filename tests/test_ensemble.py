@@ -79,6 +79,30 @@ def test_an_ensemble_saves_and_loads_with_the_safe_loader(env: gym.Env, tmp_path
     np.testing.assert_allclose(loaded, predicted_actions(wide, x), rtol=1e-5, atol=1e-7)
 
 
+def test_the_observation_clip_survives_the_ensemble_and_the_safe_loader(
+    env: gym.Env, tmp_path: Path
+) -> None:
+    """A feature 30 standard deviations out reaches the network with a clip of 100 (the
+    action differs from one at 10) and does not with the default clip of 10."""
+    obs, act = _pairs(env)
+    actions = {}
+    for clip in (10.0, 100.0):
+        wide = clone_ensemble(
+            env, obs, act, 2, 5, epochs=1, net_arch=(8,), progress=False, obs_clip=clip
+        )
+        path = tmp_path / f"clip{clip:g}.zip"
+        wide.save(path)
+        policy = load_policy(str(path), env)  # no unpickling
+        assert policy.loaded.policy.features_extractor.clip == clip
+        extractor = wide.policy.features_extractor
+        far = np.stack([obs[0], obs[0]]).astype(np.float32)
+        far[0, 0] = float(extractor.mean[0] + 10 * extractor.std[0])
+        far[1, 0] = float(extractor.mean[0] + 30 * extractor.std[0])
+        actions[clip] = np.stack([policy.predict(o, deterministic=True)[0] for o in far])
+    np.testing.assert_array_equal(actions[10.0][0], actions[10.0][1])
+    assert np.abs(actions[100.0][0] - actions[100.0][1]).max() > 1e-6
+
+
 def test_one_member_is_the_plain_clone(env: gym.Env) -> None:
     obs, act = _pairs(env)
     kwargs: dict[str, Any] = {"epochs": 1, "net_arch": (8,), "progress": False}
@@ -100,6 +124,11 @@ def test_members_it_cannot_combine_are_refused(env: gym.Env) -> None:
         ensemble_model([a, other_layers], env)
     with pytest.raises(ValueError, match="normalises observations differently"):
         ensemble_model([a, other_data], env)
+    other_clip = behaviour_clone(
+        env, obs, act, epochs=1, net_arch=(8,), progress=False, obs_clip=50
+    )
+    with pytest.raises(ValueError, match="normalises observations differently"):
+        ensemble_model([a, other_clip], env)
     with pytest.raises(ValueError, match="at least one member"):
         ensemble_model([], env)
     with pytest.raises(ValueError, match="members >= 1"):

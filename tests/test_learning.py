@@ -262,6 +262,9 @@ def test_policy_kwargs_build_sac() -> None:
     assert isinstance(model.actor.features_extractor, ObservationNormalizer)
     with pytest.raises(ValueError, match="observation size"):
         ObservationNormalizer(space, mean=[0.0], std=[1.0])
+    for clip in (0.0, -1.0, float("inf"), float("nan")):
+        with pytest.raises(ValueError, match="clip"):
+            ObservationNormalizer(space, clip=clip)
 
 
 def test_model_saved_with_the_old_normaliser_path_loads(

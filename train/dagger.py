@@ -106,6 +106,13 @@ def build_parser() -> argparse.ArgumentParser:
         "near-saturated labels cannot dominate the fit) or the squared error",
     )
     parser.add_argument(
+        "--obs-clip",
+        type=float,
+        default=10.0,
+        help="normalised observations are clipped to +- this in DAgger's and the BC "
+        "baseline's policies [observation standard deviations]",
+    )
+    parser.add_argument(
         "--ensemble",
         type=int,
         default=1,
@@ -116,8 +123,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--families",
         default=None,
-        help="comma-separated randomisation families to draw from (default: all of "
-        "ias_gym.learning.randomised_dynamics.FAMILIES)",
+        help="comma-separated randomisation families to draw from, a name repeated to weight "
+        "it; 'combined' draws every disturbance at once (default: one at a time, "
+        "ias_gym.learning.randomised_dynamics.SINGLE_FAMILIES)",
     )
     parser.add_argument("--no-baseline", action="store_true", help="skip the BC baseline")
     parser.add_argument(
@@ -223,6 +231,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise InputError("--ensemble > 1 clones afresh each iteration; drop --warm-start")
         if args.takeover is not None and not (math.isfinite(args.takeover) and args.takeover > 0):
             raise InputError(f"--takeover must be a positive number, got {args.takeover}")
+        if not (math.isfinite(args.obs_clip) and args.obs_clip > 0):
+            raise InputError(f"--obs-clip must be a positive number, got {args.obs_clip}")
         if out.suffix != ".zip":
             raise InputError(f"--out must end in .zip, got {out}")
         outputs = [out, results_path] + ([] if args.no_baseline else [baseline_path(out)])
@@ -286,6 +296,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         max_gradient_steps=max_steps,
         warm_start=args.warm_start,
         robust=args.loss == "huber",
+        obs_clip=args.obs_clip,
         ensemble=args.ensemble,
         on_iteration=on_iteration,
     )
@@ -321,6 +332,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             epochs=baseline_epochs,
             progress=False,
             robust=args.loss == "huber",
+            obs_clip=args.obs_clip,
         )
         baseline.save(baseline_path(out))
         bc_s = time.perf_counter() - start
@@ -364,6 +376,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "max_gradient_steps": max_steps,
         "warm_start": args.warm_start,
         "loss": args.loss,
+        "obs_clip": args.obs_clip,
         "ensemble": args.ensemble,
         "bc_epochs": baseline_epochs,
         "expert_labels": labels,

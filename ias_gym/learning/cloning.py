@@ -30,6 +30,7 @@ from ias_gym.learning.demonstrations import GAMMA
 from ias_gym.learning.finetune import FINE_TUNE_PPO, REWARD_SCALE
 from ias_gym.learning.normalisation import (
     DEFAULT_NET_ARCH,
+    OBS_CLIP,
     OBS_STD_FLOOR,
     observation_statistics,
     policy_kwargs,
@@ -84,6 +85,7 @@ def behaviour_clone(
     ppo_kwargs: Mapping[str, Any] | None = None,
     model: PPO | None = None,
     robust: bool = False,
+    obs_clip: float = OBS_CLIP,
 ) -> PPO:
     """Clone (observation, action) pairs into the actor of a new SB3 PPO model.
 
@@ -121,8 +123,10 @@ def behaviour_clone(
             while a pen slips away from the learner's grasp, hundreds of standard
             deviations out) pull it no harder than any other badly fitted label.
         model: continue fitting this model's actor (warm start; its observation
-            normalisation, network and hyperparameters kept, ``net_arch``, ``std_floor``
-            and ``ppo_kwargs`` unused) instead of building a new model.
+            normalisation, network and hyperparameters kept, ``net_arch``, ``std_floor``,
+            ``obs_clip`` and ``ppo_kwargs`` unused) instead of building a new model.
+        obs_clip: the new model's normalised observations are clipped to +- this
+            (:class:`~ias_gym.learning.normalisation.ObservationNormalizer`) [-].
 
     Returns:
         The PPO model with the cloned actor (save it with ``model.save(path)``).
@@ -147,7 +151,7 @@ def behaviour_clone(
         model = PPO(
             "MlpPolicy",
             env,
-            policy_kwargs=policy_kwargs(mean, std, net_arch),
+            policy_kwargs=policy_kwargs(mean, std, net_arch, clip=obs_clip),
             seed=seed,
             device="cpu",
             verbose=0,

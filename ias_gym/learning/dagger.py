@@ -51,7 +51,7 @@ from ias_gym.errors import InputError
 from ias_gym.learning.cloning import behaviour_clone
 from ias_gym.learning.ensemble import clone_ensemble
 from ias_gym.learning.expert_labelling import Dataset, check_pen_task, collect_episode
-from ias_gym.learning.normalisation import DEFAULT_NET_ARCH
+from ias_gym.learning.normalisation import DEFAULT_NET_ARCH, OBS_CLIP
 from ias_gym.learning.randomised_dynamics import (
     DEFAULT_RANDOMISATION,
     Randomisation,
@@ -154,6 +154,7 @@ def dagger(
     net_arch: Sequence[int] = DEFAULT_NET_ARCH,
     warm_start: bool = False,
     robust: bool = True,
+    obs_clip: float = OBS_CLIP,
     ensemble: int = 1,
     keep_models: bool = False,
     progress: bool = True,
@@ -197,6 +198,8 @@ def dagger(
         robust: clone by Huber's loss (:func:`~ias_gym.learning.cloning.behaviour_clone`'s
             ``robust``); ``False``: the squared error, which a few of the expert's
             near-saturated labels on the learner's failing states can dominate.
+        obs_clip: the learners' normalised observations are clipped to +- this
+            (:class:`~ias_gym.learning.normalisation.ObservationNormalizer`) [-].
         ensemble: clone this many learners per iteration (seeds
             :func:`~ias_gym.learning.ensemble.member_seed`) and act with their mean
             (:func:`~ias_gym.learning.ensemble.clone_ensemble`, one SB3 model); 1: one clone.
@@ -278,6 +281,7 @@ def dagger(
                 "batch_size": batch_size,
                 "lr": lr,
                 "progress": False,
+                "obs_clip": obs_clip,
             }
             if warm_start:
                 learner = behaviour_clone(

@@ -80,7 +80,11 @@ def ensemble_model(members: Sequence[PPO], env: gym.Env[Any, Any] | VecEnv) -> P
             first.action_space,
         ):
             raise ValueError(f"member {k} was made for other spaces than member 0")
-        if not (torch.equal(other.mean, extractor.mean) and torch.equal(other.std, extractor.std)):
+        if not (
+            torch.equal(other.mean, extractor.mean)
+            and torch.equal(other.std, extractor.std)
+            and other.clip == extractor.clip
+        ):
             raise ValueError(
                 f"member {k} normalises observations differently from member 0; clone the "
                 "members on one dataset"
@@ -89,7 +93,7 @@ def ensemble_model(members: Sequence[PPO], env: gym.Env[Any, Any] | VecEnv) -> P
             raise ValueError(f"member {k} has another activation than member 0")
     n = len(members)
     hidden = [shape[0] for shape in shapes[0][:-1]]
-    kwargs = policy_kwargs(mean, std, [n * h for h in hidden])
+    kwargs = policy_kwargs(mean, std, [n * h for h in hidden], clip=extractor.clip)
     # the critic (unfitted by cloning) keeps a member's size: only the actor is widened
     kwargs["net_arch"] = {"pi": [n * h for h in hidden], "vf": hidden}
     kwargs["activation_fn"] = activation(first)

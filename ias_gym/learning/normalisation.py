@@ -73,6 +73,8 @@ class ObservationNormalizer(BaseFeaturesExtractor):
             )
         if not bool(torch.all(std_t > 0)):
             raise ValueError("every std must be > 0")
+        if not (np.isfinite(clip) and clip > 0):
+            raise ValueError(f"clip must be finite and > 0, got {clip}")
         self.register_buffer("mean", mean_t)
         self.register_buffer("std", std_t)
         self.clip = float(clip)
@@ -138,6 +140,7 @@ def policy_kwargs(
     std: NDArray[Any],
     net_arch: Sequence[int] = DEFAULT_NET_ARCH,
     log_std_init: float = 0.0,
+    clip: float = OBS_CLIP,
 ) -> dict[str, Any]:
     """``policy_kwargs`` of an SB3 ``MlpPolicy`` with :class:`ObservationNormalizer` inside.
 
@@ -150,6 +153,7 @@ def policy_kwargs(
         net_arch: hidden layer sizes.
         log_std_init: initial log standard deviation of the Gaussian actions (PPO's is
             in action units; SAC's before its tanh squashing).
+        clip: normalised observations are clipped to +- this [-].
     """
     return {
         "net_arch": list(net_arch),
@@ -158,6 +162,7 @@ def policy_kwargs(
         "features_extractor_kwargs": {
             "mean": [float(x) for x in np.ravel(mean)],
             "std": [float(x) for x in np.ravel(std)],
+            "clip": float(clip),
         },
         "log_std_init": float(log_std_init),
     }

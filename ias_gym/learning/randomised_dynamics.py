@@ -4,7 +4,7 @@ Every training episode of :func:`~ias_gym.learning.dagger.dagger` (and of
 :func:`~ias_gym.learning.expert_labelling.expert_dataset`) draws one family of the
 robustness suite (:data:`ias_gym.robustness.DISTURBANCES`) uniformly, and that family's
 parameters uniformly from :class:`Randomisation`'s ranges, which contain the suite's fixed
-classes with a margin (the fixed value in brackets):
+classes with a margin (the suite's class in the last column):
 
 ============================  ==================================  ==================
 family                        env kwargs (uniform)                suite class
@@ -19,7 +19,15 @@ family                        env kwargs (uniform)                suite class
 ``action_delay``              ``action_delay`` 0 - 2 steps        1 step
 ``action_noise``              ``action_noise`` 0 - 0.003          0.002
 ``internal_force_steps``      ``internal_force_step`` 0 - 0.15 N  0.1 N
+``combined``                  all of the above at once, each      none
+                              drawn from its range
 ============================  ==================================  ==================
+
+The default draws one disturbance at a time (:data:`SINGLE_FAMILIES`). ``combined`` is the
+domain randomisation of Tobin et al. (2017) and OpenAI et al. (2019), every parameter drawn
+in every episode: each such episode has a push, action noise and a model error, so the
+states a learner must recover from are far more often in the data than one family in eight
+puts them (``Randomisation(families=...)`` with a name repeated weights it).
 
 An episode's dynamics and reset seed depend only on the run's seed and the episode's
 index (:func:`episode_dynamics`), and every training reset seed is below
@@ -51,7 +59,10 @@ FAMILIES: tuple[str, ...] = (
     "action_delay",
     "action_noise",
     "internal_force_steps",
+    "combined",
 )
+#: The families :data:`DEFAULT_RANDOMISATION` draws from: one disturbance at a time.
+SINGLE_FAMILIES: tuple[str, ...] = FAMILIES[:-1]
 #: The suite's observation-noise class: the sigmas a draw of that family scales.
 OBSERVATION_NOISE: Mapping[str, float] = DISTURBANCES["observation_noise"]
 
@@ -75,7 +86,7 @@ class Randomisation:
         internal_force_step: size of the internal-force reference steps [N].
     """
 
-    families: tuple[str, ...] = FAMILIES
+    families: tuple[str, ...] = SINGLE_FAMILIES
     friction_scale: tuple[float, float] = (0.6, 1.4)
     mass_scale: tuple[float, float] = (0.6, 1.4)
     push_force: tuple[float, float] = (0.1, 0.4)
@@ -117,28 +128,33 @@ class Randomisation:
         def uniform(bounds: tuple[float, float]) -> float:
             return float(rng.uniform(bounds[0], bounds[1]))
 
-        kwargs: dict[str, Any]
-        if family == "nominal":
-            kwargs = {}
-        elif family == "friction":
-            kwargs = {"friction_scale": uniform(self.friction_scale)}
-        elif family == "mass":
-            kwargs = {"mass_scale": uniform(self.mass_scale)}
-        elif family == "push":
-            kwargs = {
-                "push_force": uniform(self.push_force),
-                "push_duration": uniform(self.push_duration),
-            }
-        elif family == "observation_noise":
-            scale = uniform(self.observation_noise_scale)
-            kwargs = {name: scale * sigma for name, sigma in OBSERVATION_NOISE.items()}
-        elif family == "action_delay":
-            low, high = self.action_delay
-            kwargs = {"action_delay": int(rng.integers(low, high + 1))}
-        elif family == "action_noise":
-            kwargs = {"action_noise": uniform(self.action_noise)}
-        else:
-            kwargs = {"internal_force_step": uniform(self.internal_force_step)}
+        def draw(name: str) -> dict[str, Any]:
+            if name == "friction":
+                return {"friction_scale": uniform(self.friction_scale)}
+            if name == "mass":
+                return {"mass_scale": uniform(self.mass_scale)}
+            if name == "push":
+                return {
+                    "push_force": uniform(self.push_force),
+                    "push_duration": uniform(self.push_duration),
+                }
+            if name == "observation_noise":
+                scale = uniform(self.observation_noise_scale)
+                return {key: scale * sigma for key, sigma in OBSERVATION_NOISE.items()}
+            if name == "action_delay":
+                low, high = self.action_delay
+                return {"action_delay": int(rng.integers(low, high + 1))}
+            if name == "action_noise":
+                return {"action_noise": uniform(self.action_noise)}
+            if name == "internal_force_steps":
+                return {"internal_force_step": uniform(self.internal_force_step)}
+            return {}  # nominal
+
+        if family != "combined":
+            return family, draw(family)
+        kwargs: dict[str, Any] = {}
+        for name in SINGLE_FAMILIES[1:]:  # every disturbance at once, in a fixed order
+            kwargs.update(draw(name))
         return family, kwargs
 
 
@@ -242,6 +258,7 @@ __all__ = [
     "HELD_OUT_SEED_START",
     "NOMINAL",
     "OBSERVATION_NOISE",
+    "SINGLE_FAMILIES",
     "EpisodeDynamics",
     "Randomisation",
     "RandomisedDynamicsEnv",
