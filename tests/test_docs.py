@@ -100,6 +100,7 @@ def test_every_results_table_is_made_from_its_json() -> None:
         "dagger_ensembles.md",
         "dagger_push_weighted.md",
         "dagger_gate.md",
+        "dagger_combined.md",
         "sac_demos.md",
         "completion.md",
         "evaluation_pen.md",

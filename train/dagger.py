@@ -21,7 +21,8 @@ What it does (:mod:`ias_gym.learning.dagger`, :mod:`ias_gym.learning.expert_labe
   internal-force steps) and its parameters from ranges that contain the suite's fixed
   classes with a margin (friction and mass x0.6-1.4, push 0.1-0.4 N for 30-70 ms,
   observation noise x0-1.5 of the class's, delay 0-2 steps, action noise 0-0.003,
-  internal-force steps 0-0.15 N).
+  internal-force steps 0-0.15 N); ``--families`` chooses the families (a name repeated
+  weights it; ``combined`` draws every disturbance at once).
 - **Baseline**: behaviour cloning on expert rollouts under the same training dynamics,
   cut at exactly as many labels as DAgger gathered, cloned with the same budget.
 - **Evaluation**: every class of :data:`ias_gym.robustness.DISTURBANCES` on seeds from
@@ -124,8 +125,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--families",
         default=None,
         help="comma-separated randomisation families to draw from, a name repeated to weight "
-        "it; 'combined' draws every disturbance at once (default: one at a time, "
-        "ias_gym.learning.randomised_dynamics.SINGLE_FAMILIES)",
+        "it; 'combined' draws every disturbance at once; None: one at a time, "
+        "ias_gym.learning.randomised_dynamics.SINGLE_FAMILIES",
     )
     parser.add_argument("--no-baseline", action="store_true", help="skip the BC baseline")
     parser.add_argument(

@@ -33,6 +33,8 @@ JSON in ``docs/``                      written by                          table
                                        (push_weighted_runs)                ``weighted.md``
 ``dagger_results.json``                ``train/dagger.py --takeover G``    ``dagger_gate.md``
                                        (gate_runs)
+``dagger_results.json``                the same, ``--families ...,``       ``dagger_``
+                                       ``combined`` (combined_runs)        ``combined.md``
 ``sac_demos_results.json``             ``train/sac_demos.py`` (runs)       ``sac_demos.md``
 ``benchmarks/NAME.json``               ``bench/NAME.py --json``            ``NAME.md``
                                        (``make bench``: all of them)
@@ -694,6 +696,7 @@ def tables(docs: Path) -> dict[str, str]:
         "dagger_ensembles.md": dagger_seeds(load("dagger_results.json"), "ensemble_runs"),
         "dagger_push_weighted.md": dagger_seeds(load("dagger_results.json"), "push_weighted_runs"),
         "dagger_gate.md": dagger_seeds(load("dagger_results.json"), "gate_runs"),
+        "dagger_combined.md": dagger_seeds(load("dagger_results.json"), "combined_runs"),
         "sac_demos.md": sac_demos(load("sac_demos_results.json")),
         **{f"{name}.md": benchmark(load(f"benchmarks/{name}.json")) for name in BENCHMARKS},
     }
