@@ -49,8 +49,9 @@ from ias_gym.robustness import DISTURBANCES
 
 #: Training reset seeds are drawn below this; evaluate on seeds from here on (held out).
 HELD_OUT_SEED_START = 100_000
-#: The families a training episode draws from (the robustness suite's classes, grouped).
-FAMILIES: tuple[str, ...] = (
+#: The families :data:`DEFAULT_RANDOMISATION` draws from: the robustness suite's classes,
+#: grouped, one disturbance at a time.
+SINGLE_FAMILIES: tuple[str, ...] = (
     "nominal",
     "friction",
     "mass",
@@ -59,10 +60,9 @@ FAMILIES: tuple[str, ...] = (
     "action_delay",
     "action_noise",
     "internal_force_steps",
-    "combined",
 )
-#: The families :data:`DEFAULT_RANDOMISATION` draws from: one disturbance at a time.
-SINGLE_FAMILIES: tuple[str, ...] = FAMILIES[:-1]
+#: Every family a training episode can draw: the single ones and ``combined`` (all at once).
+FAMILIES: tuple[str, ...] = (*SINGLE_FAMILIES, "combined")
 #: The suite's observation-noise class: the sigmas a draw of that family scales.
 OBSERVATION_NOISE: Mapping[str, float] = DISTURBANCES["observation_noise"]
 
@@ -153,7 +153,7 @@ class Randomisation:
         if family != "combined":
             return family, draw(family)
         kwargs: dict[str, Any] = {}
-        for name in SINGLE_FAMILIES[1:]:  # every disturbance at once, in a fixed order
+        for name in SINGLE_FAMILIES:  # every disturbance at once, in a fixed order
             kwargs.update(draw(name))
         return family, kwargs
 
