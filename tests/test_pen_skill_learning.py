@@ -173,6 +173,19 @@ def test_pipeline_records_clones_saves_and_acts(
     env.close()
 
 
+def run_script(args: list[str], timeout: float) -> subprocess.CompletedProcess[str]:
+    """``train/pen_skill_bc.py ARGS`` in a subprocess, the repo on its path."""
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
+    return subprocess.run(
+        [sys.executable, str(ROOT / "train" / "pen_skill_bc.py"), *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        check=False,
+        env={**os.environ, "PYTHONPATH": path},
+    )
+
+
 @pytest.mark.parametrize(
     ("extra", "expected"),
     [
@@ -180,26 +193,81 @@ def test_pipeline_records_clones_saves_and_acts(
         (("--heldout-seed", "5150"), "training persons' seed"),  # the training persons' own
         (("--heldout-persons", "0"), "population size 0"),
         (("--randomise", "mass,gravity"), "unknown randomisation families ['gravity']"),
+        (("--skills", "lift_hold,juggle"), "unknown skills ['juggle']"),
+        (("--synthetic-skills", "-1"), "--synthetic-skills must be >= 0"),
+        (("--dagger-iterations", "0"), "must be >= 1"),
     ],
 )
 def test_script_refuses_bad_input_before_work(
     tmp_path: Path, extra: tuple[str, ...], expected: str
 ) -> None:
     (tmp_path / "results.json").write_text("{}")
-    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
     args = ["--heldout-seed", "1", "--set", "development", "--out", str(tmp_path)]
     if extra:
         args += [*extra, "--overwrite"]
-    result = subprocess.run(
-        [sys.executable, str(ROOT / "train" / "pen_skill_bc.py"), *args],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-        env={**os.environ, "PYTHONPATH": path},
-    )
+    result = run_script(args, timeout=60)
     assert result.returncode == 2
     assert expected in result.stderr and len(result.stderr.strip().splitlines()) == 1
     assert (tmp_path / "results.json").read_text() == "{}"
     assert not (tmp_path / "demos.db").exists()
     assert not (tmp_path / "train_library.db").exists()
+
+
+def test_dagger_on_skills_labels_the_learners_states_on_synthetic_references() -> None:
+    """DAgger runs on IAS-PenSkill-v0 with a library of synthetic skills: after the
+    expert's iteration the learner acts, and every state it visited is labelled."""
+    from ias_gym.learning.dagger import dagger
+    from ias_gym.learning.randomised_dynamics import NOMINAL
+    from ias_gym.skills.synthetic import synthetic_references
+
+    refs = synthetic_references(4, [np.full(10, 1.5)], "ias4f", 0.01, 0.3, seed=2)
+    kwargs: dict[str, Any] = {"references": tuple(refs), "duration": 0.3}
+    run = dagger(
+        ENV_ID,
+        2,
+        2,
+        seed=3,
+        beta_decay=0.0,
+        randomisation=NOMINAL,
+        env_kwargs=kwargs,
+        epochs=2,
+        progress=False,
+    )
+    first, second = run.history
+    assert first.expert_fraction == 1.0 and second.expert_fraction < 1.0
+    assert second.env_steps > 0 and first.labels_added + second.labels_added == len(run.dataset)
+    env = gym.make(ENV_ID, **kwargs)
+    obs, _ = env.reset(seed=0)
+    action = run.model.predict(obs, deterministic=True)[0]
+    assert action.shape == env.action_space.shape and np.all(np.isfinite(action))
+    env.close()
+
+
+def test_script_runs_dagger_on_human_and_synthetic_skills(tmp_path: Path) -> None:
+    """The script end to end with DAgger and synthetic skills, at a tiny budget: the
+    learner acted in the second iteration (no gate), the run is described, the policy
+    loads."""
+    import json
+
+    out = tmp_path / "run"
+    args = [
+        *("--train-db", str(shipped_skill_db()), "--skills", "lift_hold,tilt_left"),
+        *("--heldout-skills", "tilt_left", "--heldout-persons", "1", "--heldout-seed", "1"),
+        *("--set", "development", "--n-demos", "1", "--dagger-iterations", "2"),
+        *("--episodes-per-iteration", "1", "--synthetic-skills", "3", "--epochs", "1"),
+        *("--ppo-steps", "0", "--critic-warmup", "0", "--val-episodes", "0"),
+        *("--takeover", "10", "--max-eval-skills", "1", "--out", str(out)),
+    ]
+    result = run_script(args, timeout=600)
+    assert result.returncode == 0, result.stderr[-2000:]
+    results = json.loads((out / "results.json").read_text())
+    assert results["method"] == "dagger" and results["synthetic_skills"] == 3
+    first, second = results["dagger"]["history"]
+    assert first["expert_fraction"] == 1.0 and second["expert_fraction"] < 1.0
+    assert results["skills"] == ["lift_hold", "tilt_left"]
+    assert set(results["groups"]) <= set(GROUPS) and "train" in results["groups"]
+    env = gym.make(ENV_ID)
+    policy = load_policy(str(out / "bc.zip"), env)
+    action = policy.predict(env.reset(seed=0)[0], deterministic=True)[0]
+    assert action.shape == env.action_space.shape
+    env.close()

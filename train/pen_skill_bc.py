@@ -91,6 +91,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--heldout-skills", default=HELDOUT_SKILLS, help="comma-separated")
     parser.add_argument(
+        "--skills",
+        default="",
+        metavar="SKILL,...",
+        help="the glove skills recorded and evaluated (empty: all of them); a development "
+        "split can leave the held-out skills of the final run out of sight",
+    )
+    parser.add_argument(
+        "--synthetic-skills",
+        type=int,
+        default=0,
+        help="random motions inside the hand's workspace added to the training library "
+        "(ias_gym.skills.synthetic); the expert is then recorded as under --randomise",
+    )
+    parser.add_argument(
         "--noise", type=float, default=0.001, help="DART noise std [normalised torque]"
     )
     parser.add_argument(
@@ -102,6 +116,33 @@ def build_parser() -> argparse.ArgumentParser:
         "internal_force_steps); empty: nominal dynamics",
     )
     parser.add_argument("--record-seed", type=int, default=0, help="seed of the first demo")
+    parser.add_argument(
+        "--dagger-iterations",
+        type=int,
+        default=1,
+        help="1: clone the expert's --n-demos episodes (BC); K > 1: K - 1 DAgger iterations "
+        "after them (ias_gym.learning.dagger, the learner in the loop, gated by --takeover), "
+        "each of --episodes-per-iteration episodes; the learned policy is bc.zip either way",
+    )
+    parser.add_argument(
+        "--episodes-per-iteration", type=int, default=60, help="DAgger: episodes an iteration"
+    )
+    parser.add_argument(
+        "--takeover",
+        type=float,
+        default=0.02,
+        help="DAgger: the expert acts where the learner's action is this far from its label "
+        "[normalised torque]",
+    )
+    parser.add_argument(
+        "--max-gradient-steps",
+        type=int,
+        default=12000,
+        help="DAgger: Adam steps of a cloning at most (fewer epochs on a large dataset)",
+    )
+    parser.add_argument(
+        "--ensemble", type=int, default=1, help="DAgger: clones per iteration, acting as their mean"
+    )
     parser.add_argument("--epochs", type=int, default=100, help="cloning: passes over the data")
     parser.add_argument("--net-arch", default="256,256", help="hidden layers of actor, critic")
     parser.add_argument(
@@ -308,9 +349,11 @@ def markdown(results: dict[str, Any]) -> str:
         return "-" if value is None else f"{value:.{digits}f}"
 
     n_persons, seed = results["heldout_population"]
+    synthetic = results.get("synthetic_skills") or 0
     lines = [
         f"hand {results['hand']}; training: {len(results['train_persons'])} persons x "
-        f"{results['train_skills']}; held-out skills {results['heldout_skills']}; "
+        f"{results['train_skills']}{f' + {synthetic} synthetic' if synthetic else ''}; "
+        f"method {results.get('method', 'bc')}; held-out skills {results['heldout_skills']}; "
         f"held-out persons: {n_persons} of population seed {seed} ({results['set']})",
         "",
         "| group | policy | episodes | success | held | mean length [s] | RMS pos. err. [mm] | "
@@ -364,11 +407,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from ias_gym.errors import IasGymError, InputError
     from ias_gym.glove.population import check_population, population_ids
+    from ias_gym.glove.skills import SKILLS
     from ias_gym.outputs import atomic_output, prepare_output_dir
 
     try:  # before the heavy imports and any work
         if args.n_demos < 1:
             raise InputError(f"--n-demos must be >= 1, got {args.n_demos}")
+        if args.dagger_iterations < 1 or args.episodes_per_iteration < 1 or args.ensemble < 1:
+            raise InputError(
+                "--dagger-iterations, --episodes-per-iteration and --ensemble must be >= 1"
+            )
+        if args.synthetic_skills < 0:
+            raise InputError(f"--synthetic-skills must be >= 0, got {args.synthetic_skills}")
+        skills = _names(args.skills) or list(SKILLS)
+        unknown = sorted(set(skills + _names(args.heldout_skills)) - set(SKILLS))
+        if unknown:
+            raise InputError(f"--skills: unknown skills {unknown}; known: {', '.join(SKILLS)}")
         randomisation = None
         if args.randomise:  # the families named, checked before any work
             from ias_gym.learning.randomised_dynamics import Randomisation
@@ -395,7 +449,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ias_gym.skills.db import SkillDB
 
     torch.set_num_threads(args.threads)
-    from ias_gym.glove.skills import SKILLS
 
     heldout_skills = _names(args.heldout_skills)
     heldout_persons = population_ids(args.heldout_persons, args.heldout_seed)
@@ -404,7 +457,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     else:
         train_db = out / "train_library.db"
         persons = population_ids(args.train_persons, args.train_seed)
-        record_sessions(train_db, persons, [s for s in SKILLS if s not in heldout_skills])
+        record_sessions(train_db, persons, [s for s in skills if s not in heldout_skills])
     with SkillDB(train_db, readonly=True) as db:
         summaries = db.list_skills()
     split = split_skills(summaries, heldout_skills, heldout_persons)
@@ -427,11 +480,60 @@ def main(argv: Sequence[str] | None = None) -> int:
         "skill_db": library,
         "skill_ids": list(split.train),
     }
+    record_kwargs = env_kwargs
+    if args.synthetic_skills > 0:
+        from ias_gym.envs.pen_skill_env import PenSkillConfig
+        from ias_gym.skills.synthetic import synthetic_references
+        from ias_gym.skills.transfer import load_references
+
+        cfg = PenSkillConfig(hand=args.hand)
+        human = load_references(library, split.train, args.hand, cfg.control_dt, cfg.duration)
+        synthetic = synthetic_references(
+            args.synthetic_skills,
+            [r.margin for r in human],
+            args.hand,
+            cfg.control_dt,
+            cfg.duration,
+            seed=args.seed,
+        )
+        record_kwargs = {"hand": args.hand, "references": (*human, *synthetic)}
+        if randomisation is None:
+            from ias_gym.learning.randomised_dynamics import NOMINAL
+
+            randomisation = NOMINAL
+    if args.dagger_iterations > 1 and randomisation is None:
+        from ias_gym.learning.randomised_dynamics import NOMINAL
+
+        randomisation = NOMINAL
     start = time.perf_counter()
     observations: Any
     actions: Any
     returns: Any
-    if randomisation is not None:
+    dagger_history: list[dict[str, Any]] = []
+    learned = None
+    if args.dagger_iterations > 1:
+        from ias_gym.learning.dagger import dagger
+
+        assert randomisation is not None
+        run = dagger(
+            ENV_ID,
+            args.dagger_iterations,
+            args.episodes_per_iteration,
+            args.record_seed,
+            initial_episodes=args.n_demos,
+            expert_noise=args.noise,
+            takeover=args.takeover,
+            randomisation=randomisation,
+            env_kwargs=record_kwargs,
+            epochs=args.epochs,
+            max_gradient_steps=args.max_gradient_steps,
+            net_arch=[int(n) for n in args.net_arch.split(",")],
+            robust=args.loss == "huber",
+            ensemble=args.ensemble,
+        )
+        learned, dagger_history = run.model, [r.as_json() for r in run.history]
+        observations, actions, returns = run.dataset.observations, run.dataset.actions, None
+    elif randomisation is not None:
         # Expert episodes under dynamics drawn per episode from the robustness suite's
         # families (ias_gym.learning.randomised_dynamics), every visited state labelled.
         import gymnasium as gym
@@ -444,7 +546,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.n_demos * steps,
             seed=args.record_seed,
             randomisation=randomisation,
-            env_kwargs=env_kwargs,
+            env_kwargs=record_kwargs,
             expert_noise=args.noise,
         )
         observations, actions, returns = dataset.observations, dataset.actions, None
@@ -458,23 +560,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         demos = load_demonstrations(demos_db, ENV_ID, source="expert")
         observations, actions, returns = demos.observations, demos.actions, demos.returns
+    what = f"{args.dagger_iterations} DAgger iterations" if learned else "recorded"
     print(
-        f"recorded {args.n_demos} demonstrations ({len(actions)} labelled steps) in "
-        f"{time.perf_counter() - start:.0f} s"
+        f"{what}: {args.n_demos} expert demonstrations first, {len(actions)} labelled steps "
+        f"in all, {time.perf_counter() - start:.0f} s"
     )
 
-    env = make_vec_env(ENV_ID, args.n_envs, seed=args.seed, env_kwargs=env_kwargs)
+    # the DAgger learner was built on one env: it is fine-tuned on one
+    n_envs = 1 if learned is not None else args.n_envs
+    env = make_vec_env(ENV_ID, n_envs, seed=args.seed, env_kwargs=env_kwargs)
     start = time.perf_counter()
-    model = behaviour_clone(
-        env,
-        observations,
-        actions,
-        returns,
-        epochs=args.epochs,
-        net_arch=[int(n) for n in args.net_arch.split(",")],
-        seed=args.seed,
-        robust=args.loss == "huber",
-    )
+    if learned is not None:
+        model = learned
+        model.set_env(env)
+    else:
+        model = behaviour_clone(
+            env,
+            observations,
+            actions,
+            returns,
+            epochs=args.epochs,
+            net_arch=[int(n) for n in args.net_arch.split(",")],
+            seed=args.seed,
+            robust=args.loss == "huber",
+        )
     with atomic_output(out / "bc.zip", overwrite=True) as tmp:
         model.save(tmp)
     print(f"saved the cloned policy to {out / 'bc.zip'} ({time.perf_counter() - start:.0f} s)")
@@ -496,7 +605,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     # Recorded after training (missing sessions only): nothing of them can reach training.
     # The training persons' held-out skills go there too (the held-out-skill group).
-    record_sessions(heldout_db, heldout_persons, SKILLS)
+    record_sessions(heldout_db, heldout_persons, skills)
     record_sessions(heldout_db, train_persons, heldout_skills)
     with SkillDB(heldout_db, readonly=True) as db:
         heldout_split = split_skills(
@@ -575,8 +684,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         "train_persons": train_persons,
         "train_skills": train_skills,
         "heldout_skills": heldout_skills,
+        "skills": skills,
+        "synthetic_skills": args.synthetic_skills,
         "heldout_persons": heldout_persons,
         "n_demos": args.n_demos,
+        "method": "dagger" if args.dagger_iterations > 1 else "bc",
+        "dagger": {
+            "iterations": args.dagger_iterations,
+            "episodes_per_iteration": args.episodes_per_iteration,
+            "takeover": args.takeover,
+            "max_gradient_steps": args.max_gradient_steps,
+            "ensemble": args.ensemble,
+            "history": dagger_history,
+        }
+        if args.dagger_iterations > 1
+        else None,
         "demo_steps": len(actions),
         "randomise": _names(args.randomise),
         "noise": args.noise,

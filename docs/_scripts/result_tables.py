@@ -286,8 +286,9 @@ GROUPS = {
 
 
 def pen_skill_bc(result: Mapping[str, Any]) -> str:
-    """Success [95 % interval] of the expert, BC and BC + PPO per training run and group,
-    with the cloned policy's errors (random policies: 0 % in every group, in the JSON)."""
+    """Success [95 % interval] of the expert, the learned policy (BC or DAgger, as the run's
+    name says) and its PPO fine-tuning per training run and group, with the learned
+    policy's errors (random policies: 0 % in every group, in the JSON)."""
     body = []
     for run in result["runs"]:
         res = run["results"]
@@ -310,10 +311,10 @@ def pen_skill_bc(result: Mapping[str, Any]) -> str:
         "run",
         "group",
         "expert",
-        "BC",
-        "BC + PPO",
-        "BC RMS pos. / axis err. [mm / deg]",
-        "BC open-loop action err.",
+        "learned (BC or DAgger)",
+        "learned + PPO",
+        "learned: RMS pos. / axis err. [mm / deg]",
+        "learned: open-loop action err.",
         "max abs z",
     ]
     return rows(header, body)
@@ -333,7 +334,7 @@ def pen_skill_bc_robustness(result: Mapping[str, Any]) -> str:
         if key not in experts:
             experts.add(key)
             columns.append((f"expert ({res['hand']})", res["robustness"]["expert"]))
-        columns.append((f"BC: {run['name']}", res["robustness"]["bc"]))
+        columns.append((f"learned: {run['name']}", res["robustness"]["bc"]))
     body = [
         [row["disturbance"], *(interval(rows_[k]) for _, rows_ in columns)]
         for k, row in enumerate(columns[0][1])

@@ -38,6 +38,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -166,6 +167,46 @@ def _derivatives(values: FloatArray, dt: float) -> tuple[FloatArray, FloatArray,
     return out[0], out[1], out[2]
 
 
+def motion_reference(
+    position: FloatArray,
+    angles: FloatArray,
+    margin: FloatArray,
+    control_dt: float,
+    **fields: Any,
+) -> SkillReference:
+    """A :class:`SkillReference` from a pen motion sampled every ``control_dt``.
+
+    The position is smoothed and differentiated by the Savitzky-Golay filter
+    (:data:`SMOOTH_WINDOW`, :data:`SMOOTH_ORDER`); the axis is built from the two angles
+    and its rates give the angular velocity and acceleration (the pen's roll is free).
+
+    Args:
+        position: ``(T, 3)`` pen centre relative to its start, already scaled [m].
+        angles: ``(T, 2)`` tilt (elevation) and turn (heading) of the axis, already
+            scaled [rad].
+        margin: ``(T,)`` grasp margin to hold [-].
+        control_dt: the sample period [s].
+        **fields: the reference's other fields (name, person, scales, tolerances).
+    """
+    position, velocity, acceleration = _derivatives(position, control_dt)
+    a, b = angles[:, 0], angles[:, 1]
+    axis = np.stack([np.cos(a) * np.cos(b), np.sin(a), -np.cos(a) * np.sin(b)], axis=1)
+    _, axis_rate, axis_acc = _derivatives(axis, control_dt)
+    # the pen's roll about itself is free: omega is the axis' rate of turn, omega = u x u'
+    # (and alpha = u x u'', as u' x u' = 0)
+    return SkillReference(
+        dt=control_dt,
+        position=position,
+        velocity=velocity,
+        acceleration=acceleration,
+        axis=axis,
+        omega=np.cross(axis, axis_rate),
+        alpha=np.cross(axis, axis_acc),
+        margin=margin,
+        **fields,
+    )
+
+
 def transfer_reference(
     skill: Skill,
     hand: str = "ias4f",
@@ -223,15 +264,8 @@ def transfer_reference(
     scale = min(1.0, ws.reach / largest_move) if largest_move > 0 else 1.0
     scale_rot = min(1.0, ws.tilt / largest_turn) if largest_turn > 0 else 1.0
 
-    position, velocity, acceleration = _derivatives(scale * resample(displacement), control_dt)
+    position = scale * resample(displacement)
     angles = scale_rot * resample(np.stack([tilt, turn], axis=1))
-    a, b = angles[:, 0], angles[:, 1]
-    axis = np.stack([np.cos(a) * np.cos(b), np.sin(a), -np.cos(a) * np.sin(b)], axis=1)
-    _, axis_rate, axis_acc = _derivatives(axis, control_dt)
-    # the pen's roll about itself is free: omega is the axis' rate of turn, omega = u x u'
-    # (and alpha = u x u'', as u' x u' = 0)
-    omega = np.cross(axis, axis_rate)
-    alpha = np.cross(axis, axis_acc)
 
     margin = demonstrated_margin(skill, mu)[start:]
     defined = np.isfinite(margin) | np.isposinf(margin)
@@ -245,15 +279,11 @@ def transfer_reference(
     nearest = np.clip(np.searchsorted(times, grid), 0, len(times) - 1)
     margin_ref = values[nearest]
     tolerance = skill_tolerance(skill.name, tolerances).scaled(scale, scale_rot)
-    return SkillReference(
-        dt=control_dt,
-        position=position,
-        velocity=velocity,
-        acceleration=acceleration,
-        axis=axis,
-        omega=omega,
-        alpha=alpha,
-        margin=margin_ref,
+    return motion_reference(
+        position,
+        angles,
+        margin_ref,
+        control_dt,
         skill_id=-1 if skill.id is None else int(skill.id),
         name=skill.name,
         person=skill.person_id or "",
