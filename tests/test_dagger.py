@@ -298,6 +298,8 @@ def test_the_saved_policy_loads_with_the_safe_loader_and_acts(
         ({"seed": -1}, "seed must be >= 0"),
         ({"beta_decay": 1.5}, "beta_decay"),
         ({"takeover": 0.0}, "takeover must be finite and > 0"),
+        ({"obs_clip": float("inf")}, "obs_clip must be finite and > 0"),
+        ({"obs_clip": -1.0}, "obs_clip must be finite and > 0"),
         ({"env_id": "IAS-GloveGrasp-v0"}, "not a pen task"),
         ({"env_id": "NoSuchEnv-v0"}, "unknown env id"),
     ],

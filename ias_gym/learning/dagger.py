@@ -214,7 +214,8 @@ def dagger(
     Raises:
         InputError: ``env_id`` is not a pen task, ``iterations`` or
             ``episodes_per_iteration`` < 1, ``seed`` < 0, ``beta_decay`` outside [0, 1],
-            ``ensemble`` < 1, ``keep_models`` or ``ensemble`` > 1 with ``warm_start``.
+            ``ensemble`` < 1, ``keep_models`` or ``ensemble`` > 1 with ``warm_start``,
+            ``takeover`` or ``obs_clip`` not finite and > 0.
     """
     check_pen_task(env_id)
     if iterations < 1:
@@ -236,6 +237,8 @@ def dagger(
         raise InputError(f"beta_decay must be in [0, 1], got {beta_decay}")
     if takeover is not None and not (math.isfinite(takeover) and takeover > 0):
         raise InputError(f"takeover must be finite and > 0, got {takeover}")
+    if not (math.isfinite(obs_clip) and obs_clip > 0):
+        raise InputError(f"obs_clip must be finite and > 0, got {obs_clip}")
     probe = gym.make(env_id, **dict(env_kwargs or {}))
     obs_dim = int(np.prod(probe.observation_space.shape or ()))
     act_dim = int(np.prod(probe.action_space.shape or ()))
