@@ -30,7 +30,13 @@ human's, none a skill's:
 
 The references are built by the same filter as a transferred skill's
 (:func:`~ias_gym.skills.transfer.motion_reference`) and carry no tolerances (the env's
-defaults). Skill id -1, name :data:`SYNTHETIC_NAME`, no person.
+defaults). Skill id -1, name :data:`SYNTHETIC_NAME`, no person. An env on them::
+
+    refs = synthetic_references(100, [np.full(10, 1.5)], hand="ias4f")
+    env = gym.make("IAS-PenSkill-v0", references=refs)
+
+``train/pen_skill_bc.py --synthetic-skills N`` adds N of them to the human skills it trains
+on; docs/results-learning.md has what they change.
 """
 
 from __future__ import annotations
