@@ -196,6 +196,8 @@ def run_script(args: list[str], timeout: float) -> subprocess.CompletedProcess[s
         (("--skills", "lift_hold,juggle"), "unknown skills ['juggle']"),
         (("--synthetic-skills", "-1"), "--synthetic-skills must be >= 0"),
         (("--dagger-iterations", "0"), "must be >= 1"),
+        (("--skills", "lift_hold", "--heldout-skills", "lift_place"), "not among --skills"),
+        (("--takeover", "nan"), "--takeover must be finite"),
     ],
 )
 def test_script_refuses_bad_input_before_work(

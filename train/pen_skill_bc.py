@@ -423,6 +423,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         unknown = sorted(set(skills + _names(args.heldout_skills)) - set(SKILLS))
         if unknown:
             raise InputError(f"--skills: unknown skills {unknown}; known: {', '.join(SKILLS)}")
+        outside = sorted(set(_names(args.heldout_skills)) - set(skills))
+        if outside:
+            raise InputError(f"--heldout-skills {outside} are not among --skills; add them there")
+        if not (math.isfinite(args.takeover) and args.takeover > 0) or args.max_gradient_steps < 1:
+            raise InputError("--takeover must be finite and > 0, --max-gradient-steps >= 1")
         randomisation = None
         if args.randomise:  # the families named, checked before any work
             from ias_gym.learning.randomised_dynamics import Randomisation
