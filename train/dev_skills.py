@@ -13,7 +13,7 @@ def development_skills(db_path: str | Path, n_persons: int) -> list[Any]:
 
     with SkillDB(Path(db_path), readonly=True) as db:
         summaries = [s for s in db.list_skills(success=True) if s.person_id]
-        persons = sorted({s.person_id for s in summaries})[:n_persons]
+        persons = sorted({s.person_id or "" for s in summaries})[:n_persons]
         chosen: dict[tuple[str, str], int] = {}
         for s in summaries:
             key = (str(s.person_id), str(s.name))

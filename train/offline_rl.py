@@ -84,7 +84,7 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> dict[str, Any]:
             "mean_return": summary["mean_return"],
         }
     ref = (reference["random"]["mean_return"], reference["expert"]["mean_return"])
-    runs = []
+    runs: list[dict[str, Any]] = []
     for seed in seeds:
         trained = offline.train_offline(data, args.algo, args.steps, seed, threads=args.threads)
         score = offline.evaluate_offline(

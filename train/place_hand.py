@@ -320,7 +320,7 @@ def main() -> None:
     # the keyframe exactly on the targets: the grasp's own inverse kinematics from there
     placed = (tuple(best.x[:3]), (w[3], w[0], w[1], w[2]))
     start = tuple(tuple(best.x[6 + 3 * f : 9 + 3 * f]) for f in range(len(fingers)))
-    final = hand.spec(mount=placed, grasp=start).compile()  # type: ignore[arg-type]
+    final = hand.spec(mount=placed, grasp=start).compile()
     physics = PenHandPhysics(final, mujoco.MjData(final), [f.name for f in fingers], sides=sides)
     physics.reset()
     err = place_grasp(

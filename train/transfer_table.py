@@ -50,7 +50,7 @@ def method_gains(method: str) -> tuple[str, Any]:
     name, _, spec = method.partition(":")
     if not spec:
         return name, None
-    fields = {k: float(v) for k, v in (item.split("=") for item in spec.split(","))}
+    fields: dict[str, Any] = {k: float(v) for k, v in (item.split("=") for item in spec.split(","))}
     return name, dataclasses.replace(ControllerGains(), **fields)
 
 
@@ -234,10 +234,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     disturbances = check_classes(args.disturbances.split(","))
     if args.merge:
         parts = [json.loads(Path(p).read_text()) for p in args.merge]
-        rows = [r for part in parts for r in part["runs"]]
+        merged_rows = [r for part in parts for r in part["runs"]]
         keys = ("hands", "methods", "disturbances")
         merged = {k: list(dict.fromkeys(x for part in parts for x in part[k])) for k in keys}
-        return write_table(args, rows, parts[0]["db"], parts[0]["heldout"], **merged)
+        return write_table(args, merged_rows, parts[0]["db"], parts[0]["heldout"], **merged)
 
     from ias_gym.skills.db import SkillDB
     from ias_gym.skills.transfer import hand_names, shipped_skill_db, transfer_reference
