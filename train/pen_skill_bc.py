@@ -1,7 +1,15 @@
-"""An SB3 agent across human skills: BC from the expert's executions, then PPO fine-tuning.
+"""An SB3 agent across human skills: BC or DAgger from the expert, then PPO fine-tuning.
 
     python train/pen_skill_bc.py --hand ias4f --n-demos 200 --train-persons 20 \
         --heldout-persons 30 --heldout-seed S --set held-out --out out/pen_skill_bc_ias4f
+
+The shipped policy's recipe (docs/results-learning.md): DAgger on the human skills and 400
+synthetic ones,
+
+    python train/pen_skill_bc.py --hand ias4f --n-demos 120 --dagger-iterations 5 \
+        --episodes-per-iteration 60 --max-gradient-steps 36000 --synthetic-skills 400 \
+        --randomise nominal,mass,internal_force_steps --loss huber --heldout-persons 30 \
+        --heldout-seed S --set held-out --out out/ps_dagger
 
 Learning across skills on persons drawn from the population. The training library is one
 glove session per training skill of ``--train-persons`` persons of ``--train-seed``
@@ -12,7 +20,12 @@ is recorded with noise injection (DART, :func:`ias_gym.learning.dart.record_nois
 as ``train/bc.py``), cloned into an SB3 PPO model
 (:func:`ias_gym.learning.cloning.behaviour_clone`) and fine-tuned briefly by PPO
 (:func:`ias_gym.learning.finetune.fine_tune`, the best policy on validation seeds of the
-training skills kept). Expert, cloned, fine-tuned and random policies are then run once
+training skills kept). With ``--synthetic-skills N`` the library also holds N random
+motions inside the hand's workspace (:mod:`ias_gym.skills.synthetic`); with
+``--dagger-iterations K`` the learner is trained by DAgger
+(:func:`ias_gym.learning.dagger.dagger`: the expert's episodes first, then K - 1
+iterations with the learner in the loop) instead of cloned, and saved as ``bc.zip`` all
+the same. Expert, learned, fine-tuned and random policies are then run once
 per skill and ``--eval-seeds`` seed on four groups: training skills of training persons
 (new seeds), held-out skills of training persons, and training and held-out skills of
 ``--heldout-persons`` persons of ``--heldout-seed`` (their glove sessions recorded after
