@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from closed_loop import perturbed_starts
 
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.baselines.expert import ExpertPolicy
@@ -91,6 +92,7 @@ def test_the_draw_is_deterministic_in_its_seed() -> None:
         ({"margins": [np.array([0.5, 1.5])]}, ">= 1"),
         ({"margins": [np.array([1.5, np.nan])]}, "finite"),
         ({"duration": 0.005}, "2 control periods"),
+        ({"control_dt": 0.0}, "control_dt > 0"),
         ({"hand": "robonaut"}, "robonaut"),
     ],
 )
@@ -100,15 +102,25 @@ def test_bad_input_is_refused(kwargs: dict[str, object], message: str) -> None:
         synthetic_references(**args)  # type: ignore[arg-type]
 
 
+@pytest.mark.closed_loop
 def test_the_expert_executes_synthetic_skills() -> None:
+    """From each skill's start and a nearby one: the pen is never dropped, and the expert
+    tracks nearly all within the default tolerances (measured: every one, the largest RMS
+    axis error 1.9 deg against 2.9)."""
     refs = synthetic_references(6, MARGINS, "ias4f", 0.01, 3.0, seed=21)
     env = PenSkillEnv(references=refs)
     policy = ExpertPolicy(env)
-    successes = 0
+    successes: dict[int, int] = {}
     for i in range(len(refs)):
-        trajectory = rollout(env, policy, 500 + i, reset_options={"skill": i}, keep_infos=False)
-        assert not trajectory.terminated  # the pen is never dropped
-        successes += bool(trajectory.final_info["is_success"])
+        for k, options in enumerate(perturbed_starts(env, 500 + i, n=1)):
+            trajectory = rollout(
+                env,
+                policy,
+                500 + i,
+                reset_options={"skill": i, **(options or {})},
+                keep_infos=False,
+            )
+            assert not trajectory.terminated  # the pen is never dropped
+            successes[k] = successes.get(k, 0) + bool(trajectory.final_info["is_success"])
     env.close()
-    # the skills are the hand's to carry: the expert tracks nearly all within the defaults
-    assert successes >= 5
+    assert all(n >= 5 for n in successes.values())

@@ -515,14 +515,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             seed=args.seed,
         )
         record_kwargs = {"hand": args.hand, "references": (*human, *synthetic)}
-        if randomisation is None:
-            from ias_gym.learning.randomised_dynamics import NOMINAL
-
-            randomisation = NOMINAL
-    if args.dagger_iterations > 1 and randomisation is None:
+    if randomisation is None and (args.synthetic_skills > 0 or args.dagger_iterations > 1):
+        # recorded through the labelling of DAgger (references in memory, not a demo database)
         from ias_gym.learning.randomised_dynamics import NOMINAL
 
         randomisation = NOMINAL
+    net_arch = [int(n) for n in args.net_arch.split(",")]
     start = time.perf_counter()
     observations: Any
     actions: Any
@@ -545,7 +543,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             env_kwargs=record_kwargs,
             epochs=args.epochs,
             max_gradient_steps=args.max_gradient_steps,
-            net_arch=[int(n) for n in args.net_arch.split(",")],
+            net_arch=net_arch,
             robust=args.loss == "huber",
             ensemble=args.ensemble,
         )
@@ -578,7 +576,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         demos = load_demonstrations(demos_db, ENV_ID, source="expert")
         observations, actions, returns = demos.observations, demos.actions, demos.returns
-    what = f"{args.dagger_iterations} DAgger iterations" if learned else "recorded"
+    what = f"{args.dagger_iterations} DAgger iterations" if learned is not None else "recorded"
     print(
         f"{what}: {args.n_demos} expert demonstrations first, {len(actions)} labelled steps "
         f"in all, {time.perf_counter() - start:.0f} s"
@@ -598,7 +596,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             actions,
             returns,
             epochs=args.epochs,
-            net_arch=[int(n) for n in args.net_arch.split(",")],
+            net_arch=net_arch,
             seed=args.seed,
             robust=args.loss == "huber",
         )

@@ -83,12 +83,13 @@ def synthetic_motion(
     t = np.arange(samples) * dt
     end = rng.uniform(*MOTION_SHARE) * t[-1]
     kinds, weights = list(SEGMENT_KINDS), np.array(list(SEGMENT_KINDS.values()))
+    weights = weights / weights.sum()
     position, angles = np.zeros((samples, 3)), np.zeros((samples, 2))
     here, turn = np.zeros(3), np.zeros(2)
     start = 0.0
     while start < end:
         length = rng.uniform(*SEGMENT_DURATION)
-        kind = kinds[rng.choice(len(kinds), p=weights / weights.sum())]
+        kind = kinds[rng.choice(len(kinds), p=weights)]
         goal = _in_ball(rng, workspace.reach, 3) if kind in ("translate", "both") else here
         goal_turn = _in_ball(rng, workspace.tilt, 2) if kind in ("rotate", "both") else turn
         after = t >= start
@@ -129,8 +130,10 @@ def synthetic_references(
     series = [np.asarray(m, dtype=float) for m in margins]
     if any(m.ndim != 1 or len(m) < 1 or not np.all(np.isfinite(m) & (m >= 1.0)) for m in series):
         raise InputError("every margin series must be 1-D, finite and >= 1")
+    if not (math.isfinite(control_dt) and control_dt > 0 and math.isfinite(duration)):
+        raise InputError(f"synthetic skills need a finite control_dt > 0, got {control_dt}")
     samples = math.floor(duration / control_dt + 1e-9) + 1
-    if samples < 2 or not control_dt > 0:
+    if samples < 2:
         raise InputError(
             f"synthetic skills need a duration of >= 2 control periods, got {duration} s "
             f"at {control_dt} s"
