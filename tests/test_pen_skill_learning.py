@@ -197,7 +197,8 @@ def run_script(args: list[str], timeout: float) -> subprocess.CompletedProcess[s
         (("--synthetic-skills", "-1"), "--synthetic-skills must be >= 0"),
         (("--dagger-iterations", "0"), "must be >= 1"),
         (("--skills", "lift_hold", "--heldout-skills", "lift_place"), "not among --skills"),
-        (("--takeover", "nan"), "--takeover must be finite"),
+        (("--dagger-iterations", "2", "--takeover", "nan"), "--takeover must be finite"),
+        (("--ensemble", "3"), "--ensemble act only in DAgger"),  # a BC run would ignore it
     ],
 )
 def test_script_refuses_bad_input_before_work(

@@ -58,6 +58,13 @@ TRAIN_SEED = 5150
 #: a motion of its own (the pen put down, not held).
 HELDOUT_SKILLS = "seesaw_fast,lift_place"
 POLICIES = ("expert", "bc", "bc_ppo", "random")
+#: DAgger's options and their defaults; they act only with --dagger-iterations > 1.
+DAGGER = {
+    "episodes_per_iteration": 60,
+    "takeover": 0.02,
+    "max_gradient_steps": 12000,
+    "ensemble": 1,
+}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -137,24 +144,32 @@ def build_parser() -> argparse.ArgumentParser:
         "after them (ias_gym.learning.dagger, the learner in the loop, gated by --takeover), "
         "each of --episodes-per-iteration episodes; the learned policy is bc.zip either way",
     )
+    # DAgger's own options: absent unless given (a BC run refuses them), defaults in DAGGER
     parser.add_argument(
-        "--episodes-per-iteration", type=int, default=60, help="DAgger: episodes an iteration"
+        "--episodes-per-iteration",
+        type=int,
+        default=argparse.SUPPRESS,
+        help=f"DAgger: episodes an iteration (default: {DAGGER['episodes_per_iteration']})",
     )
     parser.add_argument(
         "--takeover",
         type=float,
-        default=0.02,
+        default=argparse.SUPPRESS,
         help="DAgger: the expert acts where the learner's action is this far from its label "
-        "[normalised torque]",
+        f"[normalised torque] (default: {DAGGER['takeover']})",
     )
     parser.add_argument(
         "--max-gradient-steps",
         type=int,
-        default=12000,
-        help="DAgger: Adam steps of a cloning at most (fewer epochs on a large dataset)",
+        default=argparse.SUPPRESS,
+        help="DAgger: Adam steps of a cloning at most (fewer epochs on a large dataset) "
+        f"(default: {DAGGER['max_gradient_steps']})",
     )
     parser.add_argument(
-        "--ensemble", type=int, default=1, help="DAgger: clones per iteration, acting as their mean"
+        "--ensemble",
+        type=int,
+        default=argparse.SUPPRESS,
+        help=f"DAgger: clones per iteration, acting as their mean (default: {DAGGER['ensemble']})",
     )
     parser.add_argument("--epochs", type=int, default=100, help="cloning: passes over the data")
     parser.add_argument("--net-arch", default="256,256", help="hidden layers of actor, critic")
@@ -424,6 +439,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ias_gym.outputs import atomic_output, prepare_output_dir
 
     try:  # before the heavy imports and any work
+        given = [name for name in DAGGER if hasattr(args, name)]
+        if given and args.dagger_iterations <= 1:
+            flags = ", ".join("--" + name.replace("_", "-") for name in given)
+            raise InputError(
+                f"{flags} act only in DAgger; add --dagger-iterations K (K > 1) or drop them"
+            )
+        for name, default in DAGGER.items():
+            setattr(args, name, getattr(args, name, default))
         if args.n_demos < 1:
             raise InputError(f"--n-demos must be >= 1, got {args.n_demos}")
         if args.dagger_iterations < 1 or args.episodes_per_iteration < 1 or args.ensemble < 1:
