@@ -662,7 +662,7 @@ PEN_LEARNING = tuple(
 
 PEN_ROBUSTNESS = tuple(
     f"robustness_{task}_{policy}.json"
-    for policy in ("expert", "bc", "random")
+    for policy in ("expert", "shipped", "bc", "random")
     for task in ("penslide", "penrotate")
 )
 """The pen tasks' runs of ``ias-gym robustness``, one column each."""
