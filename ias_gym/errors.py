@@ -31,6 +31,10 @@ class PolicyNotFoundError(InputError, FileNotFoundError):
     """A policy spec that is neither a known name nor an existing file."""
 
 
+class MissingFileError(InputError, FileNotFoundError):
+    """A file the user named (a database, a dataset) does not exist."""
+
+
 class MissingDependencyError(IasGymError, ImportError):
     """An optional dependency is not installed (the message says which extra to install)."""
 

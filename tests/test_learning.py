@@ -326,6 +326,45 @@ def test_training_scripts_have_help(script: str) -> None:
     assert "--out" in result.stdout
 
 
+@pytest.mark.parametrize("script", ["bc.py", "bc_ppo.py"])
+@pytest.mark.parametrize(
+    ("case", "expected"),
+    [
+        ("other_env", "holds no successful skills of 'IAS-PenSlide-v0'"),
+        ("empty", "is empty (0 bytes), not a skill database"),
+        ("missing", "no skill database at"),
+        ("existing_out", "already exists; pass --overwrite"),
+        ("suffix", "must end with .zip"),
+        ("env_id", "unknown env id 'IAS-PenSlid-v0'"),
+    ],
+)
+def test_cloning_scripts_refuse_bad_input_before_work(
+    demo_db: Path, tmp_path: Path, script: str, case: str, expected: str
+) -> None:
+    """A database of another env, an empty or missing one, an existing or misnamed model, an
+    unknown env: one line, exit code 2, nothing written or replaced."""
+    db, env, out = demo_db, "IAS-PenSlide-v0", tmp_path / "model.zip"
+    if case == "empty":
+        db = tmp_path / "empty.db"
+        db.touch()
+    elif case == "missing":
+        db = tmp_path / "missing.db"
+    elif case == "existing_out":
+        db, env = demo_db, ENV_ID
+        out.write_text("mine")
+    elif case == "suffix":
+        db, env, out = demo_db, ENV_ID, tmp_path / "model.txt"
+    elif case == "env_id":
+        env = "IAS-PenSlid-v0"
+    before = sorted(tmp_path.iterdir())
+    result = _run_script(script, "--env", env, "--db", str(db), "--out", str(out))
+    assert result.returncode == 2, result.stderr[-2000:]
+    assert expected in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert sorted(tmp_path.iterdir()) == before
+    if case == "existing_out":
+        assert out.read_text() == "mine"
+
+
 def test_bc_script_end_to_end(demo_db: Path, tmp_path: Path) -> None:
     out = tmp_path / "bc_script.zip"
     result = _run_script(

@@ -199,6 +199,7 @@ def run_script(args: list[str], timeout: float) -> subprocess.CompletedProcess[s
         (("--skills", "lift_hold", "--heldout-skills", "lift_place"), "not among --skills"),
         (("--dagger-iterations", "2", "--takeover", "nan"), "--takeover must be finite"),
         (("--ensemble", "3"), "--ensemble act only in DAgger"),  # a BC run would ignore it
+        (("--train-db", "/nonexistent/library.db"), "--train-db: no skill database"),
     ],
 )
 def test_script_refuses_bad_input_before_work(

@@ -17,7 +17,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from demos import add_demonstration_options, demonstrations, net_arch
+from demos import add_demonstration_options, demonstrations, inputs_refused, net_arch
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -36,11 +36,15 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Record (optionally), clone, save, evaluate."""
     args = build_parser().parse_args(argv)
+    out = Path(args.out)
+    if inputs_refused(args, [out]):
+        return 2
     import gymnasium as gym
     import torch
 
     from ias_gym.evaluation import report
     from ias_gym.learning.cloning import behaviour_clone
+    from ias_gym.outputs import atomic_output
 
     torch.set_num_threads(args.threads)
     demos = demonstrations(args)
@@ -56,9 +60,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         net_arch=net_arch(args),
         seed=args.seed,
     )
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    model.save(out)
+    with atomic_output(out, overwrite=args.overwrite) as tmp:
+        model.save(tmp)
     print(f"saved the cloned policy to {out} ({time.perf_counter() - start:.0f} s)")
     report(args.env, str(out), args.eval_episodes, args.eval_seed)
     return 0

@@ -21,7 +21,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from demos import add_demonstration_options, demonstrations, net_arch
+from demos import add_demonstration_options, demonstrations, inputs_refused, net_arch
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -73,18 +73,19 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Record (optionally), clone, fine-tune, save, evaluate."""
     args = build_parser().parse_args(argv)
+    out = Path(args.out)
+    bc_out = Path(args.bc_out) if args.bc_out else out.with_name(f"{out.stem}_bc{out.suffix}")
+    if inputs_refused(args, [out, bc_out]):
+        return 2
     import torch
 
     from ias_gym.evaluation import report
     from ias_gym.learning.cloning import behaviour_clone
     from ias_gym.learning.finetune import KeepBestPolicy, WallClockLimit, fine_tune
     from ias_gym.learning.training_envs import make_training_env
+    from ias_gym.outputs import atomic_output
 
     torch.set_num_threads(args.threads)
-    out = Path(args.out)
-    bc_out = Path(args.bc_out) if args.bc_out else out.with_name(f"{out.stem}_bc{out.suffix}")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    bc_out.parent.mkdir(parents=True, exist_ok=True)
     demos = demonstrations(args)
 
     env = make_training_env(args.env, args.n_envs, seed=args.seed, num_workers=args.workers)
@@ -100,7 +101,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         seed=args.seed,
         ppo_kwargs={} if args.lr is None else {"learning_rate": args.lr},
     )
-    model.save(bc_out)
+    with atomic_output(bc_out, overwrite=args.overwrite) as tmp:
+        model.save(tmp)
     print(f"saved the cloned policy to {bc_out} ({time.perf_counter() - start:.0f} s)")
     report(args.env, str(bc_out), args.eval_episodes, args.eval_seed, "cloned policy")
 
@@ -118,7 +120,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         for steps, success, mean_return in keep_best.history:
             print(f"validation at {steps} steps: success {success:.0%}, return {mean_return:.1f}")
         print(f"keeping the policy of step {keep_best.best_steps}")
-    model.save(out)
+    with atomic_output(out, overwrite=args.overwrite) as tmp:
+        model.save(tmp)
     seconds = time.perf_counter() - start
     stopped = ", stopped by --max-minutes" if limit.stopped else ""
     print(

@@ -1,9 +1,12 @@
-"""What ``train/bc.py`` and ``train/bc_ppo.py`` share: the demonstration options, and
-recording (optional) then loading the demonstrations from the skill database."""
+"""What ``train/bc.py`` and ``train/bc_ppo.py`` share: the demonstration options, the
+checks before any work, and recording (optional) then loading the demonstrations from the
+skill database."""
 
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 from typing import Any
 
 
@@ -38,6 +41,45 @@ def add_demonstration_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--eval-episodes", type=int, default=20, help="evaluation (0: skip)")
     parser.add_argument("--eval-seed", type=int, default=1000, help="first evaluation seed")
     parser.add_argument("--threads", type=int, default=1, help="torch threads")
+    parser.add_argument("--overwrite", action="store_true", help="replace existing models")
+    parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
+
+
+def check_inputs(args: argparse.Namespace, outputs: list[Path]) -> None:
+    """Before any work: the env id, the model files (``.zip``, not there unless
+    ``--overwrite``) and, without ``--record``, the database holds the task's demonstrations.
+
+    Raises:
+        IasGymError: the first input that cannot be used (the message names it).
+    """
+    from ias_gym.errors import InputError
+    from ias_gym.evaluation import check_env_id
+    from ias_gym.outputs import check_output_file
+
+    check_env_id(args.env)
+    if args.episodes < 1:
+        raise InputError(f"--episodes must be >= 1, got {args.episodes}")
+    for path in outputs:
+        check_output_file(path, overwrite=args.overwrite, suffixes=(".zip",), what="model")
+    if not args.record:
+        from ias_gym.learning.demonstrations import load_demonstrations
+
+        load_demonstrations(args.db, args.env, 1, source=args.source or "expert")
+
+
+def inputs_refused(args: argparse.Namespace, outputs: list[Path]) -> bool:
+    """:func:`check_inputs`; bad input is printed as one line on stderr (``--debug``: raised,
+    with its traceback) and makes this true: the caller exits with code 2."""
+    from ias_gym.errors import IasGymError
+
+    try:
+        check_inputs(args, outputs)
+    except IasGymError as exc:
+        if args.debug:
+            raise
+        print(f"error: {exc}", file=sys.stderr)
+        return True
+    return False
 
 
 def demonstrations(args: argparse.Namespace) -> Any:

@@ -476,6 +476,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                 f"--heldout-seed {args.heldout_seed} is the training persons' seed; draw "
                 "the held-out persons with another"
             )
+        if args.train_db:  # a database that opens, before any work
+            from ias_gym.errors import MissingFileError
+            from ias_gym.skills.db import SkillDB
+
+            if not Path(args.train_db).is_file():
+                raise MissingFileError(f"--train-db: no skill database at {args.train_db}")
+            with SkillDB(args.train_db, readonly=True) as db:
+                db.list_skills()
         out = prepare_output_dir(args.out, OUTPUTS, overwrite=args.overwrite)
     except IasGymError as exc:
         print(f"error: {exc}", file=sys.stderr)

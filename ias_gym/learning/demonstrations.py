@@ -14,6 +14,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym.errors import InputError, MissingFileError
 from ias_gym.skills.db import SkillDB
 
 FloatArray = NDArray[np.float32]
@@ -80,12 +81,16 @@ def load_demonstrations(
         gamma: discount factor of the returns [-].
 
     Raises:
-        FileNotFoundError: there is no such database file.
-        ValueError: no skill matches.
+        MissingFileError: there is no such database file (a ``FileNotFoundError``).
+        InputError: no skill matches (a ``ValueError``).
+        SkillDBError: the file is not a skill database.
     """
     path = Path(db_path)
     if not path.is_file():
-        raise FileNotFoundError(f"no skill database at {path}")
+        raise MissingFileError(
+            f"no skill database at {path}; record one (ias-gym skills record --db PATH, or "
+            "--record here)"
+        )
     obs: list[NDArray[Any]] = []
     actions: list[NDArray[Any]] = []
     returns: list[FloatArray] = []
@@ -96,7 +101,7 @@ def load_demonstrations(
         if max_episodes is not None:
             summaries = summaries[:max_episodes]
         if not summaries:
-            raise ValueError(
+            raise InputError(
                 f"{path} holds no {'successful ' if success_only else ''}skills of {task!r}"
                 f"{'' if source is None else f' from source {source!r}*'}; its tasks: "
                 f"{db.tasks()}"
