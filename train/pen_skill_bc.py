@@ -50,6 +50,8 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+from ias_gym.sim.hands import hand_names
+
 ENV_ID = "IAS-PenSkill-v0"
 OUTPUTS = ("demos.db", "bc.zip", "bc_ppo.zip", "results.json", "results.md")
 #: Population seed of the training persons (development data by definition).
@@ -73,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
         description=__doc__.split("\n\n")[0],
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    parser.add_argument("--hand", default="ias4f", choices=("ias4f", "ias3f"), help="robot hand")
+    parser.add_argument("--hand", default="ias4f", choices=hand_names(), help="robot hand")
     parser.add_argument("--n-demos", type=int, default=40, help="DART expert episodes")
     parser.add_argument("--out", required=True, metavar="DIR", help="output directory")
     parser.add_argument("--overwrite", action="store_true", help="replace existing outputs")
