@@ -365,6 +365,45 @@ def test_cloning_scripts_refuse_bad_input_before_work(
         assert out.read_text() == "mine"
 
 
+@pytest.mark.parametrize("script", ["ppo.py", "sac.py"])
+@pytest.mark.parametrize(
+    ("extra", "expected"),
+    [
+        (("--env", "IAS-PenSlid-v0"), "unknown env id 'IAS-PenSlid-v0'"),
+        (("--steps", "0"), "--steps must be >= 1"),
+        (("--max-minutes", "nan"), "--max-minutes must be finite"),
+        (("--out", "SUFFIX"), "must end with .zip"),
+        (("--out", "EXISTING"), "already exists; pass --overwrite"),
+    ],
+)
+def test_from_scratch_scripts_refuse_bad_input_before_work(
+    tmp_path: Path, script: str, extra: tuple[str, ...], expected: str
+) -> None:
+    out = tmp_path / "model.zip"
+    if extra == ("--out", "SUFFIX"):
+        extra = ("--out", str(tmp_path / "model.txt"))
+    elif extra == ("--out", "EXISTING"):
+        out.write_text("mine")
+        extra = ()
+    before = sorted(tmp_path.iterdir())
+    result = _run_script(script, "--out", str(out), *extra)
+    assert result.returncode == 2, result.stderr[-2000:]
+    assert expected in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert sorted(tmp_path.iterdir()) == before
+    if out.exists():
+        assert out.read_text() == "mine"
+
+
+def test_sac_script_end_to_end(tmp_path: Path) -> None:
+    """A tiny SAC run writes a model that loads for the env (and nothing else beside it)."""
+    out = tmp_path / "sac.zip"
+    args = ["--env", ENV_ID, "--steps", "20", "--stats-steps", "10", "--eval-episodes", "0"]
+    result = _run_script("sac.py", *args, "--buffer-size", "100", "--out", str(out))
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sac.zip"]
+    assert isinstance(load_policy(str(out), _env()).predict(np.zeros(55))[0], np.ndarray)
+
+
 def test_bc_script_end_to_end(demo_db: Path, tmp_path: Path) -> None:
     out = tmp_path / "bc_script.zip"
     result = _run_script(

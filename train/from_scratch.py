@@ -11,6 +11,8 @@ otherwise (one gradient step per environment step, one env). The model loads wit
 from __future__ import annotations
 
 import argparse
+import math
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -58,12 +60,44 @@ def build_parser(algo: str, description: str) -> argparse.ArgumentParser:
     parser.add_argument("--eval-seed", type=int, default=1000, help="first evaluation seed")
     parser.add_argument("--threads", type=int, default=1, help="torch threads")
     parser.add_argument("--verbose", type=int, default=0, help="SB3 verbosity (1: statistics)")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
     return parser
+
+
+def check(args: argparse.Namespace) -> Path:
+    """Before any work: the env id, the counts and the model file (``.zip``, not there unless
+    ``--overwrite``); returns ``--out``.
+
+    Raises:
+        IasGymError: the first input that cannot be used (the message names it).
+    """
+    from ias_gym.errors import InputError
+    from ias_gym.evaluation import check_env_id
+    from ias_gym.outputs import check_output_file
+
+    check_env_id(args.env)
+    for name in ("steps", "n_envs", "stats_steps"):
+        if getattr(args, name) < 1:
+            flag = "--" + name.replace("_", "-")
+            raise InputError(f"{flag} must be >= 1, got {getattr(args, name)}")
+    if not (math.isfinite(args.max_minutes) and args.max_minutes > 0):
+        raise InputError(f"--max-minutes must be finite and > 0, got {args.max_minutes}")
+    return check_output_file(args.out, overwrite=args.overwrite, suffixes=(".zip",), what="--out")
 
 
 def main(algo: str, description: str, argv: Sequence[str] | None = None) -> int:
     """Train ``algo`` ("ppo" or "sac"), save, evaluate."""
     args = build_parser(algo, description).parse_args(argv)
+    from ias_gym.errors import IasGymError
+
+    try:
+        out = check(args)
+    except IasGymError as exc:
+        if args.debug:
+            raise
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     import torch
     from stable_baselines3 import PPO, SAC
 
@@ -72,10 +106,9 @@ def main(algo: str, description: str, argv: Sequence[str] | None = None) -> int:
     from ias_gym.learning.finetune import WallClockLimit
     from ias_gym.learning.normalisation import policy_kwargs, rollout_statistics
     from ias_gym.learning.training_envs import make_training_env
+    from ias_gym.outputs import atomic_output
 
     torch.set_num_threads(args.threads)
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     mean, std = rollout_statistics(args.env, args.stats_steps, seed=args.seed)
     env = make_training_env(args.env, args.n_envs, seed=args.seed, num_workers=args.workers)
     extra = {} if algo == "ppo" else {"buffer_size": args.buffer_size}
@@ -96,7 +129,8 @@ def main(algo: str, description: str, argv: Sequence[str] | None = None) -> int:
     limit = WallClockLimit(60.0 * args.max_minutes)
     model.learn(total_timesteps=args.steps, callback=limit, progress_bar=True)
     seconds = time.perf_counter() - start
-    model.save(out)
+    with atomic_output(out, overwrite=args.overwrite) as tmp:
+        model.save(tmp)
     env.close()
     stopped = ", stopped by --max-minutes" if limit.stopped else ""
     print(
