@@ -103,7 +103,18 @@ class Rate:
     def __str__(self) -> str:
         low, high = self.interval
         counts = f"{self.successes}/{self.trials}"
-        return f"{100 * self.value:.0f} % [{100 * low:.0f}, {100 * high:.0f}] ({counts})"
+        return f"{self.percent} % [{100 * low:.0f}, {100 * high:.0f}] ({counts})"
+
+    @property
+    def percent(self) -> str:
+        """The rate in percent, whole unless that would read as all or none when it is not
+        (199 of 200 is ``99.5``, not ``100``)."""
+        pct = 100 * self.value
+        for digits in range(4):
+            text = f"{pct:.{digits}f}"
+            if float(text) not in (0.0, 100.0) or pct in (0.0, 100.0):
+                return text
+        return text
 
 
 def check_set_kind(kind: str) -> str:

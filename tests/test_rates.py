@@ -49,3 +49,13 @@ def test_a_set_is_development_or_held_out() -> None:
     assert check_set_kind("held-out") == "held-out"
     with pytest.raises(InputError):
         check_set_kind("test")
+
+
+def test_a_rate_near_all_or_none_does_not_read_as_all_or_none() -> None:
+    """199 of 200 rounds to 100 in whole percent: it prints 99.5; a whole rate stays whole."""
+    from ias_gym.rates import Rate
+
+    assert str(Rate(199, 200)).startswith("99.5 % [")
+    assert str(Rate(1, 400)).startswith("0.2 % [")
+    assert str(Rate(200, 200)).startswith("100 % [") and str(Rate(0, 50)).startswith("0 % [")
+    assert str(Rate(39, 40)).startswith("98 % [")  # 97.5 rounds to a value that is not 100
