@@ -5,7 +5,6 @@ skill database."""
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -70,15 +69,12 @@ def check_inputs(args: argparse.Namespace, outputs: list[Path]) -> None:
 def inputs_refused(args: argparse.Namespace, outputs: list[Path]) -> bool:
     """:func:`check_inputs`; bad input is printed as one line on stderr (``--debug``: raised,
     with its traceback) and makes this true: the caller exits with code 2."""
-    from ias_gym.errors import IasGymError
+    from ias_gym.cli import user_error
 
     try:
         check_inputs(args, outputs)
-    except IasGymError as exc:
-        if args.debug:
-            raise
-        print(f"error: {exc}", file=sys.stderr)
-        return True
+    except Exception as exc:
+        return bool(user_error(exc, args.debug, prefix="error"))
     return False
 
 

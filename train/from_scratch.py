@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -89,15 +88,12 @@ def check(args: argparse.Namespace) -> Path:
 def main(algo: str, description: str, argv: Sequence[str] | None = None) -> int:
     """Train ``algo`` ("ppo" or "sac"), save, evaluate."""
     args = build_parser(algo, description).parse_args(argv)
-    from ias_gym.errors import IasGymError
+    from ias_gym.cli import user_error
 
     try:
         out = check(args)
-    except IasGymError as exc:
-        if args.debug:
-            raise
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    except Exception as exc:
+        return user_error(exc, args.debug, prefix="error")
     import torch
     from stable_baselines3 import PPO, SAC
 

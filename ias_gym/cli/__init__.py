@@ -84,6 +84,16 @@ def one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
 
+def user_error(exc: BaseException, debug: bool, prefix: str = "ias-gym: error") -> int:
+    """Report ``exc`` caught by a command: one line ``<prefix>: <message>`` on stderr and
+    :data:`EXIT_USAGE` for an error the user can fix (:func:`is_user_error`); re-raised, with
+    its traceback, for any other error or with ``debug``. Call it inside ``except``."""
+    if debug or not is_user_error(exc):
+        raise exc
+    print(f"{prefix}: {one_line(exc)}", file=sys.stderr)
+    return EXIT_USAGE
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``ias-gym`` console script.
 
@@ -102,10 +112,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return run(args)
     except Exception as exc:
-        if args.debug or not is_user_error(exc):
-            raise
-        print(f"ias-gym: error: {one_line(exc)}", file=sys.stderr)
-        return EXIT_USAGE
+        return user_error(exc, args.debug)
 
 
 __all__ = [
@@ -120,4 +127,5 @@ __all__ = [
     "one_line",
     "parse_env_kwargs",
     "positive_int",
+    "user_error",
 ]
