@@ -128,3 +128,26 @@ def test_the_population_command_refuses_bad_input_in_one_line(tmp_path) -> None:
     assert refused.returncode == 2 and plot.read_bytes() == b"keep"
     ok = run("--population", "3", "--population-seed", "4", "--json")
     assert ok.returncode == 0 and len(ok.stdout.strip().splitlines()) == 3
+
+
+def test_a_failed_session_says_why_and_a_place_needs_a_lift_first() -> None:
+    from ias_gym.skills.completion import REASONS, failure_reason
+
+    assert failure_reason("tilt_left", True, False, "", True) == ""
+    assert failure_reason("tilt_left", False, True, "", True) == "dropped"
+    assert failure_reason("lift_hold", False, False, "out of reach", False) == "person"
+    assert failure_reason("lift_hold", False, False, "", False) == "not lifted"
+    # a lift_place that never reached the lift height was not lifted, not misplaced
+    assert failure_reason("lift_place", False, False, "", False) == "not lifted"
+    assert failure_reason("lift_place", False, False, "", True) == "not placed"
+    cases = [
+        (s, ok, d, det, li)
+        for s in ("lift_place", "seesaw_fast")
+        for ok in (0, 1)
+        for d in (0, 1)
+        for det in ("", "x")
+        for li in (0, 1)
+    ]
+    assert {
+        failure_reason(s, bool(ok), bool(d), det, bool(li)) for s, ok, d, det, li in cases
+    } <= set(REASONS)

@@ -38,7 +38,8 @@ class SessionOutcome:
         person_id, skill, operator: what ran.
         success: the env's ``is_success`` at the last step.
         reason: ``""`` on success, else ``"dropped"`` (the pen fell: terminated),
-            ``"not lifted"``, ``"not placed"`` (``lift_place``) or ``"person"`` (the
+            ``"not lifted"`` (never ``lift_height`` above its start), ``"not placed"``
+            (``lift_place``: lifted, but not put back) or ``"person"`` (the
             person's side: see ``detail``).
         detail: the env's ``operator_failure`` (why the person could not), or ``""``.
         pen_height_m: the pen's height above its start at the end [m].
@@ -72,21 +73,17 @@ def glove_session(
     try:
         zero = np.zeros(env.action_space.shape or (), dtype=np.float32)
         trajectory = rollout(
-            env, FunctionPolicy(lambda _obs: zero), seed, keep_observations=False, keep_infos=False
+            env, FunctionPolicy(lambda _obs: zero), seed, keep_observations=False, keep_infos=True
         )
+        lift_height = float(env.unwrapped.config.lift_height)  # type: ignore[attr-defined]
     finally:
         env.close()
     info, terminated = trajectory.final_info, trajectory.terminated
+    infos = trajectory.infos or (info,)
+    lifted = max(float(i.get("pen_height", -np.inf)) for i in infos) >= lift_height
     success = bool(info["is_success"])
     detail = str(info.get("operator_failure", ""))
-    if success:
-        reason = ""
-    elif terminated:
-        reason = "dropped"
-    elif detail:
-        reason = "person"
-    else:
-        reason = "not placed" if skill == "lift_place" else "not lifted"
+    reason = failure_reason(skill, success, terminated, detail, lifted)
     return SessionOutcome(
         person_id=person_id,
         skill=skill,
@@ -97,6 +94,25 @@ def glove_session(
         pen_height_m=float(info["pen_height"]),
         params=person_parameters(person_id),
     )
+
+
+def failure_reason(skill: str, success: bool, dropped: bool, detail: str, lifted: bool) -> str:
+    """Why a session failed (one of :data:`REASONS`; ``""``: it did not).
+
+    Args:
+        skill: the session's skill.
+        success: the env's ``is_success`` at the end.
+        dropped: the episode terminated (the pen fell).
+        detail: the env's ``operator_failure`` (the person's side), or ``""``.
+        lifted: the pen was ``lift_height`` above its start at some step.
+    """
+    if success:
+        return ""
+    if dropped:
+        return "dropped"
+    if detail:
+        return "person"
+    return "not placed" if skill == "lift_place" and lifted else "not lifted"
 
 
 def _calibrate(person_id: str) -> None:
