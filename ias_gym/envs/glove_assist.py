@@ -29,7 +29,7 @@ from ias_gym.envs.glove_grasp import GloveGraspEnv
 from ias_gym.envs.glove_world import OBSERVATION_PARTS as GLOVE_PARTS
 from ias_gym.envs.layout import observation_layout
 from ias_gym.errors import InputError
-from ias_gym.glove.device import GloveDevice, ReachPinchLiftTimings, SimulatedGlove
+from ias_gym.glove.device import GloveDevice, ReachPinchLiftTimings, SimulatedGlove, min_jerk
 from ias_gym.glove.hand import JOINT_HIGH, JOINT_LOW, N_JOINTS, PersonParams
 from ias_gym.glove.impairments import (
     Impairment,
@@ -58,11 +58,6 @@ OBSERVATION_PARTS = (*GLOVE_PARTS, ("upcoming_theta", N_JOINTS))
 OBS_SIZE = sum(size for _, size in OBSERVATION_PARTS)
 
 
-def _min_jerk(s: float) -> float:
-    s = min(max(s, 0.0), 1.0)
-    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
-
-
 class SwitchingOperator:
     """Skill ``a`` until script time ``t_switch`` [s], then ``b`` (the same pinch-lift and
     person; only the skill's joint offsets blend, over :data:`SWITCH_BLEND`).
@@ -82,7 +77,7 @@ class SwitchingOperator:
 
     def __call__(self, t: float) -> FloatArray:
         """Θ(t) [rad]."""
-        w = _min_jerk((t - self.t_switch) / SWITCH_BLEND)
+        w = min_jerk((t - self.t_switch) / SWITCH_BLEND)
         offsets = (1.0 - w) * self.a.offsets(t) + w * self.b.offsets(t)
         return np.asarray(self.a.base(t) + offsets + self.a.tremor(t))
 

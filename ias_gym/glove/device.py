@@ -348,7 +348,9 @@ class ReachPinchLiftTimings:
 PHASES: tuple[str, ...] = ("rest", "reach", "close", "hold", "lift", "hold_lifted")
 
 
-def _min_jerk(s: float) -> float:
+def min_jerk(s: float) -> float:
+    """The minimum-jerk profile (Flash & Hogan 1985) from 0 to 1 at phase ``s`` (clipped to
+    [0, 1]): zero velocity and acceleration at both ends."""
     s = min(max(s, 0.0), 1.0)
     return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
 
@@ -444,5 +446,5 @@ class ReachPinchLift:
         pose = self.poses["open"]
         for start, end, a, b in self._segments:
             if t >= start:
-                pose = a + (b - a) * _min_jerk((t - start) / (end - start))
+                pose = a + (b - a) * min_jerk((t - start) / (end - start))
         return np.array(pose, dtype=np.float64)

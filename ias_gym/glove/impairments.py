@@ -40,7 +40,13 @@ from numpy.typing import NDArray
 
 from ias_gym.errors import InputError
 from ias_gym.glove.calibration import Calibration
-from ias_gym.glove.device import GloveDevice, GloveReading, GloveWrapper, ReachPinchLiftTimings
+from ias_gym.glove.device import (
+    GloveDevice,
+    GloveReading,
+    GloveWrapper,
+    ReachPinchLiftTimings,
+    min_jerk,
+)
 from ias_gym.glove.hand import (
     N_JOINTS,
     NOMINAL_INDEX_LENGTHS,
@@ -174,14 +180,9 @@ class TremorOperator:
     def __call__(self, t: float) -> FloatArray:
         """Θ(t) [rad] with the tremor."""
         out = np.array(self.operator(t), dtype=np.float64)
-        onset = _min_jerk((t - self.timings.reach) / TREMOR_ONSET)
+        onset = min_jerk((t - self.timings.reach) / TREMOR_ONSET)
         out[self._idx] += onset * self.amplitude * np.sin(2.0 * math.pi * self.hz * t + self._phase)
         return out
-
-
-def _min_jerk(s: float) -> float:
-    s = min(max(s, 0.0), 1.0)
-    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
 
 
 class WeakGripOperator:
@@ -213,7 +214,7 @@ class WeakGripOperator:
     def __call__(self, t: float) -> FloatArray:
         """Θ(t) [rad] with the weaker pinch."""
         t0, t1 = self.timings.reach, self.timings.close
-        w = _min_jerk((t - t0) / (t1 - t0))
+        w = min_jerk((t - t0) / (t1 - t0))
         return np.asarray(self.operator(t), dtype=np.float64) - w * self.opening * self._d
 
 

@@ -48,7 +48,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ias_gym.errors import InputError
-from ias_gym.glove.device import ReachPinchLift, ReachPinchLiftTimings
+from ias_gym.glove.device import ReachPinchLift, ReachPinchLiftTimings, min_jerk
 from ias_gym.glove.hand import N_JOINTS, PersonParams, joint_index
 from ias_gym.glove.population import PersonStream
 
@@ -125,7 +125,7 @@ def skill_object_target(
         check_skill(skill)
     timings = SKILL_TIMINGS
     script_t = t + timings.reach  # the episodes start at the end of the reach
-    rise = LIFT_GOAL * _min_jerk((script_t - timings.hold) / (timings.lift - timings.hold))
+    rise = LIFT_GOAL * min_jerk((script_t - timings.hold) / (timings.lift - timings.hold))
     a, v, delay = (1.0, 1.0, 0.0) if style is None else (style.amplitude, style.speed, style.delay)
     u = script_t - timings.lift - delay  # the skill starts after the lift and the delay
     if skill is None or u <= 0.0:
@@ -139,9 +139,9 @@ def skill_object_target(
         tilt = -TILT_PER_PRONATION * pron
     elif skill in ("tilt_left", "tilt_right"):
         sign = 1.0 if skill == "tilt_left" else -1.0
-        tilt = sign * TILT_PER_PRONATION * a * TILT_AMPLITUDE * _min_jerk(u * v / TILT_TIME)
+        tilt = sign * TILT_PER_PRONATION * a * TILT_AMPLITUDE * min_jerk(u * v / TILT_TIME)
     elif skill == "lift_place":
-        rise = LIFT_GOAL * (1.0 - _min_jerk(u * v / PLACE_TIME))
+        rise = LIFT_GOAL * (1.0 - min_jerk(u * v / PLACE_TIME))
     return rise, tilt
 
 
@@ -258,11 +258,6 @@ TREMOR_JOINTS: tuple[str, ...] = (
 )
 
 
-def _min_jerk(s: float) -> float:
-    s = min(max(s, 0.0), 1.0)
-    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
-
-
 def _seesaw(u: float, period: float, cycles: float) -> float:
     """A see-saw of unit amplitude at time ``u`` [s] after its start: a sine whose first and
     last quarter periods fade in and out (minimum jerk), so the wrist starts and stops at
@@ -271,7 +266,7 @@ def _seesaw(u: float, period: float, cycles: float) -> float:
     if u <= 0.0 or u >= length:
         return 0.0
     ramp = 0.25 * period
-    envelope = min(_min_jerk(u / ramp), _min_jerk((length - u) / ramp))
+    envelope = min(min_jerk(u / ramp), min_jerk((length - u) / ramp))
     return envelope * math.sin(2.0 * math.pi * u / period)
 
 
@@ -331,9 +326,9 @@ class SkillOperator:
         elif self.skill in ("tilt_left", "tilt_right"):
             # Supination (-) turns the pen's left end (paper -x) down (yaw > 0), measured.
             sign = -1.0 if self.skill == "tilt_left" else 1.0
-            out[self._pron] = sign * a * TILT_AMPLITUDE * _min_jerk(u * v / TILT_TIME)
+            out[self._pron] = sign * a * TILT_AMPLITUDE * min_jerk(u * v / TILT_TIME)
         else:  # lift_place: undo the lift's wrist extension (the person's own lift)
-            out[self._wf] = -PLACE_SHARE * self._lift * _min_jerk(u * v / PLACE_TIME)
+            out[self._wf] = -PLACE_SHARE * self._lift * min_jerk(u * v / PLACE_TIME)
         return out
 
     def tremor(self, t: float) -> FloatArray:
