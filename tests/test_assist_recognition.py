@@ -459,6 +459,36 @@ def test_cli_library_draws_its_persons_from_the_population(tmp_path: Path) -> No
     assert stored == set(population_ids(1, 5))
 
 
+def test_without_persons_library_and_evaluation_draw_different_persons() -> None:
+    """No command names a person: the defaults are population draws, and the default
+    evaluation persons are never the default library's."""
+    import argparse
+
+    from ias_gym.cli.assist_commands import (
+        EVALUATION_POPULATION,
+        LIBRARY_POPULATION,
+        _persons_of,
+    )
+    from ias_gym.errors import InputError
+    from ias_gym.glove.population import population_ids
+
+    def args(**kw: object) -> argparse.Namespace:
+        base = {"persons": None, "population": None, "population_seed": None}
+        return argparse.Namespace(**{**base, **kw})
+
+    library = _persons_of(args(), LIBRARY_POPULATION)
+    evaluation = _persons_of(args(), EVALUATION_POPULATION)
+    assert library == population_ids(*LIBRARY_POPULATION)
+    assert len(evaluation) == EVALUATION_POPULATION[0]
+    assert not set(library) & set(evaluation)
+    assert _persons_of(args(population=2), LIBRARY_POPULATION) == population_ids(2, 0)
+    with pytest.raises(InputError, match="--persons ID"):
+        _persons_of(args(population_seed=7), None)  # a seed alone names no one
+    with pytest.raises(InputError, match="exclude each other"):
+        _persons_of(args(persons="ana", population_seed=3), LIBRARY_POPULATION)
+    assert _persons_of(args(persons="ana, ben"), LIBRARY_POPULATION) == ["ana", "ben"]
+
+
 def test_the_summary_counts_each_proportion_with_its_interval() -> None:
     from ias_gym.assist.metrics import FRACTIONS, SessionResult, summarise
 

@@ -174,7 +174,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--build-db", metavar="FILE.db", help="record a new human-skill DB")
     parser.add_argument(
-        "--persons", default="p1,p2,p3,p4,p5,p6,p7,p8,h1,h2,h3", help="persons (--build-db)"
+        "--persons", metavar="ID,ID,...", help="persons (--build-db; or --population)"
     )
     parser.add_argument(
         "--population",
@@ -199,7 +199,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="instead of running: one table of the runs of these --out-json files (e.g. "
         "two processes' shares of the hands)",
     )
-    parser.add_argument("--heldout", default="h1,h2,h3", help="persons never used in development")
+    parser.add_argument(
+        "--heldout", default="", metavar="ID,ID,...", help="persons never used in development"
+    )
     parser.add_argument("--seed", type=int, default=0, help="reset seed of every run")
     parser.add_argument("--duration", type=float, default=3.0, help="episode length [s]")
     parser.add_argument("--out-json", help="JSON of every run and the summaries")
@@ -223,6 +225,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ias_gym.outputs import check_output_file
 
     if args.build_db:
+        if not args.persons:
+            parser.error("--build-db needs --persons ID,ID,... or --population N")
         build_db(Path(args.build_db), args.persons.split(","), args.episodes, args.overwrite)
         print(f"wrote {args.build_db}")
         return 0

@@ -87,7 +87,7 @@ def _library(args: argparse.Namespace) -> int:
     from ias_gym.glove.skills import SKILLS
     from ias_gym.skills import SkillDB
 
-    persons = _persons_of(args, LIBRARY_PERSONS)
+    persons = _persons_of(args, LIBRARY_POPULATION)
     skills = SKILLS if args.skills == "all" else [s.strip() for s in args.skills.split(",")]
     for s in skills:
         if s not in SKILLS:
@@ -101,15 +101,17 @@ def _library(args: argparse.Namespace) -> int:
     return 0
 
 
-#: The persons of ``assist library`` and ``assist evaluate`` when neither ``--persons`` nor
-#: ``--population`` is given.
-LIBRARY_PERSONS = "p1,p2,p3,p4,p5"
-EVALUATION_PERSONS = "p7,p8,p9"
+#: The persons of ``assist library`` and ``assist evaluate`` when ``--persons`` is not given:
+#: ``(N, seed)`` of a population draw. The two seeds differ, so that the default evaluation
+#: persons are never the default library's.
+LIBRARY_POPULATION = (5, 0)
+EVALUATION_POPULATION = (3, 1)
 
 
-def _persons_of(args: argparse.Namespace, default: str | None) -> list[str]:
-    """The persons of ``--persons ID,ID`` or ``--population N --population-seed S`` (one of
-    the two; ``default`` ids without either).
+def _persons_of(args: argparse.Namespace, default: tuple[int, int] | None) -> list[str]:
+    """The persons of ``--persons ID,ID`` or of the population draw ``--population N
+    --population-seed S`` (``default`` gives N and S where they are not given; ``None``:
+    one of the two must be given).
 
     Raises:
         InputError: both given, neither (without a default), an empty list or a bad id.
@@ -117,37 +119,47 @@ def _persons_of(args: argparse.Namespace, default: str | None) -> list[str]:
     from ias_gym.glove.ids import check_id
     from ias_gym.glove.population import population_ids
 
-    if args.population is not None:
-        if args.persons is not None:
-            raise InputError("--persons and --population exclude each other: give one of them")
-        return population_ids(args.population, args.population_seed)
-    text = args.persons if args.persons is not None else default
-    if text is None:
-        raise InputError("give the persons: --persons ID,ID,... or --population N")
-    persons = [p.strip() for p in text.split(",") if p.strip()]
+    if args.persons is None:
+        if args.population is not None:
+            n = args.population
+        elif default is not None:
+            n = default[0]
+        else:
+            raise InputError("give the persons: --persons ID,ID,... or --population N")
+        seed = args.population_seed
+        if seed is None:
+            seed = default[1] if default is not None else 0
+        return population_ids(n, seed)
+    if args.population is not None or args.population_seed is not None:
+        raise InputError("--persons and --population exclude each other: give one of them")
+    persons = [p.strip() for p in args.persons.split(",") if p.strip()]
     if not persons:
-        raise InputError("--persons needs at least one person id, e.g. p7,p8,p9")
+        raise InputError("--persons needs at least one person id, e.g. ana,ben")
     return [check_id(p, "--persons") for p in persons]
 
 
-def _person_arguments(parser: argparse.ArgumentParser, default: str | None) -> None:
-    """``--persons`` and the population draw that replaces it."""
-    shown = f"default: {default}" if default else "or --population"
+def _person_arguments(parser: argparse.ArgumentParser, default: tuple[int, int] | None) -> None:
+    """``--persons`` and the population draw that replaces it (``default``: its N and seed;
+    ``None``: no default, one of the two is required)."""
+    n, seed = default if default is not None else ("none: give it or --persons", 0)
     parser.add_argument(
-        "--persons", default=None, metavar="ID,ID,...", help=f"person ids ({shown})"
+        "--persons",
+        default=None,
+        metavar="ID,ID,...",
+        help="person ids (default: the --population draw)" if default else "person ids",
     )
     parser.add_argument(
         "--population",
         type=int_at_least(1),
         metavar="N",
-        help="instead of --persons: N persons drawn from the population (docs/population.md)",
+        help=f"N persons drawn from the population (docs/population.md) (default: {n})",
     )
     parser.add_argument(
         "--population-seed",
         type=non_negative_int,
-        default=0,
         metavar="S",
-        help="seed of the --population draw: the same seed gives the same persons",
+        help="seed of the --population draw: the same seed gives the same persons "
+        f"(default: {seed})",
     )
 
 
@@ -222,7 +234,7 @@ def _assistant_factory(kind: str, recogniser: str, db: Path) -> Any:
 
 
 def _evaluate(args: argparse.Namespace) -> int:
-    persons = _persons_of(args, EVALUATION_PERSONS)
+    persons = _persons_of(args, EVALUATION_POPULATION)
     impairments = _impairments(args.impairment)
     db = Path(args.db)
     if not db.is_file():
@@ -361,7 +373,7 @@ def add_assist_evaluate(commands: argparse._SubParsersAction[Any]) -> argparse.A
     p.add_argument(
         "--db", required=True, metavar="F", help="the skill library (`ias-gym assist library`)"
     )
-    _person_arguments(p, EVALUATION_PERSONS)
+    _person_arguments(p, EVALUATION_POPULATION)
     p.add_argument(
         "--impairment",
         action="append",
@@ -469,7 +481,7 @@ def add_assist_commands(subparsers: argparse._SubParsersAction[Any]) -> None:
         formatter_class=HelpFormatter,
     )
     library.add_argument("--db", required=True, metavar="FILE", help="the skill database")
-    _person_arguments(library, LIBRARY_PERSONS)
+    _person_arguments(library, LIBRARY_POPULATION)
     library.add_argument(
         "--skills", default="all", metavar="NAME,...|all", help="the skills to record"
     )
