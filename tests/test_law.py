@@ -458,3 +458,45 @@ def test_offset_keeps_kinetic_friction_and_stays_internal(seed: int) -> None:
     kept = N.T @ offset
     np.testing.assert_allclose(law.keep_sliding_friction(N, kept, sliding, mu), offset, atol=1e-12)
     assert abs((f - kept) @ kept) < 1e-12
+
+
+def test_a_fingers_force_resolution_is_its_first_joint_to_slip() -> None:
+    """The least normal force that turns one of a finger's joints past its dry friction:
+    min_j F_j / |n . J_j| over the joints the force loads; none without joint friction."""
+    from ias_gym.baselines.grip_transform_terms import force_resolution
+
+    J = np.zeros((6, 5))
+    J[0:3, 0:3] = [[0.02, 0.0, 0.01], [0.0, 0.05, 0.0], [0.0, 0.0, 0.04]]  # finger 0, dofs 0-2
+    J[3:6, 3:5] = [[0.03, 0.0], [0.0, 0.0], [0.0, 0.06]]  # finger 1, dofs 3-4
+    frames = np.tile(np.eye(3), (2, 1, 1))
+    frames[0, 0] = [0.0, 1.0, 0.0]  # finger 0 pressed along y: only dof 1 is loaded
+    frames[1, 0] = [0.6, 0.0, 0.8]  # finger 1: dof 3 (0.018) and dof 4 (0.048)
+    coulomb = np.array([0.02, 0.02, 0.02, 0.01, 0.03])
+    res = force_resolution(J, frames, coulomb)
+    np.testing.assert_allclose(res, [0.02 / 0.05, min(0.01 / 0.018, 0.03 / 0.048)])
+    np.testing.assert_array_equal(force_resolution(J, frames, np.zeros(5)), [0.0, 0.0])
+
+
+def test_the_resolvable_squeeze_only_raises_a_squeeze_too_light_to_set() -> None:
+    from ias_gym.baselines.grip_transform_terms import force_resolution, resolvable_squeeze
+
+    J = np.zeros((6, 2))
+    J[0, 0], J[3, 1] = 0.05, 0.05  # each finger's normal loads one joint with 0.05 N m/N
+    frames = np.tile(np.eye(3), (2, 1, 1))
+    coulomb = np.array([0.02, 0.02])  # force resolution 0.4 N each
+    active = np.array([True, True])
+    c_p = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0])  # finger 0 carries the load
+    c_h = np.array([0.05, 0.01, 0.0, 0.05, -0.01, 0.0])  # finger 1 barely pressed
+    out = resolvable_squeeze(c_p, c_h, 0.5, J, frames, coulomb, active)
+    normals = (c_p + out)[0::3]
+    floor = 0.5 * force_resolution(J, frames, coulomb)
+    assert np.all(normals >= floor - 1e-12) and normals[1] == pytest.approx(floor[1])
+    np.testing.assert_allclose(out, (out[0] / c_h[0]) * c_h)  # a scale of c_h: still internal
+    # off, without friction, or already firm: unchanged (the same array)
+    assert resolvable_squeeze(c_p, c_h, 0.0, J, frames, coulomb, active) is c_h
+    assert resolvable_squeeze(c_p, c_h, 0.5, J, frames, np.zeros(2), active) is c_h
+    firm = 10 * c_h
+    assert resolvable_squeeze(c_p, firm, 0.5, J, frames, coulomb, active) is firm
+    # a finger out of contact asks for nothing
+    lifted = np.array([True, False])
+    assert resolvable_squeeze(c_p, c_h, 0.5, J, frames, coulomb, lifted) is c_h

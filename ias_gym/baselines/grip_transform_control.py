@@ -47,7 +47,9 @@ Beyond the paper, where its assumptions do not hold in the simulation:
 - the LP's solution is the least-norm one among equal sums of normal forces, because MuJoCo's
   soft friction lets any shear creep;
 - where the motors saturate, the holding torques ``J^T f + H`` come first and the motion
-  terms are scaled down together (:func:`~.grip_transform_terms.motion_share`).
+  terms are scaled down together (:func:`~.grip_transform_terms.motion_share`);
+- a skill's squeeze is never below a share of what each finger's sticking joints let it set
+  (:func:`~.grip_transform_terms.resolvable_squeeze`; hands with joint friction only).
 """
 
 from __future__ import annotations
@@ -65,8 +67,10 @@ from ias_gym.baselines.grip_transform_terms import (
     MotionRows,
     ReferenceRows,
     ahead,
+    damping_feedforward,
     estimated_masses,
     lateral_servo,
+    resolvable_squeeze,
     right_inverses,
     slide_servo,
     with_motion,
@@ -123,6 +127,9 @@ class ControllerGains:
     coulomb_speed: float = 0.005  # [rad/s] their Coulomb friction's smoothed sign (0: none)
     # the holding torques J^T f + H first where the motors saturate (docs/controller.md)
     hold_first: bool = True
+    # a skill's squeeze never below this share of each finger's force resolution (its
+    # joints' dry friction; fitted by train/fit_friction_floor.py, docs/controller.md)
+    friction_floor: float = 0.5
 
 
 @dataclass
@@ -421,6 +428,9 @@ def _control_step(
         if margin is not None:
             # The hand's own internal forces, scaled so that c_p + c_h^d has the margin.
             c_h_d[i] = scale_to_margin(c_p[i], c_h_d[i], margin, g.mu)
+            c_h_d[i] = resolvable_squeeze(
+                c_p[i], c_h_d[i], g.friction_floor, J[i], x.frames[i], x.damping[i, 1], active[i]
+            )
     offset_scale = [1.0] * len(controllers)
     for i, ctrl in enumerate(controllers):
         internal_offset = offsets[i]
@@ -469,18 +479,7 @@ def _control_step(
         v = x.motion[:, 6:]  # [velocity; omega]
         inertia = law.finger_inertia_torques(x.M, J_pinv, W, dW, dJ, x.qvel, a_d, v, touching)
     if g.damping_feedforward:
-        # The joints' damping along the *reference* motion (never the measured one, which
-        # would cancel the damping, see above): fingers that follow the object drag on
-        # it otherwise (measured: a 23 ms lag of the pen's tilt behind its reference).
-        v_ref = ref.twist
-        feedforward = law.damping_feedforward_torques(x.damping[:, 0], J_pinv, W, v_ref, touching)
-        if g.coulomb_speed > 0 and np.any(x.damping[:, 1]):  # the error's correction too
-            e_p, e_r = ref.position - state.position, np.cross(state.axis, ref.axis)
-            v_d = v_ref + np.concatenate([g.kp / g.kv * e_p, g.kp_rot / g.kv_rot * e_r], -1)
-            friction = law.coulomb_feedforward_torques(
-                x.damping[:, 1], J_pinv, W, v_d, touching, g.coulomb_speed
-            )
-            feedforward = feedforward + friction
+        feedforward = damping_feedforward(g, x, state, ref, J_pinv, W, touching)
     tau = with_motion(law.joint_torques(J, f, x.coriolis), (inertia, feedforward), x, g.hold_first)
 
     for i, ctrl in enumerate(controllers):

@@ -8,8 +8,10 @@ lead (:func:`ahead`), the rows as the law's motion and reference (:class:`Motion
 :class:`ReferenceRows`), the batched right inverse ``W+`` of eq. (5) (:func:`right_inverses`),
 the two servos beyond the paper that hold the tips on the pen (:func:`lateral_servo`) and
 move sliding tips along their schedule (:func:`slide_servo`), the estimate of the pen's
-mass (:func:`estimated_masses`), and the motion terms added within the motors' limits
-(:func:`with_motion`, :func:`motion_share`).
+mass (:func:`estimated_masses`), the motion terms added within the motors' limits
+(:func:`with_motion`, :func:`motion_share`), the joints' damping and Coulomb feed-forward
+(:func:`damping_feedforward`) and the least squeeze a finger with sticking joints can set
+(:func:`force_resolution`, :func:`resolvable_squeeze`).
 """
 
 from __future__ import annotations
@@ -290,3 +292,86 @@ def with_motion(
     for term in terms:
         hold += term
     return hold
+
+
+def force_resolution(J: FloatArray, frames: FloatArray, coulomb: FloatArray) -> FloatArray:
+    """``(k,)`` per finger, the least normal force [N] at its contact that turns one of its
+    joints past that joint's dry friction: ``min_j F_j / |(J_i^T n_i)_j|`` over the joints
+    the force loads (beyond the paper). Below it every joint of the finger sticks, so the
+    finger cannot set a normal force that small; 0 for a hand without joint friction.
+
+    Args:
+        J: ``(3 k, dofs)`` the fingertips' Jacobians.
+        frames: ``(k, 3, 3)`` the contact frames, the normal first.
+        coulomb: ``(dofs,)`` the joints' Coulomb friction [N m].
+    """
+    k = frames.shape[0]
+    out = np.zeros(k)
+    if not np.any(coulomb > 0):
+        return out
+    for i in range(k):
+        lever = np.abs(frames[i, 0] @ J[3 * i : 3 * i + 3])  # torque per newton, each joint
+        loaded = (lever > 1e-9) & (coulomb > 0)
+        if loaded.any():
+            out[i] = float(np.min(coulomb[loaded] / lever[loaded]))
+    return out
+
+
+def resolvable_squeeze(
+    c_p: FloatArray,
+    c_h: FloatArray,
+    share: float,
+    J: FloatArray,
+    frames: FloatArray,
+    coulomb: FloatArray,
+    active: NDArrayBool,
+) -> FloatArray:
+    """``c_h`` scaled up (never down) so that each touching finger's normal intensity in
+    ``c_p + c_h`` is at least ``share`` of its :func:`force_resolution`, where ``c_h`` presses
+    that finger: a squeeze the finger can set with its joints' dry friction (beyond the
+    paper; ``c_h`` itself for ``share`` 0 or a hand without joint friction).
+
+    Args:
+        c_p, c_h: ``(3 k,)`` particular and internal intensities [N] (normal first).
+        share: ``ControllerGains.friction_floor`` [-].
+        J, frames, coulomb: as :func:`force_resolution`.
+        active: ``(k,)`` fingers in contact.
+    """
+    if share <= 0 or not np.any(coulomb > 0):
+        return c_h
+    floor = share * force_resolution(J, frames, coulomb)
+    n_p, n_h = c_p[0::3], c_h[0::3]
+    short = active & (n_h > 1e-9) & (n_p + n_h < floor)
+    if not short.any():
+        return c_h
+    scale = float(np.max((floor[short] - n_p[short]) / n_h[short]))
+    return c_h * max(scale, 1.0)
+
+
+def damping_feedforward(
+    g: Any,
+    x: Gathered,
+    state: MotionRows,
+    ref: ReferenceRows,
+    J_pinv: FloatArray,
+    W: FloatArray,
+    touching: NDArrayBool,
+) -> FloatArray:
+    """The joints' damping along the *reference* motion, and their Coulomb friction along it
+    plus the error's correction (beyond the paper; ``g``: the controller's gains).
+
+    Never along the measured motion, which would cancel the damping (see
+    :meth:`~ias_gym.baselines.grip_transform_control.GripTransformController.torques`):
+    fingers that follow the object drag on it otherwise (measured: a 23 ms lag of the pen's
+    tilt behind its reference).
+    """
+    v_ref = ref.twist
+    out = law.damping_feedforward_torques(x.damping[:, 0], J_pinv, W, v_ref, touching)
+    if g.coulomb_speed > 0 and np.any(x.damping[:, 1]):
+        e_p, e_r = ref.position - state.position, np.cross(state.axis, ref.axis)
+        v_d = v_ref + np.concatenate([g.kp / g.kv * e_p, g.kp_rot / g.kv_rot * e_r], -1)
+        out = out + law.coulomb_feedforward_torques(
+            x.damping[:, 1], J_pinv, W, v_d, touching, g.coulomb_speed
+        )
+    result: FloatArray = out
+    return result
