@@ -560,3 +560,68 @@ def test_cli_runs_a_shipped_skill_by_default() -> None:
     (row,) = [json.loads(line) for line in out.stdout.strip().splitlines()]
     assert (row["hand"], row["skill"], row["person"]) == ("ias3f", "seesaw_slow", "p1")
     assert row["held_s"] == pytest.approx(0.6)
+
+
+@pytest.mark.closed_loop
+def test_the_leap_thumb_on_top_holds_a_squeeze_its_sticking_joints_can_set() -> None:
+    """A shipped lift_place held at the edge of slipping, on the LEAP hand (0.02 N m of dry
+    friction per joint): with the friction floor the thumb on top keeps the pen from every
+    nearby start; without it (the weaker method) the thumb's few hundredths of a newton
+    are below what its joints can set, and the pen is lost."""
+    import dataclasses
+
+    from ias_gym.baselines.grip_transform_control import ControllerGains
+    from ias_gym.skills.transfer import shipped_skill_db
+
+    with SkillDB(shipped_skill_db(), readonly=True) as db:
+        skill = next(
+            s
+            for s in (db.get(i) for i in db.ids())
+            if s.name == "lift_place" and s.person_id == "p2"
+        )
+    ref = transfer_reference(skill, "leap")
+    env = PenSkillEnv(references=[ref], hand="leap")
+    starts = list(perturbed_starts(env, seed=0, n=2))
+    env.close()
+    floor = ControllerGains()
+    assert floor.friction_floor > 0
+    off = dataclasses.replace(floor, friction_floor=0.0)
+    for options in starts:
+        held, _ = run_transfer(ref, "leap", "gt", gains=floor, reset_options=options)
+        assert held.held and held.margin_kept, (held.held_s, held.margin_err_rel)
+    dropped = [
+        not run_transfer(ref, "leap", "gt", gains=off, reset_options=o)[0].held for o in starts
+    ]
+    assert any(dropped)
+
+
+def test_the_friction_floor_fit_chooses_by_success_and_refuses_bad_input(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """train/fit_friction_floor.py end to end on two of the shipped skills' persons (tiny:
+    the Shadow hand, two shares, two folds), and its refusals before any work."""
+    from train_scripts import load_train_script
+
+    from ias_gym.skills.transfer import shipped_skill_db
+
+    main = load_train_script("fit_friction_floor").main
+    out = tmp_path / "fit.json"
+    db = str(shipped_skill_db())
+    base = ["--db", db, "--hands", "shadow", "--grid", "0,0.5", "--folds", "2", "--workers", "1"]
+    assert main([*base, "--out", str(out)]) == 0
+    result = json.loads(out.read_text())
+    cells = result["by_hand_and_share"]["shadow"]
+    counts = {share: cells[share]["successes"] for share in ("0.0", "0.5")}
+    assert result["chosen_share"] == (0.5 if counts["0.5"] > counts["0.0"] else 0.0)
+    assert result["persons"] == 2 and len(result["folds"]) == 2
+    fresh = str(tmp_path / "new.json")
+    for bad, what in (
+        (["--out", fresh, "--hands", "nohand"], "--hands nohand"),
+        (["--out", fresh, "--folds", "1"], "--folds 1"),
+        (["--out", fresh, "--db", str(tmp_path / "missing.db")], "missing.db"),
+        (["--out", str(out)], str(out)),  # exists, no --overwrite
+    ):
+        capsys.readouterr()
+        assert main([*base, *bad]) == 2
+        assert what in capsys.readouterr().err
+    assert not Path(fresh).exists()

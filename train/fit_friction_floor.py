@@ -11,10 +11,10 @@ joint friction is unchanged at any share).
 
 Every successful glove session of each ``--db`` (development persons) is executed by the
 expert on each of ``--hands``, nominal, at every share of ``--grid``. A share is chosen by the
-success over all these runs (ties: the smaller share); ``--folds`` groups of persons
+success over all these runs (ties: the first in the grid); ``--folds`` groups of persons
 cross-validate the choice (each fold's share is chosen on the other folds and judged on the
 fold's persons, with a 95 % Wilson interval). Writes ``--out`` (JSON: the success of every
-share, per hand and skill, the folds and the chosen share).
+share per hand, the folds and the chosen share).
 
     python train/fit_friction_floor.py --db out/leap/dev858.db --db out/leap/dev836.db \\
         --hands leap,shadow --out out/leap/friction_floor.json
@@ -65,9 +65,9 @@ class RunJob:
         return out
 
 
-def best_share(grid: Sequence[float], success: np.ndarray) -> int:
+def best_share(success: np.ndarray) -> int:
     """The index of the share with the most successes (``success``: runs x shares; ties:
-    the smaller share, the grid's order)."""
+    the first in the grid's order)."""
     return int(np.argmax(success.sum(axis=0)))
 
 
@@ -100,12 +100,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             if not Path(db).is_file():
                 raise InputError(f"--db {db} does not exist")
             with SkillDB(db, readonly=True) as handle:
-                for skill_id in handle.ids():
-                    summary = handle.get(skill_id)
-                    if summary.is_success:
-                        for hand in hands:
-                            items.append((db, skill_id, hand))
-                            persons.append(str(summary.person_id))
+                for summary in handle.list_skills(success=True):
+                    for hand in hands:
+                        items.append((db, summary.id, hand))
+                        persons.append(str(summary.person_id))
     except (InputError, ValueError) as exc:
         print(f"fit_friction_floor.py: error: {exc}", file=sys.stderr)
         return 2
@@ -118,11 +116,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     fold = np.array([fold_of[p] for p in persons])
     folds = []
     for k in range(args.folds):
-        chosen = best_share(grid, success[fold != k])
+        chosen = best_share(success[fold != k])
         mine = success[fold == k, chosen]
         folds.append({"share": grid[chosen], **Rate(int(mine.sum()), len(mine)).to_dict()})
     cv = (int(sum(f["successes"] for f in folds)), int(sum(f["trials"] for f in folds)))
-    chosen = best_share(grid, success)
+    chosen = best_share(success)
     per_hand: dict[str, dict[str, dict[str, int]]] = {}
     for (_db, _skill_id, hand), row in zip(items, success, strict=True):
         per_hand.setdefault(hand, {})

@@ -17,7 +17,7 @@ mass (:func:`estimated_masses`), the motion terms added within the motors' limit
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -25,6 +25,9 @@ from ias_gym.baselines import law
 from ias_gym.envs.pen_hand_env import FloatArray, PenReference
 from ias_gym.grasp.grip_transform import pseudo_inverse
 from ias_gym.grasp.wrench_matrix import cross3
+
+if TYPE_CHECKING:
+    from ias_gym.baselines.grip_transform_control import ControllerGains
 
 NDArrayBool = np.ndarray
 
@@ -349,7 +352,7 @@ def resolvable_squeeze(
 
 
 def damping_feedforward(
-    g: Any,
+    g: ControllerGains,
     x: Gathered,
     state: MotionRows,
     ref: ReferenceRows,
@@ -358,7 +361,7 @@ def damping_feedforward(
     touching: NDArrayBool,
 ) -> FloatArray:
     """The joints' damping along the *reference* motion, and their Coulomb friction along it
-    plus the error's correction (beyond the paper; ``g``: the controller's gains).
+    plus the error's correction (beyond the paper).
 
     Never along the measured motion, which would cancel the damping (see
     :meth:`~ias_gym.baselines.grip_transform_control.GripTransformController.torques`):
@@ -366,12 +369,11 @@ def damping_feedforward(
     tilt behind its reference).
     """
     v_ref = ref.twist
-    out = law.damping_feedforward_torques(x.damping[:, 0], J_pinv, W, v_ref, touching)
+    out: FloatArray = law.damping_feedforward_torques(x.damping[:, 0], J_pinv, W, v_ref, touching)
     if g.coulomb_speed > 0 and np.any(x.damping[:, 1]):
         e_p, e_r = ref.position - state.position, np.cross(state.axis, ref.axis)
         v_d = v_ref + np.concatenate([g.kp / g.kv * e_p, g.kp_rot / g.kv_rot * e_r], -1)
         out = out + law.coulomb_feedforward_torques(
             x.damping[:, 1], J_pinv, W, v_d, touching, g.coulomb_speed
         )
-    result: FloatArray = out
-    return result
+    return out
