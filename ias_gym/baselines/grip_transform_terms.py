@@ -17,7 +17,7 @@ mass (:func:`estimated_masses`), the motion terms added within the motors' limit
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -25,9 +25,6 @@ from ias_gym.baselines import law
 from ias_gym.envs.pen_hand_env import FloatArray, PenReference
 from ias_gym.grasp.grip_transform import pseudo_inverse
 from ias_gym.grasp.wrench_matrix import cross3
-
-if TYPE_CHECKING:
-    from ias_gym.baselines.grip_transform_control import ControllerGains
 
 NDArrayBool = np.ndarray
 
@@ -352,7 +349,7 @@ def resolvable_squeeze(
 
 
 def damping_feedforward(
-    g: ControllerGains,
+    g: Any,
     x: Gathered,
     state: MotionRows,
     ref: ReferenceRows,
@@ -361,7 +358,9 @@ def damping_feedforward(
     touching: NDArrayBool,
 ) -> FloatArray:
     """The joints' damping along the *reference* motion, and their Coulomb friction along it
-    plus the error's correction (beyond the paper).
+    plus the error's correction (beyond the paper; ``g``: the controller's
+    :class:`~ias_gym.baselines.grip_transform_control.ControllerGains`, not imported here:
+    that module imports this one).
 
     Never along the measured motion, which would cancel the damping (see
     :meth:`~ias_gym.baselines.grip_transform_control.GripTransformController.torques`):
