@@ -595,29 +595,66 @@ def test_the_leap_thumb_on_top_holds_a_squeeze_its_sticking_joints_can_set() -> 
     assert any(dropped)
 
 
-def test_the_friction_floor_fit_chooses_by_success_and_refuses_bad_input(
+@pytest.mark.closed_loop
+def test_the_integral_takes_out_the_steady_offset_of_a_scaled_lift() -> None:
+    """A shipped lift_place on the four-finger hand, its lift scaled to about an eighth: the
+    tips' lateral servo leaves the proportional law a steady offset of the pen from its
+    reference, about as large as the scaled tolerance; the transfer's integral gain takes
+    most of it out from every nearby start, and the run is tracked."""
+    import dataclasses
+
+    from ias_gym.skills.transfer import shipped_skill_db
+    from ias_gym.skills.transfer_run import TransferRun, transfer_gains
+
+    with SkillDB(shipped_skill_db(), readonly=True) as db:
+        skill = next(s for s in (db.get(i) for i in db.ids()) if s.name == "lift_place")
+    ref = transfer_reference(skill, "ias4f")
+    env = PenSkillEnv(references=[ref], hand="ias4f")
+    starts = list(perturbed_starts(env, seed=0, n=2))
+    env.close()
+    gains = transfer_gains("ias4f")
+    assert gains.ki > 0
+    proportional = dataclasses.replace(gains, ki=0.0)
+
+    def offset(run: TransferRun) -> float:  # the mean offset over the last second [m]
+        late = run.time >= run.time[-1] - 1.0
+        error = run.position[late] - run.reference_position[late]
+        return float(np.linalg.norm(error.mean(axis=0)))
+
+    for options in starts:
+        integral, _ = run_transfer(ref, "ias4f", "gt", gains=gains, reset_options=options)
+        plain, _ = run_transfer(ref, "ias4f", "gt", gains=proportional, reset_options=options)
+        assert integral.held and integral.tracked, integral.pos_rms_mm
+        assert offset(integral) < 0.3 * offset(plain), (offset(integral), offset(plain))
+
+
+def test_the_gain_fit_chooses_by_success_and_refuses_bad_input(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """train/fit_friction_floor.py end to end on two of the shipped skills' persons (tiny:
-    the Shadow hand, two shares, two folds), and its refusals before any work."""
+    """train/fit_gain.py end to end on two of the shipped skills' persons (tiny: the Shadow
+    hand, the friction floor at two shares, two folds), and its refusals before any work."""
     from train_scripts import load_train_script
 
     from ias_gym.skills.transfer import shipped_skill_db
 
-    main = load_train_script("fit_friction_floor").main
+    main = load_train_script("fit_gain").main
     out = tmp_path / "fit.json"
     db = str(shipped_skill_db())
     base = ["--db", db, "--hands", "shadow", "--grid", "0,0.5", "--folds", "2", "--workers", "1"]
+    base += ["--gain", "friction_floor"]
     assert main([*base, "--out", str(out)]) == 0
     result = json.loads(out.read_text())
-    cells = result["by_hand_and_share"]["shadow"]
+    cells = result["by_hand_disturbance_and_value"]["shadow"]["nominal"]
     counts = {share: cells[share]["successes"] for share in ("0.0", "0.5")}
-    assert result["chosen_share"] == (0.5 if counts["0.5"] > counts["0.0"] else 0.0)
+    assert result["chosen_value"] == (0.5 if counts["0.5"] > counts["0.0"] else 0.0)
     assert result["persons"] == 2 and len(result["folds"]) == 2
     fresh = str(tmp_path / "new.json")
     for bad, what in (
         (["--out", fresh, "--hands", "nohand"], "--hands nohand"),
         (["--out", fresh, "--folds", "1"], "--folds 1"),
+        (["--out", fresh, "--gain", "cone"], "--gain cone"),
+        (["--out", fresh, "--disturbances", "wind"], "wind"),
+        (["--out", fresh, "--grid", "0,x"], "x"),
         (["--out", fresh, "--db", str(tmp_path / "missing.db")], "missing.db"),
         (["--out", str(out)], str(out)),  # exists, no --overwrite
     ):

@@ -39,19 +39,20 @@ from tqdm import tqdm
 WEAK = ("weak_still", "weak_margin_1.2", "weak_margin_2.0")
 
 
-def method_gains(method: str) -> tuple[str, Any]:
+def method_gains(method: str, hand: str) -> tuple[str, Any]:
     """``"gt"`` or ``"kinematic"``, or ``"gt:ki=4000"`` (the expert with these
-    :class:`~ias_gym.baselines.grip_transform_control.ControllerGains` fields): the method
-    and its gains (``None``: the method's own)."""
+    :class:`~ias_gym.baselines.grip_transform_control.ControllerGains` fields, the others
+    the hand's :func:`~ias_gym.skills.transfer_run.transfer_gains`): the method and its
+    gains (``None``: the method's own)."""
     import dataclasses
 
-    from ias_gym.baselines.grip_transform_control import ControllerGains
+    from ias_gym.skills.transfer_run import transfer_gains
 
     name, _, spec = method.partition(":")
     if not spec:
         return name, None
     fields: dict[str, Any] = {k: float(v) for k, v in (item.split("=") for item in spec.split(","))}
-    return name, dataclasses.replace(ControllerGains(), **fields)
+    return name, dataclasses.replace(transfer_gains(hand), **fields)
 
 
 def weak_reference(reference: Any, kind: str) -> Any:
@@ -265,7 +266,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for summary, skill, hand, method, disturbance in tqdm(jobs, desc="transfer", unit="run"):
         reference = transfer_reference(skill, hand, duration=args.duration)
         weak = method in WEAK
-        name, gains = ("gt", None) if weak else method_gains(method)
+        name, gains = ("gt", None) if weak else method_gains(method, hand)
         run, _ = run_transfer(
             reference,
             hand,

@@ -97,10 +97,9 @@ class ControllerGains:
 
     kp: float = 400.0  # object position stiffness Kp [1/s^2] (eq. 43)
     kv: float = 40.0  # object position damping Kv [1/s]
-    # Integral of the object position error [1/s^3]: fed the nominal pen's weight (no mass
-    # estimate), Kp alone leaves up to |dm| g / Kp of sag (7.4 mm at 30 %; 4.8 mm measured,
-    # the finger servos carry some); the integral takes it out (Routh: ki < Kp Kv), but not
-    # the margin error the wrong weight gives (docs/controller.md).
+    # Integral of the object position error [1/s^3] (Routh: ki < Kp Kv): takes out a steady
+    # offset Kp leaves, e.g. where the tips' lateral servo pulls a moved pen back; off for the
+    # pen tasks, per hand for transferred skills (skills.transfer_run.TRANSFER_KI).
     ki: float = 0.0
     # The integral's share of a_d is bounded by this [m/s^2] (anti-windup: half of g, a pen
     # between 0.5 and 1.5 times its nominal weight).
@@ -128,7 +127,7 @@ class ControllerGains:
     # the holding torques J^T f + H first where the motors saturate (docs/controller.md)
     hold_first: bool = True
     # a skill's squeeze never below this share of each finger's force resolution (its
-    # joints' dry friction; fitted by train/fit_friction_floor.py, docs/controller.md)
+    # joints' dry friction; fitted by train/fit_gain.py, docs/controller.md)
     friction_floor: float = 0.5
 
 

@@ -30,6 +30,21 @@ FloatArray = NDArray[np.float64]
 #: (dex-retargeting and joint position control, the ``retarget`` extra).
 METHODS: tuple[str, ...] = ("gt", "kinematic", "retarget")
 
+#: The integral gain of the pen's position error [1/s^3]
+#: (:attr:`~ias_gym.baselines.grip_transform_control.ControllerGains.ki`) with which the
+#: expert executes a transferred skill, per hand; fitted on development persons by
+#: ``train/fit_gain.py --gain ki --per-hand`` (docs/controller.md). The pen tasks' expert
+#: keeps the default (0).
+TRANSFER_KI: dict[str, float] = {"ias4f": 500.0, "ias3f": 2000.0, "shadow": 0.0, "leap": 0.0}
+
+
+def transfer_gains(hand: str) -> Any:
+    """The expert's :class:`~ias_gym.baselines.grip_transform_control.ControllerGains` for a
+    skill transferred to ``hand``: the defaults, with the hand's :data:`TRANSFER_KI`."""
+    from ias_gym.baselines.grip_transform_control import ControllerGains
+
+    return ControllerGains(ki=TRANSFER_KI.get(hand, 0.0))
+
 
 @dataclass
 class TransferRun:
@@ -150,7 +165,7 @@ def run_transfer(
             :class:`~ias_gym.baselines.grip_transform_control.ControllerGains`, the
             kinematic baseline's :class:`~ias_gym.baselines.kinematic.KinematicGains` or
             the retargeting baseline's :class:`~ias_gym.baselines.retarget.RetargetGains`
-            (default: its own).
+            (default: its own; the expert's: :func:`transfer_gains`).
         reset_options: further options of the reset (e.g. an exact start, ``qpos`` and
             ``qvel``); the skill is always the reference.
         **config: further :class:`PenSkillConfig` fields.
@@ -173,7 +188,7 @@ def run_transfer(
     try:
         policy: Any
         if method == "gt":
-            policy = ExpertPolicy(env, gains)
+            policy = ExpertPolicy(env, gains or transfer_gains(hand))
         elif method == "kinematic":
             policy = KinematicPolicy(env, gains)
         else:
