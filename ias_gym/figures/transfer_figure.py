@@ -114,13 +114,15 @@ def transfer_figure(
     ax.legend(fontsize=8)
     for a in axes.ravel():
         a.grid(alpha=0.3)
-    text = ", ".join(
+    # one line per two hands, so that four hands' errors fit the figure's width
+    rows = [
         f"{h}: rot {r.rot_rms_deg:.2f} deg, pos {r.pos_rms_mm:.2f} mm, margin "
         f"{100 * r.margin_err_rel:.0f} %"
         for h, r in runs.items()
         if math.isfinite(r.margin_err_rel)
-    )
-    fig.suptitle(f"Skill transfer (G(t)): {text}", fontsize=9)
+    ]
+    text = "\n".join("; ".join(rows[i : i + 2]) for i in range(0, len(rows), 2))
+    fig.suptitle(f"Skill transfer (G(t)) RMS errors\n{text}", fontsize=9)
     fig.tight_layout()
     save_png_atomic(fig, path, overwrite=overwrite)
     plt.close(fig)
