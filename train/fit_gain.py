@@ -3,20 +3,25 @@
 Every successful glove session of each ``--db`` (development persons) is transferred by the
 expert (:func:`~ias_gym.skills.transfer_run.run_transfer`, method ``gt``) onto each of
 ``--hands``, under each class of ``--disturbances``, at every value of ``--grid`` for the
-:class:`~ias_gym.baselines.grip_transform_control.ControllerGains` field ``--gain`` (the other
-gains at their defaults). A value is chosen by the success over all these runs (ties: the
-first in the grid); ``--folds`` groups of persons cross-validate the choice (each fold's value
-is chosen on the other folds and judged on the fold's persons, with a 95 % Wilson interval).
-With ``--per-hand`` each hand's value is also chosen and cross-validated on its own runs.
-Writes ``--out`` (JSON: the success of every value per hand and disturbance, the folds and
-the chosen value, and per hand with ``--per-hand``).
+:class:`~ias_gym.baselines.grip_transform_control.ControllerGains` field ``--gain`` (the
+other gains the hand's :func:`~ias_gym.skills.transfer_run.transfer_gains`). A value is
+chosen by the success over all these runs (ties: the first in the grid); ``--folds`` groups
+of persons cross-validate the choice (each fold's value is chosen on the other folds and
+judged on the fold's persons, with a 95 % Wilson interval). With ``--per-hand`` each hand's
+value is also chosen and cross-validated on its own runs. Writes ``--out`` (JSON: the
+success of every value per hand and disturbance, the folds and the chosen value, and per
+hand with ``--per-hand``).
 
 The gains fitted so (docs/controller.md): ``friction_floor`` (the squeeze a finger with
 sticking joints can set) and ``ki`` (the integral of the pen's position error)::
 
+    python train/transfer_table.py --build-db dev858.db --population 30 \\
+        --population-seed 858556502
+    python train/transfer_table.py --build-db dev836.db --population 30 \\
+        --population-seed 836632711
     python train/fit_gain.py --gain friction_floor --grid 0,0.25,0.4,0.5,0.6,0.75 \\
         --db dev858.db --db dev836.db --hands leap,shadow --out friction_floor.json
-    python train/fit_gain.py --gain ki --grid 0,250,500,1000,2000 --db dev.db \\
+    python train/fit_gain.py --gain ki --grid 0,500,1000,2000 --db dev858.db --per-hand \\
         --hands ias4f,ias3f,shadow,leap --disturbances nominal,friction_x0.7,mass_x1.3 \\
         --out ki.json
 """
@@ -63,7 +68,8 @@ class RunJob:
         reference = transfer_reference(skill, hand)
         out = []
         for value in self.grid:
-            gains = dataclasses.replace(transfer_gains(hand), **{self.gain: value})
+            field: dict[str, Any] = {self.gain: value}
+            gains = dataclasses.replace(transfer_gains(hand), **field)
             run, _ = run_transfer(reference, hand, "gt", gains=gains, **DISTURBANCES[disturbance])
             out.append(bool(run.success))
         return out

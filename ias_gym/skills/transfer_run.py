@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,6 +21,9 @@ from ias_gym.envs.pen_skill_env import PenSkillEnv
 from ias_gym.envs.skill_reference import SkillReference
 from ias_gym.errors import InputError
 from ias_gym.rollout import rollout
+
+if TYPE_CHECKING:  # imported when used: reading references does not load the policies
+    from ias_gym.baselines.grip_transform_control import ControllerGains
 
 FloatArray = NDArray[np.float64]
 
@@ -38,7 +41,7 @@ METHODS: tuple[str, ...] = ("gt", "kinematic", "retarget")
 TRANSFER_KI: dict[str, float] = {"ias4f": 500.0, "ias3f": 2000.0, "shadow": 0.0, "leap": 0.0}
 
 
-def transfer_gains(hand: str) -> Any:
+def transfer_gains(hand: str) -> ControllerGains:
     """The expert's :class:`~ias_gym.baselines.grip_transform_control.ControllerGains` for a
     skill transferred to ``hand``: the defaults, with the hand's :data:`TRANSFER_KI`."""
     from ias_gym.baselines.grip_transform_control import ControllerGains
