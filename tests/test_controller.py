@@ -9,7 +9,7 @@ import pytest
 import ias_gym  # noqa: F401
 from ias_gym.baselines.action_wrapper import GripTransformAction
 from ias_gym.baselines.expert import ExpertPolicy
-from ias_gym.baselines.grip_transform_control import ControllerGains
+from ias_gym.baselines.gains import ControllerGains
 from ias_gym.figures.control_error import control_error_table
 from ias_gym.grasp.internal_forces import InfeasibleGraspError
 from tests.closed_loop import perturbed_starts

@@ -19,7 +19,7 @@ import pytest
 
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.baselines.expert import ExpertPolicy
-from ias_gym.baselines.grip_transform_control import ControllerGains
+from ias_gym.baselines.gains import ControllerGains
 from ias_gym.rollout import rollout
 from ias_gym.sim.leap_hand import LEAP_COUPLING, leap_model_path
 from ias_gym.sim.pen_hand import PenHandPhysics

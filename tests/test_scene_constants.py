@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import ias_gym  # noqa: F401 - registers the ids
-from ias_gym.baselines.grip_transform_control import ControllerGains
+from ias_gym.baselines.gains import ControllerGains
 from ias_gym.sim.scene_constants import (
     glove_pad_friction,
     glove_pen_radius,

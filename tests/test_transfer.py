@@ -570,7 +570,7 @@ def test_the_leap_thumb_on_top_holds_a_squeeze_its_sticking_joints_can_set() -> 
     are below what its joints can set, and the pen is lost."""
     import dataclasses
 
-    from ias_gym.baselines.grip_transform_control import ControllerGains
+    from ias_gym.baselines.gains import ControllerGains
     from ias_gym.skills.transfer import shipped_skill_db
 
     with SkillDB(shipped_skill_db(), readonly=True) as db:

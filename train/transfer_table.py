@@ -41,7 +41,7 @@ WEAK = ("weak_still", "weak_margin_1.2", "weak_margin_2.0")
 
 def method_gains(method: str, hand: str) -> tuple[str, Any]:
     """``"gt"`` or ``"kinematic"``, or ``"gt:ki=4000"`` (the expert with these
-    :class:`~ias_gym.baselines.grip_transform_control.ControllerGains` fields, the others
+    :class:`~ias_gym.baselines.gains.ControllerGains` fields, the others
     the hand's :func:`~ias_gym.skills.transfer_run.transfer_gains`): the method and its
     gains (``None``: the method's own)."""
     import dataclasses

@@ -41,7 +41,7 @@ def run_one(job: tuple[float, float, str, int]) -> dict[str, object]:
 
     import ias_gym  # noqa: F401 (registers the envs)
     from ias_gym.baselines.expert import ExpertPolicy
-    from ias_gym.baselines.grip_transform_control import ControllerGains
+    from ias_gym.baselines.gains import ControllerGains
     from ias_gym.robustness import DISTURBANCES
     from ias_gym.rollout import rollout
 

@@ -8,7 +8,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ias_gym.baselines.grip_transform_control import ControllerGains, GripTransformController
+from ias_gym.baselines.gains import ControllerGains
+from ias_gym.baselines.grip_transform_control import GripTransformController
 from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv
 
 

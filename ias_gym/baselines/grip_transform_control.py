@@ -61,6 +61,7 @@ from typing import Any
 import numpy as np
 
 from ias_gym.baselines import law
+from ias_gym.baselines.gains import ControllerGains
 from ias_gym.baselines.grip_transform_terms import (
     ControlStep,
     Gathered,
@@ -79,56 +80,14 @@ from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv, PenReference
 from ias_gym.grasp.grasp_margin import scale_to_margin
 from ias_gym.grasp.grip_transform import null_space_basis
 from ias_gym.grasp.internal_forces import (
-    Cone,
     InfeasibleGraspError,
     InternalForceSettings,
     InternalForceSolver,
 )
 from ias_gym.grasp.wrench_matrix import wrench_matrices
 from ias_gym.sim.pen_hand import mj_to_paper
-from ias_gym.sim.scene_constants import pen_friction
 
 NDArrayBool = np.ndarray
-
-
-@dataclass(frozen=True)
-class ControllerGains:
-    """Gains of the grip-transform controller (units in the comments)."""
-
-    kp: float = 400.0  # object position stiffness Kp [1/s^2] (eq. 43)
-    kv: float = 40.0  # object position damping Kv [1/s]
-    # Integral of the object position error [1/s^3] (Routh: ki < Kp Kv): takes out a steady
-    # offset Kp leaves, e.g. where the tips' lateral servo pulls a moved pen back; off for the
-    # pen tasks, per hand for transferred skills (skills.transfer_run.TRANSFER_KI).
-    ki: float = 0.0
-    # The integral's share of a_d is bounded by this [m/s^2] (anti-windup: half of g, a pen
-    # between 0.5 and 1.5 times its nominal weight).
-    integral_limit: float = 4.9
-    # Time constant [s] of the pen's mass estimated from the measured tip forces (their net
-    # force against gravity, low-pass filtered, while every finger touches; quasi-static:
-    # the skills' accelerations are about 1 % of g); 0: the law uses the nominal mass.
-    mass_time_constant: float = 0.1
-    kp_rot: float = 400.0  # object orientation stiffness [1/s^2]
-    kv_rot: float = 40.0  # object orientation damping [1/s]
-    delta: float = 50.0  # internal-force error rate delta of eq. (44) [1/s]
-    kp_slide: float = 90.0  # sliding-tip stiffness along the pen [N/m] (docs/controller.md)
-    kv_slide: float = 2.0  # sliding-tip damping [N s/m] (train/tune_slide_servo.py chose both)
-    kp_lateral: float = 20.0  # tip stiffness across the pen, toward its top/bottom line [N/m]
-    kv_lateral: float = 1.5  # tip damping across the pen [N s/m]
-    friction_margin: float = 0.4  # sticking contacts use mu (1 - margin) [-]
-    # friction coefficient the controller assumes [-]: the nominal pen's (pen.xml)
-    mu: float = field(default_factory=pen_friction)
-    cone: Cone = "polygon"  # friction cone of the internal-force problem: box or polygon
-    jacobian_damping: float = 1e-6  # damping of J+ [m^2]
-    finger_inertia: bool = True  # include the M J+ {...} terms of eq. (45)
-    lead: float = 0.0  # evaluate the reference this far ahead [s]
-    damping_feedforward: bool = True  # add the joints' damping along the reference motion
-    coulomb_speed: float = 0.005  # [rad/s] their Coulomb friction's smoothed sign (0: none)
-    # the holding torques J^T f + H first where the motors saturate (docs/controller.md)
-    hold_first: bool = True
-    # a skill's squeeze never below this share of each finger's force resolution (its
-    # joints' dry friction; fitted by train/fit_gain.py, docs/controller.md)
-    friction_floor: float = 0.5
 
 
 @dataclass

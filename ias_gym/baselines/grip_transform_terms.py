@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ias_gym.baselines import law
+from ias_gym.baselines.gains import ControllerGains
 from ias_gym.envs.pen_hand_env import FloatArray, PenReference
 from ias_gym.grasp.grip_transform import pseudo_inverse
 from ias_gym.grasp.wrench_matrix import cross3
@@ -349,7 +350,7 @@ def resolvable_squeeze(
 
 
 def damping_feedforward(
-    g: Any,
+    g: ControllerGains,
     x: Gathered,
     state: MotionRows,
     ref: ReferenceRows,
@@ -358,9 +359,7 @@ def damping_feedforward(
     touching: NDArrayBool,
 ) -> FloatArray:
     """The joints' damping along the *reference* motion, and their Coulomb friction along it
-    plus the error's correction (beyond the paper; ``g``: the controller's
-    :class:`~ias_gym.baselines.grip_transform_control.ControllerGains`, not imported here:
-    that module imports this one).
+    plus the error's correction (beyond the paper; ``g``: the controller's gains).
 
     Never along the measured motion, which would cancel the damping (see
     :meth:`~ias_gym.baselines.grip_transform_control.GripTransformController.torques`):

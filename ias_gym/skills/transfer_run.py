@@ -23,7 +23,7 @@ from ias_gym.errors import InputError
 from ias_gym.rollout import rollout
 
 if TYPE_CHECKING:  # imported when used: reading references does not load the policies
-    from ias_gym.baselines.grip_transform_control import ControllerGains
+    from ias_gym.baselines.gains import ControllerGains
 
 FloatArray = NDArray[np.float64]
 
@@ -34,7 +34,7 @@ FloatArray = NDArray[np.float64]
 METHODS: tuple[str, ...] = ("gt", "kinematic", "retarget")
 
 #: The integral gain of the pen's position error [1/s^3]
-#: (:attr:`~ias_gym.baselines.grip_transform_control.ControllerGains.ki`) with which the
+#: (:attr:`~ias_gym.baselines.gains.ControllerGains.ki`) with which the
 #: expert executes a transferred skill, per hand; fitted on development persons by
 #: ``train/fit_gain.py --gain ki --per-hand`` (docs/controller.md). The pen tasks' expert
 #: keeps the default (0).
@@ -42,9 +42,9 @@ TRANSFER_KI: dict[str, float] = {"ias4f": 500.0, "ias3f": 2000.0, "shadow": 0.0,
 
 
 def transfer_gains(hand: str) -> ControllerGains:
-    """The expert's :class:`~ias_gym.baselines.grip_transform_control.ControllerGains` for a
+    """The expert's :class:`~ias_gym.baselines.gains.ControllerGains` for a
     skill transferred to ``hand``: the defaults, with the hand's :data:`TRANSFER_KI`."""
-    from ias_gym.baselines.grip_transform_control import ControllerGains
+    from ias_gym.baselines.gains import ControllerGains
 
     return ControllerGains(ki=TRANSFER_KI.get(hand, 0.0))
 
@@ -165,7 +165,7 @@ def run_transfer(
             while the run is still judged against ``reference``: a deliberately weak
             execution (e.g. the pen held still) that the success test must fail.
         gains: the method's gains: the expert's
-            :class:`~ias_gym.baselines.grip_transform_control.ControllerGains`, the
+            :class:`~ias_gym.baselines.gains.ControllerGains`, the
             kinematic baseline's :class:`~ias_gym.baselines.kinematic.KinematicGains` or
             the retargeting baseline's :class:`~ias_gym.baselines.retarget.RetargetGains`
             (default: its own; the expert's: :func:`transfer_gains`).
