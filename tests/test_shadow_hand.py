@@ -29,11 +29,11 @@ def shadow() -> PenHandPhysics:
     return PenHandPhysics.from_assets(hand="shadow")
 
 
-def _press(p: PenHandPhysics, steps: int = 30, seed: int = 0) -> None:
+def _press(p: PenHandPhysics, seconds: float = 0.03, seed: int = 0) -> None:
     """Squeeze the pen with torques along -J^T n (the tips push into it) plus noise, so that
     contacts, the coupling and every joint carry force (30 ms: the pen is not held yet)."""
     rng = np.random.default_rng(seed)
-    for _ in range(steps):
+    for _ in range(round(seconds / p.model.opt.timestep)):
         contacts = p.fingertip_contacts()
         jac = p.fingertip_jacobians(contacts)
         push = np.zeros(3 * p.n_fingers)
@@ -112,11 +112,15 @@ def test_eq35_holds_in_the_driven_coordinates(shadow: PenHandPhysics) -> None:
     assert np.linalg.eigvalsh(m).min() > 0
     friction = shadow.hand_forces(_constraint_forces(shadow, {cnstr.mjCNSTR_FRICTION_DOF}))
     assert np.abs(friction).max() <= 0.001 * (1 + SHADOW_COUPLING) + 1e-9
-    # exact, with MuJoCo's accelerations of every joint: S^T M qdd_all + H = tau - J^T c + ...
+    # with MuJoCo's accelerations of every joint: S^T M qdd_all + H = tau - J^T c + ..., to
+    # the constraint solver's convergence (it stops at opt.tolerance, 1e-8: measured up to
+    # 1.4e-6 N m of a 0.12 N m load, 2e-10 at a tolerance of 1e-12), far below any term of
+    # the equation (the joints' friction alone is up to 1 mN m)
     inertial = np.zeros(shadow.model.nv)
     mujoco.mj_mulM(shadow.model, shadow.data, inertial, shadow.data.qacc)
     load = shadow.hand_torques() - jac.T @ c + friction
-    np.testing.assert_allclose(shadow.hand_forces(inertial) + h, load, atol=1e-9)
+    scale = np.abs(load).max()
+    np.testing.assert_allclose(shadow.hand_forces(inertial) + h, load, atol=1e-4 * scale)
     # the law's model, M of the driven joints' accelerations alone, is off by the soft
     # equality's give only (the distal joint's acceleration is not exactly ratio times its
     # leader's): a few percent of the torques

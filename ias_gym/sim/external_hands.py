@@ -189,6 +189,9 @@ def shadow_spec(
     resource = importlib.resources.files("ias_gym.assets") / "scene_pen_external.xml"
     with importlib.resources.as_file(resource) as path:
         scene = mujoco.MjSpec.from_file(str(path))
+    # the model's own physics step (2 ms, as Gymnasium-Robotics runs this hand): measured
+    # with the expert and the transfers, docs/hands.md
+    scene.option.timestep = hand.option.timestep
     # the model's size hints (njmax, nconmax, user fields) are the scene's: MuJoCo sizes itself
     for size in ("njmax", "nconmax"):
         setattr(hand, size, -1)
