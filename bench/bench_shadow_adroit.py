@@ -2,7 +2,7 @@
 
 Run: ``python bench/bench_shadow_adroit.py [--json FILE]`` (needs the ``hands`` extra).
 Both envs hold a pen in the Shadow hand's model on MuJoCo with a 10 ms control period: ours
-(``IAS-PenRotate-Shadow-v0``) torque-drives nine joints of a fixed hand with a 1 ms physics
+(``IAS-PenRotate-Shadow-v0``) torque-drives nine joints of a fixed hand with a 2 ms physics
 step; Adroit position-drives the 24 actuators of a hand on an arm with a 2 ms step. Rounds
 of random-action steps (resets included, as an RL library sees them) alternate between the
 two envs; the table gives the medians of the rounds and the median of the rounds' ratios

@@ -107,7 +107,7 @@ class PenState:
 class PenHandConfig:
     """Settings shared by the pen tasks (units in the comments)."""
 
-    control_dt: float = 0.01  # one env step [s]; a multiple of the 1 ms physics step
+    control_dt: float = 0.01  # one env step [s]; a multiple of the physics step (1 or 2 ms)
     duration: float = 4.0  # episode length [s] (the registered max_episode_steps matches)
     min_grasp_force: float = 0.2  # minimum normal force a controller should keep [N]
     pen_position_noise: float = 0.001  # reset: uniform +- per axis [m]

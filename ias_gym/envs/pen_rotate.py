@@ -140,7 +140,8 @@ class PenRotateEnv(PenHandEnv):
     ``gym.make("ID", **kwargs)`` takes ``render_mode`` (``"human"``, ``"rgb_array"``,
     ``"depth_array"``) and these fields of its config (defaults in brackets):
 
-    - ``control_dt`` [0.01 s]: one env step, a multiple of the 1 ms physics step.
+    - ``control_dt`` [0.01 s]: one env step, a multiple of the physics step (1 ms; 2 ms on
+      the Shadow hand).
     - ``min_grasp_force`` [0.2 N]: minimum normal force a controller should keep.
     - ``pen_position_noise`` [0.001 m], ``contact_noise`` [0.001 m], ``penetration``
       [3e-4 m]: the reset distribution (see Starting State).
