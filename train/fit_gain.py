@@ -13,7 +13,8 @@ success of every value per hand and disturbance, the folds and the chosen value,
 hand with ``--per-hand``).
 
 The gains fitted so (docs/controller.md): ``friction_floor`` (the squeeze a finger with
-sticking joints can set) and ``ki`` (the integral of the pen's position error)::
+sticking joints can set), ``ki`` (the integral of the pen's position error) and
+``slip_speed`` (the tips' slide that shows the pen's friction; 1 m/s: never)::
 
     python train/transfer_table.py --build-db dev858.db --population 30 \\
         --population-seed 858556502
@@ -24,6 +25,9 @@ sticking joints can set) and ``ki`` (the integral of the pen's position error)::
     python train/fit_gain.py --gain ki --grid 0,500,1000,2000 --db dev858.db --per-hand \\
         --hands ias4f,ias3f,shadow,leap --disturbances nominal,friction_x0.7,mass_x1.3 \\
         --out ki.json
+    python train/fit_gain.py --gain slip_speed --grid 1.0,0.005 --db dev858.db --per-hand \\
+        --hands ias4f,ias3f,shadow,leap \\
+        --disturbances nominal,friction_x0.7,mass_x1.3,observation_noise --out slip.json
 """
 
 from __future__ import annotations

@@ -49,3 +49,9 @@ class ControllerGains:
     # a skill's squeeze never below this share of each finger's force resolution (its
     # joints' dry friction; fitted by train/fit_gain.py, docs/controller.md)
     friction_floor: float = 0.5
+    # A skill's squeeze is scaled to its margin with the friction coefficient the tips have
+    # shown (grip_transform_terms.FrictionEstimate): the mean ratio of tangential to normal
+    # force of a tip that slid over the pen faster than slip_speed [m/s] for slip_time [s];
+    # the nominal mu until one has. inf: always mu. Fitted by train/fit_gain.py.
+    slip_speed: float = 0.005
+    slip_time: float = 0.03

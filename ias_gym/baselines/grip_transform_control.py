@@ -54,6 +54,7 @@ Beyond the paper, where its assumptions do not hold in the simulation:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -64,6 +65,7 @@ from ias_gym.baselines import law
 from ias_gym.baselines.gains import ControllerGains
 from ias_gym.baselines.grip_transform_terms import (
     ControlStep,
+    FrictionEstimate,
     Gathered,
     MotionRows,
     ReferenceRows,
@@ -74,6 +76,7 @@ from ias_gym.baselines.grip_transform_terms import (
     resolvable_squeeze,
     right_inverses,
     slide_servo,
+    slip_speeds,
     with_motion,
 )
 from ias_gym.envs.pen_hand_env import FloatArray, PenHandEnv, PenReference
@@ -121,9 +124,17 @@ class GripTransformController:
         self._prev_J: FloatArray | None = None
         self._integral = np.zeros(3)  # integral of the position error [m s]
         self._mass: float | None = None  # the estimated pen mass [kg] (None: not yet)
+        self._friction = FrictionEstimate(self.gains.slip_time)  # what the tips show
         self._N: FloatArray | None = None
         self._joint_damping: FloatArray | None = None
         self._gravity: FloatArray | None = None  # the model's, paper frame [m/s^2]
+
+    @property
+    def friction(self) -> float:
+        """The friction coefficient a skill's squeeze is planned with now [-]: what the tips
+        have shown (``gains.slip_speed``, :class:`~.grip_transform_terms.FrictionEstimate`),
+        else the nominal ``gains.mu``."""
+        return self._friction.value or self.gains.mu
 
     def _bind(self, env: PenHandEnv) -> InternalForceSolver:
         """The internal-force solver for the env's fingers (built on the first step)."""
@@ -382,10 +393,13 @@ def _control_step(
         dW[x.first] = 0.0
     c_p = law._matvec(W_pinv, wrench)
     c_h_d = law.internal_part(c_ref, W, W_pinv)
-    for i, margin in enumerate(margins):
+    sliding = slip_speeds(state, x) >= g.slip_speed if math.isfinite(g.slip_speed) else None
+    for i, (ctrl, margin) in enumerate(zip(controllers, margins, strict=True)):
+        if sliding is not None:
+            ctrl._friction.update(x.c_measured[i], sliding[i], ctrl.f0, float(x.dt[i, 0]))
         if margin is not None:
             # The hand's own internal forces, scaled so that c_p + c_h^d has the margin.
-            c_h_d[i] = scale_to_margin(c_p[i], c_h_d[i], margin, g.mu)
+            c_h_d[i] = scale_to_margin(c_p[i], c_h_d[i], margin, ctrl.friction)
             c_h_d[i] = resolvable_squeeze(
                 c_p[i], c_h_d[i], g.friction_floor, J[i], x.frames[i], x.damping[i, 1], active[i]
             )

@@ -24,6 +24,7 @@ import numpy as np
 from ias_gym.baselines import law
 from ias_gym.baselines.gains import ControllerGains
 from ias_gym.envs.pen_hand_env import FloatArray, PenReference
+from ias_gym.grasp.grasp_margin import tangential_ratios
 from ias_gym.grasp.grip_transform import pseudo_inverse
 from ias_gym.grasp.wrench_matrix import cross3
 
@@ -224,6 +225,55 @@ def slide_servo(kp: float, kv: float, s: MotionRows, x: Gathered, J: FloatArray)
     force = kp * error + kv * (x.contact_vx - vx)
     result: FloatArray = np.where(x.sliding & x.scheduled, force, 0.0)
     return result
+
+
+def slip_speeds(s: MotionRows, x: Gathered) -> FloatArray:
+    """``(n, k)`` the speed [m/s] at which each tip slides over the pen at its contact: the
+    tangential part of the tip's velocity (``J theta'``, contact frame) less the pen's at
+    that point (``v + omega x (p - com)``); 0 for a tip that rolls or sticks, or is off."""
+    tip = law._matvec(x.J, x.qvel).reshape(x.points.shape)
+    lever = x.points - x.com[:, None]
+    pen = s.velocity[:, None] + np.cross(s.omega[:, None], lever)
+    relative = tip - np.einsum("nkij,nkj->nki", x.frames, pen)
+    speed: FloatArray = np.where(x.active, np.hypot(relative[..., 1], relative[..., 2]), 0.0)
+    return speed
+
+
+@dataclass
+class FrictionEstimate:
+    """The pen's friction coefficient as the tips show it (beyond the paper).
+
+    A contact force never leaves its friction cone, so a tip's ratio of tangential to normal
+    force reads at most the coefficient, and a tip that slides reads the coefficient itself
+    (:func:`~ias_gym.grasp.grasp_margin.tangential_ratios`). A tip counts as sliding when its
+    slip speed (:func:`slip_speeds`) stays above a threshold for ``duration`` seconds in a
+    row: sensor noise fakes a slip for a step, rarely for several. The estimate is the largest
+    mean ratio over such a slide; 0 until one happened.
+    """
+
+    duration: float  # [s]
+    elapsed: FloatArray | None = None  # how long each tip has slid [s]
+    count: FloatArray | None = None  # its readings meanwhile
+    total: FloatArray | None = None  # their sum [-]
+    value: float = 0.0
+
+    def update(self, c: FloatArray, sliding: NDArrayBool, n_min: float, dt: float) -> float:
+        """Take one control step (``dt`` [s]): the measured intensities ``(3 k,)`` [N] and
+        the tips that slide ``(k,)``; a tip counts while pressed with at least ``n_min``
+        [N]. Returns the estimate [-] (0: none yet)."""
+        ratios = tangential_ratios(c)
+        now = sliding & (c[0::3] >= n_min) & np.isfinite(ratios)
+        zero = np.zeros(len(now))
+        elapsed, count, total = (
+            zero if v is None else v for v in (self.elapsed, self.count, self.total)
+        )
+        self.elapsed = np.where(now, elapsed + dt, 0.0)
+        self.count = np.where(now, count + 1.0, 0.0)
+        self.total = np.where(now, total + np.where(now, ratios, 0.0), 0.0)
+        done = self.elapsed >= self.duration - 1e-9
+        if done.any():
+            self.value = max(self.value, float(np.max(self.total[done] / self.count[done])))
+        return self.value
 
 
 #: The mass estimate stays within this range of the nominal mass [-] (a misread force

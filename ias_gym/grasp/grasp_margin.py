@@ -233,3 +233,30 @@ def scale_to_margin(
         return b.copy()
     result: FloatArray = (margin * s) * b
     return result
+
+
+def tangential_ratios(c: ArrayLike, intensities: int = 3) -> FloatArray:
+    """Each contact's ratio of tangential to normal force ``|c_t| / c_n`` [-], NaN where it
+    does not press (``c_n <= 0``).
+
+    Every contact force lies in its friction cone, ``|c_t| <= mu c_n``, so no ratio exceeds
+    ``mu``, and a contact that slides sits on its cone: its ratio is ``mu`` itself (a
+    contact that sticks shows only a lower bound).
+
+    Args:
+        c: ``(k * intensities,)`` intensities [N]: normal, t1, t2 (and a torsion moment,
+            left out) per contact.
+        intensities: 3 or 4 per contact.
+
+    Raises:
+        ValueError: ``intensities`` not 3 or 4, or a length that does not fit.
+    """
+    a = np.asarray(c, dtype=float)
+    if intensities not in (3, 4) or a.ndim != 1 or a.size % intensities:
+        raise ValueError(f"{a.shape} intensities are not contacts of {intensities} (3 or 4)")
+    rows = a.reshape(-1, intensities)
+    normal = rows[:, 0]
+    tangential = np.hypot(rows[:, 1], rows[:, 2])
+    safe = np.where(normal > 0, normal, 1.0)
+    out: FloatArray = np.where(normal > 0, tangential / safe, np.nan)
+    return out
