@@ -144,11 +144,13 @@ def _run(reference: Any, gains: Any, options: Any) -> tuple[float, float]:
 
 @pytest.mark.closed_loop
 def test_on_a_slipperier_pen_the_leap_hand_plans_with_the_friction_its_tips_show() -> None:
-    """A shipped lift_place on the LEAP hand, the pen's friction 0.7 x its nominal 0.25: from
-    every nearby start the controller comes to within 3 % of the pen's 0.175 and never above
-    it (Coulomb), and the skill's margin is kept better than by the weaker method that plans
-    with the nominal coefficient (its squeeze is about a third too small for this pen)."""
-    reference = transfer_reference(_shipped("lift_place", "p2"), "leap")
+    """A shipped fast see-saw on the LEAP hand, the pen's friction 0.7 x its nominal 0.25 (a
+    skill whose tips slide; in one that never slides, e.g. p2's lift_place, the controller
+    keeps the nominal coefficient): from every nearby start the controller comes to within
+    3 % of the pen's 0.175 and never above it (Coulomb), and the skill's margin is kept
+    better than by the weaker method that plans with the nominal coefficient (its squeeze is
+    about a third too small for this pen)."""
+    reference = transfer_reference(_shipped("seesaw_fast", "p1"), "leap")
     env = PenSkillEnv(references=[reference], hand="leap")
     starts = list(perturbed_starts(env, seed=0, n=2))
     env.close()
