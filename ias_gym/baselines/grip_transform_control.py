@@ -125,6 +125,7 @@ class GripTransformController:
         self._integral = np.zeros(3)  # integral of the position error [m s]
         self._mass: float | None = None  # the estimated pen mass [kg] (None: not yet)
         self._friction = FrictionEstimate(self.gains.slip_time)  # what the tips show
+        self._estimates_friction = False  # set on binding to a skill's env
         self._N: FloatArray | None = None
         self._joint_damping: FloatArray | None = None
         self._gravity: FloatArray | None = None  # the model's, paper frame [m/s^2]
@@ -146,6 +147,8 @@ class GripTransformController:
             # friction let them creep 3 mm in 0.5 s (measured). Soft contacts creep under any
             # shear, so the controller asks for no shear it does not need.
             self._solver = InternalForceSolver(k, self._settings, regularisation=1e-2)
+            # only a skill's squeeze (a margin to keep) reads the friction estimate
+            self._estimates_friction = hasattr(env, "grasp_margin_reference")
             self._last_c = np.tile([self.f0, 0.0, 0.0], k)
             self._extra = np.zeros(3 * k)
         return self._solver
@@ -393,10 +396,13 @@ def _control_step(
         dW[x.first] = 0.0
     c_p = law._matvec(W_pinv, wrench)
     c_h_d = law.internal_part(c_ref, W, W_pinv)
-    sliding = slip_speeds(state, x) >= g.slip_speed if math.isfinite(g.slip_speed) else None
+    # (not x.sliding, the schedule's sliding fingers: tips measured to slip over the pen)
+    slipping = None
+    if math.isfinite(g.slip_speed) and any(c._estimates_friction for c in controllers):
+        slipping = slip_speeds(state, x) >= g.slip_speed
     for i, (ctrl, margin) in enumerate(zip(controllers, margins, strict=True)):
-        if sliding is not None:
-            ctrl._friction.update(x.c_measured[i], sliding[i], ctrl.f0, float(x.dt[i, 0]))
+        if slipping is not None and ctrl._estimates_friction:
+            ctrl._friction.update(x.c_measured[i], slipping[i], ctrl.f0, float(x.dt[i, 0]))
         if margin is not None:
             # The hand's own internal forces, scaled so that c_p + c_h^d has the margin.
             c_h_d[i] = scale_to_margin(c_p[i], c_h_d[i], margin, ctrl.friction)

@@ -252,9 +252,8 @@ class FrictionEstimate:
     """
 
     duration: float  # [s]
-    elapsed: FloatArray | None = None  # how long each tip has slid [s]
-    count: FloatArray | None = None  # its readings meanwhile
-    total: FloatArray | None = None  # their sum [-]
+    count: FloatArray | None = None  # control steps each tip has slid in a row
+    total: FloatArray | None = None  # their ratios' sum [-]
     value: float = 0.0
 
     def update(self, c: FloatArray, sliding: NDArrayBool, n_min: float, dt: float) -> float:
@@ -263,14 +262,11 @@ class FrictionEstimate:
         [N]. Returns the estimate [-] (0: none yet)."""
         ratios = tangential_ratios(c)
         now = sliding & (c[0::3] >= n_min) & np.isfinite(ratios)
-        zero = np.zeros(len(now))
-        elapsed, count, total = (
-            zero if v is None else v for v in (self.elapsed, self.count, self.total)
-        )
-        self.elapsed = np.where(now, elapsed + dt, 0.0)
+        count = np.zeros(len(now)) if self.count is None else self.count
+        total = np.zeros(len(now)) if self.total is None else self.total
         self.count = np.where(now, count + 1.0, 0.0)
-        self.total = np.where(now, total + np.where(now, ratios, 0.0), 0.0)
-        done = self.elapsed >= self.duration - 1e-9
+        self.total = np.where(now, total + ratios, 0.0)  # a NaN ratio is never taken
+        done = self.count * dt >= self.duration - 1e-9
         if done.any():
             self.value = max(self.value, float(np.max(self.total[done] / self.count[done])))
         return self.value
