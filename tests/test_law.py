@@ -300,6 +300,39 @@ def test_damped_pinv_blocks_invert_each_finger() -> None:
     assert np.abs(J @ damped - x).max() > 1e-6  # the damping did act
 
 
+@settings(max_examples=40, deadline=None)
+@given(seed=SEEDS, speed=st.floats(0.001, 0.1))
+def test_an_off_finger_is_paid_to_follow_the_object_and_close_on_it(
+    seed: int, speed: float
+) -> None:
+    """The approach torques of a finger off the object are its joints' damping at the joint
+    speeds that move its tip with the object's point under it plus ``speed`` along the
+    normal (toward the object); a touching finger gets none. Dry friction alone: the torque
+    has the sign of that joint speed and at most the friction's size."""
+    rng = np.random.default_rng(seed)
+    W, J = cylinder_grasp(rng), block_jacobian(rng)
+    twist = rng.normal(scale=0.05, size=6)
+    active = rng.random(K) < 0.5
+    active[0] = False  # at least one finger off
+    off = np.repeat(~active, 3)
+    damping = rng.uniform(0.01, 0.3, size=3 * K)
+    J_pinv = law.damped_pinv_blocks(J, 0.0)
+    zero = np.zeros(3 * K)
+    tau = law.approach_torques(damping, zero, J_pinv, W, twist, off, speed, 0.005)
+    tip = J @ (tau / damping)  # the tip velocities the torques pay the damping for
+    wanted = W.T @ twist
+    wanted[0::3] += speed
+    np.testing.assert_allclose(tip[off], wanted[off], rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(tau[~off], 0.0)  # block-diagonal J: joints of touching
+    closing = tip[0::3] - (W.T @ twist)[0::3]  # the tip's speed toward the object's point
+    np.testing.assert_allclose(closing[~active], speed, rtol=1e-9)
+    coulomb = rng.uniform(0.01, 0.1, size=3 * K)
+    dry = law.approach_torques(zero, coulomb, J_pinv, W, twist, off, speed, 0.005)
+    qvel = law.apply_blocks(J_pinv, np.where(off, wanted, 0.0))
+    assert np.all(np.abs(dry) <= coulomb + 1e-15)
+    assert np.all(np.sign(dry[off]) == np.sign(qvel[off]))
+
+
 # ---------------------------------------------------------------- batches of envs
 @settings(max_examples=30, deadline=None)
 @given(seed=SEEDS)
@@ -338,6 +371,7 @@ def test_each_row_of_a_batch_is_that_envs_own_term_bit_for_bit(seed: int) -> Non
         "J_pinv": J_pinv,
         "finger_inertia": law.finger_inertia_torques(M, J_pinv, W, dW, dJ, qvel, a_d, v, touching),
         "feedforward": law.damping_feedforward_torques(qvel, J_pinv, W, v, touching),
+        "approach": law.approach_torques(qvel, qvel, J_pinv, W, v, ~touching, 0.01, 0.005),
         "joint_torques": law.joint_torques(J, c, qvel, a_d[:, :1], v[:, :1]),
     }
     for i in range(n):
@@ -362,6 +396,9 @@ def test_each_row_of_a_batch_is_that_envs_own_term_bit_for_bit(seed: int) -> Non
             ),
             "feedforward": law.damping_feedforward_torques(
                 qvel[i], J_pinv[i], W[i], v[i], touching[i]
+            ),
+            "approach": law.approach_torques(
+                qvel[i], qvel[i], J_pinv[i], W[i], v[i], ~touching[i], 0.01, 0.005
             ),
             "joint_torques": law.joint_torques(J[i], c[i], qvel[i], a_d[i, :1], v[i, :1]),
         }

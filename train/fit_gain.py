@@ -13,8 +13,9 @@ success of every value per hand and disturbance, the folds and the chosen value,
 hand with ``--per-hand``).
 
 The gains fitted so (docs/controller.md): ``friction_floor`` (the squeeze a finger with
-sticking joints can set), ``ki`` (the integral of the pen's position error) and
-``slip_speed`` (the tips' slide that shows the pen's friction; 1 m/s: never)::
+sticking joints can set), ``ki`` (the integral of the pen's position error),
+``slip_speed`` (the tips' slide that shows the pen's friction; 1 m/s: never) and
+``approach_speed`` (how fast a tip off the pen closes on it again)::
 
     python train/transfer_table.py --build-db dev858.db --population 30 \\
         --population-seed 858556502
@@ -28,6 +29,9 @@ sticking joints can set), ``ki`` (the integral of the pen's position error) and
     python train/fit_gain.py --gain slip_speed --grid 1.0,0.005 --db dev858.db --per-hand \\
         --hands ias4f,ias3f,shadow,leap \\
         --disturbances nominal,friction_x0.7,mass_x1.3,observation_noise --out slip.json
+    python train/fit_gain.py --gain approach_speed --grid 0,0.01,0.03 --db dev858.db \
+        --per-hand --hands ias4f,ias3f,shadow,leap \
+        --disturbances nominal,friction_x0.7,mass_x1.3,observation_noise --out approach.json
 """
 
 from __future__ import annotations

@@ -55,3 +55,7 @@ class ControllerGains:
     # the nominal mu until one has. inf: always mu. Fitted by train/fit_gain.py.
     slip_speed: float = 0.005
     slip_time: float = 0.03
+    # A fingertip off the pen closes on it again at this speed [m/s] relative to the pen's
+    # measured motion at the tip: its joints' damping and dry friction paid along that
+    # motion (grip_transform_terms.approach_torques); 0: an off finger gets only its force.
+    approach_speed: float = 0.0

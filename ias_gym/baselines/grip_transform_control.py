@@ -355,7 +355,7 @@ def _control_step(
     state = MotionRows(x.motion)
     ref = ReferenceRows(x.ref)
     active = x.active
-    W = wrench_matrices(x.points, x.frames, x.com)
+    W = W_tips = wrench_matrices(x.points, x.frames, x.com)
     if not active.all():  # zero columns for fingers not touching
         W = np.where(np.repeat(active, 3, axis=-1)[:, None, :], W, 0.0)
     J = x.J
@@ -457,7 +457,7 @@ def _control_step(
         v = x.motion[:, 6:]  # [velocity; omega]
         inertia = law.finger_inertia_torques(x.M, J_pinv, W, dW, dJ, x.qvel, a_d, v, touching)
     if g.damping_feedforward:
-        feedforward = damping_feedforward(g, x, state, ref, J_pinv, W, touching)
+        feedforward = damping_feedforward(g, x, state, ref, J_pinv, W_tips, touching)
     tau = with_motion(law.joint_torques(J, f, x.coriolis), (inertia, feedforward), x, g.hold_first)
 
     for i, ctrl in enumerate(controllers):

@@ -148,6 +148,7 @@ class MotionRows:
     def __init__(self, rows: FloatArray) -> None:
         self.position, self.axis = rows[:, 0:3], rows[:, 3:6]
         self.velocity, self.omega = rows[:, 6:9], rows[:, 9:12]
+        self.twist = rows[:, 6:12]  # [velocity; omega]
 
 
 class ReferenceRows:
@@ -405,7 +406,9 @@ def damping_feedforward(
     touching: NDArrayBool,
 ) -> FloatArray:
     """The joints' damping along the *reference* motion, and their Coulomb friction along it
-    plus the error's correction (beyond the paper; ``g``: the controller's gains).
+    plus the error's correction (beyond the paper; ``g``: the controller's gains); for the
+    fingers off the pen, :func:`~ias_gym.baselines.law.approach_torques`. ``W`` holds the
+    columns of every finger (those off the pen too).
 
     Never along the measured motion, which would cancel the damping (see
     :meth:`~ias_gym.baselines.grip_transform_control.GripTransformController.torques`):
@@ -419,5 +422,16 @@ def damping_feedforward(
         v_d = v_ref + np.concatenate([g.kp / g.kv * e_p, g.kp_rot / g.kv_rot * e_r], -1)
         out = out + law.coulomb_feedforward_torques(
             x.damping[:, 1], J_pinv, W, v_d, touching, g.coulomb_speed
+        )
+    if g.approach_speed > 0 and not touching.all():
+        out = out + law.approach_torques(
+            x.damping[:, 0],
+            x.damping[:, 1],
+            J_pinv,
+            W,
+            state.twist,
+            ~touching,
+            g.approach_speed,
+            g.coulomb_speed,
         )
     return out

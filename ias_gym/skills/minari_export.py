@@ -236,6 +236,7 @@ def export_pen_skill_dataset(
 
     from ias_gym.baselines.expert import ExpertPolicy
     from ias_gym.skills.record import record_episode
+    from ias_gym.skills.transfer_run import transfer_gains
 
     if episodes_per_skill < 1:
         raise ValueError(f"episodes_per_skill must be >= 1, got {episodes_per_skill}")
@@ -256,7 +257,7 @@ def export_pen_skill_dataset(
             unwrapped: Any = env.unwrapped
             n_skills = len(unwrapped.references)
             wanted = dict.fromkeys(range(n_skills), episodes_per_skill)
-            expert = ExpertPolicy(env)
+            expert = ExpertPolicy(env, transfer_gains(hand))  # as `skills transfer` runs it
             seed = 0
             with SkillDB(path) as db:
                 while any(wanted.values()):
