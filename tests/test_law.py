@@ -21,7 +21,7 @@ from hypothesis import strategies as st
 import ias_gym  # noqa: F401  (registers the envs)
 from ias_gym.baselines import law
 from ias_gym.baselines.grip_transform_control import GripTransformController
-from ias_gym.baselines.grip_transform_terms import motion_share, right_inverses
+from ias_gym.baselines.grip_transform_terms import approach_torques, motion_share, right_inverses
 from ias_gym.envs.pen_hand_env import PenHandEnv
 from ias_gym.grasp.grip_transform import GraspRankError, null_space_basis, pseudo_inverse
 from ias_gym.grasp.internal_forces import InternalForceSettings, friction_cone_residual
@@ -318,7 +318,7 @@ def test_an_off_finger_is_paid_to_follow_the_object_and_close_on_it(
     damping = rng.uniform(0.01, 0.3, size=3 * K)
     J_pinv = law.damped_pinv_blocks(J, 0.0)
     zero = np.zeros(3 * K)
-    tau = law.approach_torques(damping, zero, J_pinv, W, twist, off, speed, 0.005)
+    tau = approach_torques(damping, zero, J_pinv, W, twist, off, speed, 0.005)
     tip = J @ (tau / damping)  # the tip velocities the torques pay the damping for
     wanted = W.T @ twist
     wanted[0::3] += speed
@@ -327,7 +327,7 @@ def test_an_off_finger_is_paid_to_follow_the_object_and_close_on_it(
     closing = tip[0::3] - (W.T @ twist)[0::3]  # the tip's speed toward the object's point
     np.testing.assert_allclose(closing[~active], speed, rtol=1e-9)
     coulomb = rng.uniform(0.01, 0.1, size=3 * K)
-    dry = law.approach_torques(zero, coulomb, J_pinv, W, twist, off, speed, 0.005)
+    dry = approach_torques(zero, coulomb, J_pinv, W, twist, off, speed, 0.005)
     qvel = law.apply_blocks(J_pinv, np.where(off, wanted, 0.0))
     assert np.all(np.abs(dry) <= coulomb + 1e-15)
     assert np.all(np.sign(dry[off]) == np.sign(qvel[off]))
@@ -371,7 +371,7 @@ def test_each_row_of_a_batch_is_that_envs_own_term_bit_for_bit(seed: int) -> Non
         "J_pinv": J_pinv,
         "finger_inertia": law.finger_inertia_torques(M, J_pinv, W, dW, dJ, qvel, a_d, v, touching),
         "feedforward": law.damping_feedforward_torques(qvel, J_pinv, W, v, touching),
-        "approach": law.approach_torques(qvel, qvel, J_pinv, W, v, ~touching, 0.01, 0.005),
+        "approach": approach_torques(qvel, qvel, J_pinv, W, v, ~touching, 0.01, 0.005),
         "joint_torques": law.joint_torques(J, c, qvel, a_d[:, :1], v[:, :1]),
     }
     for i in range(n):
@@ -397,7 +397,7 @@ def test_each_row_of_a_batch_is_that_envs_own_term_bit_for_bit(seed: int) -> Non
             "feedforward": law.damping_feedforward_torques(
                 qvel[i], J_pinv[i], W[i], v[i], touching[i]
             ),
-            "approach": law.approach_torques(
+            "approach": approach_torques(
                 qvel[i], qvel[i], J_pinv[i], W[i], v[i], ~touching[i], 0.01, 0.005
             ),
             "joint_torques": law.joint_torques(J[i], c[i], qvel[i], a_d[i, :1], v[i, :1]),

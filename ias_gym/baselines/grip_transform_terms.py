@@ -407,7 +407,7 @@ def damping_feedforward(
 ) -> FloatArray:
     """The joints' damping along the *reference* motion, and their Coulomb friction along it
     plus the error's correction (beyond the paper; ``g``: the controller's gains); for the
-    fingers off the pen, :func:`~ias_gym.baselines.law.approach_torques`. ``W`` holds the
+    fingers off the pen, :func:`approach_torques`. ``W`` holds the
     columns of every finger (those off the pen too).
 
     Never along the measured motion, which would cancel the damping (see
@@ -424,7 +424,7 @@ def damping_feedforward(
             x.damping[:, 1], J_pinv, W, v_d, touching, g.coulomb_speed
         )
     if g.approach_speed > 0 and not touching.all():
-        out = out + law.approach_torques(
+        out = out + approach_torques(
             x.damping[:, 0],
             x.damping[:, 1],
             J_pinv,
@@ -435,3 +435,46 @@ def damping_feedforward(
             g.coulomb_speed,
         )
     return out
+
+
+def approach_torques(
+    damping: FloatArray,
+    coulomb: FloatArray,
+    J_pinv_blocks: FloatArray,
+    W: FloatArray,
+    twist: FloatArray,
+    off: NDArrayBool,
+    approach_speed: float,
+    coulomb_speed: float,
+) -> FloatArray:
+    """The joints' damping and Coulomb friction of fingers off the object, paid along the
+    object's measured motion at their tips plus ``approach_speed`` toward it (beyond the
+    paper).
+
+    A finger whose contact opened gets the small force the internal-force problem gives it,
+    which its joints' damping turns into a crawl (the LEAP hand's thumb: 0.1 N, 0.3 mm/s)
+    while the object moves on; paid like this, the tip follows the object and closes the gap
+    at ``approach_speed``. Along the measured motion, unlike
+    :func:`~ias_gym.baselines.law.damping_feedforward_torques`: a finger off the object
+    cannot drag on it.
+
+    Args:
+        damping, coulomb: ``(n,)`` the joints' damping [N m s/rad] and dry friction [N m].
+        J_pinv_blocks: ``(k, 3, 3)`` blocks of ``J+`` [rad/m].
+        W: ``(6, 3 k)`` wrench matrix with the columns of the fingers off the object (their
+            tips' points and frames, the normal toward the object's axis).
+        twist: ``(6,)`` the object's measured twist ``[v; omega]`` [m/s, rad/s].
+        off: ``(3 k,)`` rows of the fingers off the object.
+        approach_speed: the tips' closing speed along their normals [m/s].
+        coulomb_speed: the joint speed of ``tanh(1)`` of the dry friction [rad/s] (0: none).
+
+    Returns:
+        ``(n,)`` joint torques [N m].
+    """
+    v_tips = law._matvec_t(W, twist)
+    v_tips[..., 0::3] += approach_speed
+    qvel = law.apply_blocks(J_pinv_blocks, np.where(off, v_tips, 0.0))
+    result: FloatArray = damping * qvel
+    if coulomb_speed > 0:
+        result = result + coulomb * np.tanh(qvel / coulomb_speed)
+    return result

@@ -431,48 +431,6 @@ def coulomb_feedforward_torques(
     return result
 
 
-def approach_torques(
-    damping: FloatArray,
-    coulomb: FloatArray,
-    J_pinv_blocks: FloatArray,
-    W: FloatArray,
-    twist: FloatArray,
-    off: BoolArray,
-    approach_speed: float,
-    coulomb_speed: float,
-) -> FloatArray:
-    """The joints' damping and Coulomb friction of fingers off the object, paid along the
-    object's measured motion at their tips plus ``approach_speed`` toward it (beyond the
-    paper).
-
-    A finger whose contact opened gets the small force the internal-force problem gives it,
-    which its joints' damping turns into a crawl (the LEAP hand's thumb: 0.1 N, 0.3 mm/s)
-    while the object moves on; paid like this, the tip follows the object and closes the gap
-    at ``approach_speed``. Along the measured motion, unlike
-    :func:`damping_feedforward_torques`: a finger off the object cannot drag on it.
-
-    Args:
-        damping, coulomb: ``(n,)`` the joints' damping [N m s/rad] and dry friction [N m].
-        J_pinv_blocks: ``(k, 3, 3)`` blocks of ``J+`` [rad/m].
-        W: ``(6, 3 k)`` wrench matrix with the columns of the fingers off the object (their
-            tips' points and frames, the normal toward the object's axis).
-        twist: ``(6,)`` the object's measured twist ``[v; omega]`` [m/s, rad/s].
-        off: ``(3 k,)`` rows of the fingers off the object.
-        approach_speed: the tips' closing speed along their normals [m/s].
-        coulomb_speed: the joint speed of ``tanh(1)`` of the dry friction [rad/s] (0: none).
-
-    Returns:
-        ``(n,)`` joint torques [N m].
-    """
-    v_tips = _matvec_t(W, twist)
-    v_tips[..., 0::3] += approach_speed
-    qvel = apply_blocks(J_pinv_blocks, np.where(off, v_tips, 0.0))
-    result: FloatArray = damping * qvel
-    if coulomb_speed > 0:
-        result = result + coulomb * np.tanh(qvel / coulomb_speed)
-    return result
-
-
 def joint_torques(
     J: FloatArray,
     f: FloatArray,
