@@ -565,9 +565,11 @@ def test_cli_runs_a_shipped_skill_by_default() -> None:
 @pytest.mark.closed_loop
 def test_the_leap_thumb_on_top_holds_a_squeeze_its_sticking_joints_can_set() -> None:
     """A shipped lift_place held at the edge of slipping, on the LEAP hand (0.02 N m of dry
-    friction per joint): with the friction floor the thumb on top keeps the pen from every
-    nearby start; without it (the weaker method) the thumb's few hundredths of a newton
-    are below what its joints can set, and the pen is lost."""
+    friction per joint). The thumb on top keeps the pen from every nearby start with the
+    friction floor alone (its squeeze one its sticking joints can set) and with the approach
+    alone (it opens and closes on the pen again); without either (the weaker method) the
+    thumb's few hundredths of a newton are below what its joints can set, it opens, and the
+    pen is lost."""
     import dataclasses
 
     from ias_gym.baselines.gains import ControllerGains
@@ -583,14 +585,18 @@ def test_the_leap_thumb_on_top_holds_a_squeeze_its_sticking_joints_can_set() -> 
     env = PenSkillEnv(references=[ref], hand="leap")
     starts = list(perturbed_starts(env, seed=0, n=2))
     env.close()
-    floor = ControllerGains()
-    assert floor.friction_floor > 0
-    off = dataclasses.replace(floor, friction_floor=0.0)
+    both = ControllerGains()
+    assert both.friction_floor > 0 and both.approach_speed > 0
+    floor = dataclasses.replace(both, approach_speed=0.0)
+    approach = dataclasses.replace(both, friction_floor=0.0)
+    neither = dataclasses.replace(floor, friction_floor=0.0)
     for options in starts:
-        held, _ = run_transfer(ref, "leap", "gt", gains=floor, reset_options=options)
-        assert held.held and held.margin_kept, (held.held_s, held.margin_err_rel)
+        for gains in (floor, approach):
+            held, _ = run_transfer(ref, "leap", "gt", gains=gains, reset_options=options)
+            assert held.held and held.margin_kept, (gains, held.held_s, held.margin_err_rel)
     dropped = [
-        not run_transfer(ref, "leap", "gt", gains=off, reset_options=o)[0].held for o in starts
+        not run_transfer(ref, "leap", "gt", gains=neither, reset_options=o)[0].held
+        for o in starts
     ]
     assert any(dropped)
 

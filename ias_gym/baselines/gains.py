@@ -58,4 +58,5 @@ class ControllerGains:
     # A fingertip off the pen closes on it again at this speed [m/s] relative to the pen's
     # measured motion at the tip: its joints' damping and dry friction paid along that
     # motion (grip_transform_terms.approach_torques); 0: an off finger gets only its force.
-    approach_speed: float = 0.0
+    # Fitted by train/fit_gain.py (docs/controller.md).
+    approach_speed: float = 0.01

@@ -40,20 +40,13 @@ METHODS: tuple[str, ...] = ("gt", "kinematic", "retarget")
 #: keeps the default (0).
 TRANSFER_KI: dict[str, float] = {"ias4f": 500.0, "ias3f": 2000.0, "shadow": 0.0, "leap": 0.0}
 
-#: The speed [m/s] at which a fingertip off the pen closes on it again
-#: (:attr:`~ias_gym.baselines.gains.ControllerGains.approach_speed`) when the expert executes
-#: a transferred skill, every hand; fitted on development persons by ``train/fit_gain.py
-#: --gain approach_speed`` (docs/controller.md). The pen tasks' expert keeps the default (0).
-TRANSFER_APPROACH_SPEED = 0.01
-
 
 def transfer_gains(hand: str) -> ControllerGains:
     """The expert's :class:`~ias_gym.baselines.gains.ControllerGains` for a
-    skill transferred to ``hand``: the defaults, with the hand's :data:`TRANSFER_KI` and
-    :data:`TRANSFER_APPROACH_SPEED`."""
+    skill transferred to ``hand``: the defaults, with the hand's :data:`TRANSFER_KI`."""
     from ias_gym.baselines.gains import ControllerGains
 
-    return ControllerGains(ki=TRANSFER_KI.get(hand, 0.0), approach_speed=TRANSFER_APPROACH_SPEED)
+    return ControllerGains(ki=TRANSFER_KI.get(hand, 0.0))
 
 
 @dataclass
