@@ -595,8 +595,7 @@ def test_the_leap_thumb_on_top_holds_a_squeeze_its_sticking_joints_can_set() -> 
             held, _ = run_transfer(ref, "leap", "gt", gains=gains, reset_options=options)
             assert held.held and held.margin_kept, (gains, held.held_s, held.margin_err_rel)
     dropped = [
-        not run_transfer(ref, "leap", "gt", gains=neither, reset_options=o)[0].held
-        for o in starts
+        not run_transfer(ref, "leap", "gt", gains=neither, reset_options=o)[0].held for o in starts
     ]
     assert any(dropped)
 
