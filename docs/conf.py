@@ -64,6 +64,8 @@ napoleon_use_ivar = True
 html_theme = "furo"
 html_title = "ias-gym"
 html_static_path = ["_static"]
+# a site icon: without one the browser asks for /favicon.ico and logs a 404
+html_favicon = "_static/favicon.png"
 html_last_updated_fmt = None
 
 
