@@ -1,6 +1,8 @@
 """The library's skill motions the assistant completes (:class:`SkillMotion`,
-:func:`load_motions`): each glove skill's mean joint trajectory from its demonstrations'
-skill start, less the holding skill's (:data:`HOLD_SKILL`), on the joints it moves.
+:func:`load_motions`): each glove skill's typical trajectory of the operator's joint targets
+from its demonstrations' skill start (aligned in amplitude and speed before they are
+averaged, :func:`align_demonstrations`), less the holding skill's (:data:`HOLD_SKILL`), on
+the joints it moves, with how much persons differ in amplitude and speed.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym.assist.stream import THETA_INFO
 from ias_gym.envs.glove_world import OBSERVATION
 from ias_gym.errors import InputError
 from ias_gym.glove.hand import N_JOINTS
@@ -33,18 +36,22 @@ class SkillMotion:
 
     Attributes:
         name: the skill.
-        tau: ``(T,)`` time since the skill's start [s] (the library's mean person).
-        delta: ``(T, J)`` the mean joint angles less those at the start [rad], on ``joints``.
+        tau: ``(T,)`` time since the skill's start [s] (the library's typical person).
+        delta: ``(T, J)`` the typical joint targets less those at the start [rad], on ``joints``.
         joints: the joints the skill moves (indices into ``JOINT_NAMES``).
-        amplitude_range: the smallest and largest amplitude of a demonstration relative to
-            the mean (least squares on ``joints``) [-]: how much persons differ.
+        amplitude_sd: the standard deviation of the demonstrations' amplitudes relative to
+            the mean [-] ...
+        speed_sd: ... and of the logarithm of their speeds relative to the mean [-] (each
+            demonstration's best pair on :data:`DEMO_SPEEDS`, least squares on ``joints``):
+            how much persons differ, the prior of an operator's fit.
     """
 
     name: str
     tau: FloatArray
     delta: FloatArray
     joints: NDArray[np.int64]
-    amplitude_range: tuple[float, float]
+    amplitude_sd: float
+    speed_sd: float
 
     @property
     def principal(self) -> int:
@@ -61,7 +68,8 @@ class SkillMotion:
 
 def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
     """Every glove skill's :class:`SkillMotion` in a library (default: the shipped one): the
-    mean of its demonstrations from their skill start, less the holding skill's
+    aligned mean of its demonstrations' operator targets (``glove_theta``; the hand's joint
+    angles where a recording lacks them) from their skill start, less the holding skill's
     (:data:`HOLD_SKILL`); skills that move no joint beyond it are left out.
 
     Raises:
@@ -78,8 +86,13 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
                 continue
             k = skill_start_index(skill)
             time = np.asarray(skill.model.time, dtype=np.float64)
-            obs = np.asarray(skill.demonstration.observations, dtype=np.float64)
-            theta = obs[: len(time), OBSERVATION["joint_angles"]]
+            demo = skill.demonstration
+            targets = demo.infos.get(THETA_INFO) if demo.infos else None
+            if targets is not None:  # the operator's targets, what the assistant reads
+                theta = np.asarray(targets, dtype=np.float64)[: len(time)]
+            else:  # a recording without them: the hand's angles
+                obs = np.asarray(demo.observations, dtype=np.float64)
+                theta = obs[: len(time), OBSERVATION["joint_angles"]]
             groups.setdefault(skill.name, []).append((time[k:] - time[k], theta[k:] - theta[k]))
     means: dict[str, tuple[FloatArray, FloatArray]] = {}
     resampled: dict[str, FloatArray] = {}  # (D, T, 10) each demonstration on the mean's grid
@@ -103,7 +116,62 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
         joints = np.flatnonzero(np.ptp(mean - base, axis=0) > MOVING_JOINT)
         if not joints.size:
             continue
-        m = (mean - base)[:, joints]
-        amps = [float(((d - base)[:, joints] * m).sum() / (m * m).sum()) for d in resampled[name]]
-        out[name] = SkillMotion(name, tau, m, joints, (min(amps), max(amps)))
+        own = np.array([(d - base)[:, joints] for d in resampled[name]])
+        m, amps, speeds = align_demonstrations(tau, own)
+        out[name] = SkillMotion(
+            name, tau, m, joints, float(np.std(amps)), float(np.std(np.log(speeds)))
+        )
     return out
+
+
+#: Rounds of aligning the demonstrations in amplitude and speed before they are averaged.
+ALIGN_ROUNDS = 2
+#: The speeds relative to the library's mean a demonstration is fitted on [-].
+DEMO_SPEEDS = np.linspace(0.6, 1.6, 51)
+
+
+def align_demonstrations(
+    tau: FloatArray, demos: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The typical motion of ``demos`` ``(D, T, J)`` (on times ``tau``) and each one's
+    amplitude and speed relative to it.
+
+    A plain mean of persons who move at different speeds is blurred (a see-saw's phase
+    spreads over its cycles), so each demonstration is fitted as ``a m(v tau)`` to the mean
+    (:func:`_amplitude_speed`), brought to the typical amplitude and speed (the mean of the
+    ``a``, the geometric mean of the ``v``) and averaged again, :data:`ALIGN_ROUNDS` times.
+
+    Returns:
+        ``(mean (T, J), amplitudes (D,), speeds (D,))``.
+    """
+    m = demos.mean(axis=0)
+    for _ in range(ALIGN_ROUNDS):
+        amps, speeds = np.array([_amplitude_speed(tau, m, d) for d in demos]).T
+        typical_a, typical_v = float(np.mean(amps)), float(np.exp(np.mean(np.log(speeds))))
+        m = np.mean(
+            [
+                _resample(tau, d, typical_v / v) * (typical_a / a)
+                for d, a, v in zip(demos, amps, speeds, strict=True)
+            ],
+            axis=0,
+        )
+    amps, speeds = np.array([_amplitude_speed(tau, m, d) for d in demos]).T
+    return m, amps, speeds
+
+
+def _resample(tau: FloatArray, values: FloatArray, scale: float) -> FloatArray:
+    """``values`` (on ``tau``) read at ``scale * tau`` (held beyond the end)."""
+    return np.stack([np.interp(scale * tau, tau, values[:, j]) for j in range(values.shape[1])], 1)
+
+
+def _amplitude_speed(tau: FloatArray, mean: FloatArray, demo: FloatArray) -> tuple[float, float]:
+    """The amplitude and speed ``(a, v)`` for which ``a mean(v tau)`` fits ``demo`` best
+    (least squares, ``a`` in closed form for each ``v`` of :data:`DEMO_SPEEDS`)."""
+    best = (np.inf, 1.0, 1.0)
+    for v in DEMO_SPEEDS:
+        m = np.stack([np.interp(v * tau, tau, mean[:, j]) for j in range(mean.shape[1])], 1)
+        a = float((m * demo).sum() / max(float((m * m).sum()), 1e-12))
+        res = float(((a * m - demo) ** 2).sum())
+        if res < best[0]:
+            best = (res, a, float(v))
+    return best[1], best[2]
