@@ -30,7 +30,7 @@ PRON = joint_index("wrist_pronation")
 #: A stop detector that latches (the development value): these tests are about what the
 #: assistant does once a stop is latched, not about the fitted threshold's rates, which
 #: train/fit_assistant.py reports.
-LATCHING = AssistParams(stop_ratio=0.2)
+LATCHING = AssistParams(stop_window_s=0.1, stop_ratio=0.3)
 
 
 def _sessions(recogniser: str, impairment: str, skill: str = "tilt_left") -> list[tuple]:
@@ -95,6 +95,10 @@ def test_the_library_motions_are_the_skills_own() -> None:
 def test_a_stopped_tilt_is_completed_with_skill_knowledge_and_not_without() -> None:
     for op, cmd, assistant in _sessions("phase", "stops:at=0.4"):
         assert "tilt_left" in assistant.stopped
+        # one skill is completed, on its principal joint, though others latched too
+        assert assistant.completing == "tilt_left"
+        others = np.arange(cmd.shape[1]) != PRON
+        np.testing.assert_allclose(cmd[:, others], op[:, others], atol=1e-9)
         turned_op = op[0, PRON] - op[-1, PRON]
         turned_cmd = cmd[0, PRON] - cmd[-1, PRON]
         # the hand is turned on, the way the skill turns, well beyond the operator's stop

@@ -48,7 +48,13 @@ def test_a_kind_without_sessions_scores_nothing(fit: ModuleType) -> None:
 
 @pytest.mark.parametrize(
     "args",
-    [["--ratios", "0.2,x"], ["--ratios", "1.5"], ["--windows", "0"], ["--persons", "2"]],
+    [
+        ["--ratios", "0.2,x"],
+        ["--ratios", "1.5"],
+        ["--windows", "0"],
+        ["--persons", "2"],
+        ["--db", "no-such-library.db"],
+    ],
 )
 def test_bad_grids_are_refused_before_any_session(
     fit: ModuleType, args: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]

@@ -21,7 +21,9 @@ first) is written to
 ``ias_gym/assets/assistant_params.json`` (``--out``; an existing file only with
 ``--overwrite``).
 
-    python train/fit_assistant.py --persons 20 --seed 7001 --workers 2 --overwrite
+    ias-gym assist library --db out/library.db --population 8 --population-seed 61
+    python train/fit_assistant.py --db out/library.db --persons 16 --seed 7001 --folds 4 \
+        --workers 2 --report out/fit_assistant.json --overwrite
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ import json
 import os
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -50,8 +53,8 @@ from ias_gym.rates import Rate
 from ias_gym.runtime.jobs import Backend, run_jobs
 
 #: The grid searched (``--windows`` [s], ``--ratios`` [-]).
-WINDOWS = (0.05, 0.1, 0.15, 0.2)
-RATIOS = (0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.4)
+WINDOWS = (0.1, 0.15)
+RATIOS = (0.2, 0.3, 0.4)
 #: The two kinds of session: unimpaired (0) and stopped (1).
 UNIMPAIRED, STOPPED = 0, 1
 
@@ -65,10 +68,11 @@ class PersonJob:
 
     grid: tuple[tuple[float, float], ...]
     base: AssistParams
+    db: str | None = None  # the skill library (None: the shipped one)
 
     def __call__(self, person: str) -> list[tuple[str, int, float, float, bool]]:
         rows: list[tuple[str, int, float, float, bool]] = []
-        for skill in sorted(load_motions()):
+        for skill in sorted(load_motions(self.db)):
             reference = reference_session(person, skill, 0)
             if reference is None:
                 rows.append((skill, -1, float("nan"), float("nan"), False))
@@ -80,7 +84,9 @@ class PersonJob:
                 layout = env.unwrapped.observation_layout  # type: ignore[attr-defined]
                 for window, ratio in self.grid:
                     params = dataclasses.replace(self.base, stop_window_s=window, stop_ratio=ratio)
-                    assistant = make_assistant(recogniser="phase", params=params, layout=layout)
+                    assistant = make_assistant(
+                        self.db, recogniser="phase", params=params, layout=layout
+                    )
                     result = run_session(env, assistant, 0)
                     rows.append((skill, kind, window, ratio, session_success(result, reference)))
                 env.close()
@@ -121,6 +127,7 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__.split("\n\n")[0],
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
+    ap.add_argument("--db", help="skill library of development persons (default: the shipped one)")
     ap.add_argument("--persons", type=int, default=20, help="development persons")
     ap.add_argument("--seed", type=int, default=7001, help="population seed (development)")
     ap.add_argument("--folds", type=int, default=5, help="cross-validation groups of persons")
@@ -143,6 +150,9 @@ def main(argv: list[str] | None = None) -> int:
     if not all(w > 0 for w in windows) or not all(0 < r < 1 for r in ratios):
         print("--windows must be > 0 s and --ratios in (0, 1)", file=sys.stderr)
         return 2
+    if args.db is not None and not Path(args.db).is_file():
+        print(f"--db {args.db} does not exist (build one: ias-gym assist library)", file=sys.stderr)
+        return 2
     if args.persons < args.folds:
         print(f"--persons {args.persons} cannot fill {args.folds} folds", file=sys.stderr)
         return 2
@@ -160,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
     base = AssistParams()  # the defaults of what is not fitted, never a former fit's file
     grid = tuple((w, r) for w in windows for r in ratios)
     per_person = run_jobs(
-        PersonJob(grid, base),
+        PersonJob(grid, base, args.db),
         persons,
         Backend.from_options(args.workers),
         desc="persons",
@@ -188,7 +198,10 @@ def main(argv: list[str] | None = None) -> int:
         base,
         stop_window_s=window,
         stop_ratio=ratio,
-        fitted_on=f"{args.persons} population persons, seed {args.seed}, {args.objective}",
+        fitted_on=(
+            f"{args.persons} population persons, seed {args.seed}, {args.objective}, "
+            f"library {Path(args.db).name if args.db else 'shipped'}"
+        ),
     )
     fitted.save(out, overwrite=args.overwrite)
     report = {

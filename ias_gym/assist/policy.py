@@ -17,21 +17,25 @@ Every step:
    recogniser (:mod:`ias_gym.assist.recognition`) updates its posterior ``p_k`` over the
    library's skills and ``unknown``.
 2. **Completion from the recognised skill's stored model.** Each skill's template
-   (:class:`~ias_gym.assist.skill_motions.SkillMotion`: the mean of its demonstrations'
-   joint trajectories, aligned at their skill start, less the pose at the start) says how
-   the skill moves the joints it moves. For each skill the assistant fits the operator's own
-   version of it to what the operator has done since the skill's motion set in: amplitude
-   ``a``, speed ``v`` and start ``t0`` (least squares over a grid of ``v`` and ``t0``, ``a``
-   in closed form), so that ``a m_k(v (t - t0))`` is this person's motion. When the
-   operator's motion falls short of the fitted model's (their speed over
+   (:class:`~ias_gym.assist.skill_motions.SkillMotion`: its demonstrations' joint
+   trajectories from their skill start, aligned in amplitude and speed and averaged, less
+   the pose at the start) says how the skill moves the joints it moves. For each skill the
+   assistant fits the operator's own version of it to what the operator has done since the
+   skill's motion set in: amplitude ``a``, speed ``v`` and start ``t0``, the most probable
+   under the library's spread of persons and the operator's own unsteadiness before the
+   motion, so that ``a m_k(v (t - t0))`` is this person's motion. When the operator's
+   motion falls short of the fitted model's (their displacement over
    :attr:`AssistParams.stop_window_s` below :attr:`AssistParams.stop_ratio` of the model's,
    on the skill's principal joint, with at least :attr:`AssistParams.min_remaining_rad` of
-   the model's motion still to go), the assistant latches that the operator has stopped and
-   drives the principal joint the rest of the way, resuming from the stopped pose and
-   catching up with the fitted timeline at twice its pace:
-   offset ``= a m_k(v (t - t0)) - (Θ - Θ_0)``, weighted by the skill's posterior a stop
-   window before the stop (the ``unknown`` share adds nothing, so without skill knowledge
-   there is no completion).
+   the model's motion still to go from the operator's pose), the fit is held, and once
+   that has lasted another window the assistant latches that the operator has stopped. It
+   completes the skill the recogniser put first when the operator began to slow down
+   (one skill: two completions at once would move the same joints two ways), driving its
+   principal joint the rest of the way: from the stopped pose, catching up with the fitted
+   timeline at twice its pace, offset ``= p_k (a m_k(v (t - t0)) - (Θ - Θ_0))`` with
+   ``p_k`` the skill's posterior when the slowing down began (the ``unknown`` share adds
+   nothing, so without skill knowledge there is no completion; what the recogniser sees
+   afterwards is the completion itself, no evidence of what the operator meant).
 
 The thresholds are :class:`AssistParams`, fitted on development persons by
 ``train/fit_assistant.py`` and stored in ``ias_gym/assets/assistant_params.json``.
@@ -77,6 +81,13 @@ REFIT_EVERY = 5
 #: How far ahead the model's motion still to go is looked for [s] (the longest skill motion
 #: of the slowest person).
 FUTURE_S = 3.0
+#: The fit reads the operator's motion up to this many stop windows back: a stop shows
+#: in the test only once the window is past it and the env's low-pass on the operator's
+#: targets has settled, and samples from after a stop are no evidence of the motion meant.
+FIT_LAG = 2
+#: The least unsteadiness of an operator the fit assumes [rad]: about the smallest
+#: physiological tremor of a wrist (docs/population.md, ``tremor_amplitude``).
+NOISE_FLOOR = 1e-3
 #: Recognisers by name: the library's (:data:`~ias_gym.assist.recogniser_registry.METHODS`) and
 #: ``"none"``, which always says ``unknown`` (the "no skill knowledge" ablation).
 RECOGNISERS = (*METHODS, "none")
@@ -91,8 +102,9 @@ class AssistParams:
             lift's end by this much [rad].
         stop_window_s: the window over which the operator's and the model's speeds are
             compared [s].
-        stop_ratio: the operator has stopped when their speed over the window is below this
-            share of the fitted model's [-].
+        stop_ratio: the operator is slowing down when their speed over the window is below
+            this share of the fitted model's, and has stopped when that lasts another
+            window [-].
         min_model_speed: ... and the model's is at least this [rad/s] (a model at a turning
             point says nothing).
         min_remaining_rad: ... and the model still moves at least this far from its pose now
@@ -101,8 +113,8 @@ class AssistParams:
     """
 
     onset_rad: float = 0.01
-    stop_window_s: float = 0.2
-    stop_ratio: float = 0.2
+    stop_window_s: float = 0.1
+    stop_ratio: float = 0.3
     min_model_speed: float = 0.05
     min_remaining_rad: float = 0.05
     fitted_on: str = "defaults"
@@ -162,6 +174,12 @@ def frame_from_observation(
     )
 
 
+def _slope(t: FloatArray, y: FloatArray) -> float:
+    """The least-squares slope of ``y`` over ``t``."""
+    dt = t - t.mean()
+    return float((dt * (y - y.mean())).sum() / max(float((dt * dt).sum()), 1e-12))
+
+
 class _NoRecogniser:
     """Always ``unknown``: the assistant without skill knowledge."""
 
@@ -184,7 +202,9 @@ class _Completion:
         self.values: list[FloatArray] = []  # operator's joints less their pose at LIFT_END
         self.onset: float | None = None
         self.fit: tuple[float, float, float] | None = None  # (a, v, t0)
+        self.noise: float | None = None  # the operator's unsteadiness before the onset [rad]
         self.stopped_at: float | None = None
+        self.slow_since: float | None = None  # the stop test holds since then [s]
         self._clock = 0.0  # the completion's time on the fitted timeline [s]
         #: The smallest operator-to-model speed ratio seen where a stop could be latched
         #: (what ``train/fit_assistant.py`` fits ``stop_ratio`` on).
@@ -197,22 +217,34 @@ class _Completion:
         return a * self.motion.at(v * (np.asarray(t) - t0))
 
     def _refit(self, n: int) -> None:
-        """Fit ``(a, v, t0)`` to the first ``n`` samples (``a`` within the library's range)."""
+        """Fit ``(a, v, t0)`` to the first ``n`` samples: the most probable under the
+        library's spread of persons (:attr:`SkillMotion.amplitude_sd`,
+        :attr:`SkillMotion.speed_sd`) and the operator's own unsteadiness before the
+        motion (:attr:`noise`), ``a`` in closed form for each ``(v, t0)`` of the grids.
+
+        Early in a motion its amplitude and speed are hardly told apart (a minimum-jerk
+        start grows as ``a v^3``); the library's spread decides between them."""
         assert self.onset is not None
         t = np.asarray(self.times[:n])
         y = np.asarray(self.values[:n])  # (N, J)
-        lo, hi = self.motion.amplitude_range
+        if self.noise is None:
+            still = y[t < self.onset]
+            spread = float(np.sqrt(np.mean((still - still.mean(axis=0)) ** 2))) if len(still) else 0
+            self.noise = max(spread, NOISE_FLOOR)
+        wa = (self.noise / max(self.motion.amplitude_sd, 1e-3)) ** 2  # prior weights, in
+        wv = (self.noise / max(self.motion.speed_sd, 1e-3)) ** 2  # units of the residual
         best = (math.inf, (1.0, 1.0, self.onset))
         for t0 in self.onset - START_GRID:
             tau = SPEED_GRID[:, None] * (t[None, :] - t0)  # (V, N)
             m = self.motion.at(tau.ravel()).reshape(len(SPEED_GRID), len(t), -1)
             mm = (m * m).sum(axis=(1, 2))
             my = (m * y[None]).sum(axis=(1, 2))
-            a = np.clip(my / np.maximum(mm, 1e-12), lo, hi)
+            a = (my + wa) / (mm + wa)
             res = ((a[:, None, None] * m - y[None]) ** 2).sum(axis=(1, 2))
-            i = int(np.argmin(res))
-            if res[i] < best[0]:
-                best = (float(res[i]), (float(a[i]), float(SPEED_GRID[i]), float(t0)))
+            cost = res + wa * (a - 1.0) ** 2 + wv * np.log(SPEED_GRID) ** 2
+            i = int(np.argmin(cost))
+            if cost[i] < best[0]:
+                best = (float(cost[i]), (float(a[i]), float(SPEED_GRID[i]), float(t0)))
         self.fit = best[1]
 
     def update(self, t: float, value: FloatArray, refit: bool) -> FloatArray:
@@ -221,7 +253,10 @@ class _Completion:
 
         The stop test: the model fitted to what the operator did before the last
         ``stop_window_s`` predicts the window; the operator moved less than ``stop_ratio``
-        of it."""
+        of it. From the first such window on the fit is held (what the operator does while
+        slowing down is no evidence of how they meant to move), and the stop is latched
+        once the test has held for another window (a turning point or a hesitation of an
+        unimpaired operator passes sooner)."""
         p = self.params
         if self.stopped_at is None:
             self.times.append(t)
@@ -229,34 +264,39 @@ class _Completion:
             if self.onset is None and float(np.abs(value).max()) > p.onset_rad:
                 self.onset = t
             w = round(p.stop_window_s / self.dt)
-            if self.onset is None or t - self.onset < 2 * p.stop_window_s:
+            if self.onset is None or t - self.onset < (FIT_LAG + 1) * p.stop_window_s:
                 return np.zeros(len(self.motion.joints))
-            if refit or self.fit is None:
-                self._refit(len(self.times) - w)
+            if self.slow_since is None and (refit or self.fit is None):
+                self._refit(len(self.times) - FIT_LAG * w)
             # on the skill's principal joint (its largest motion): the others carry what the
             # demonstrating persons corrected on the way, which another person need not
             j = self.motion.principal
-            ts = np.array([t - p.stop_window_s, t])
-            model_speed = abs(float(np.diff(self.model(ts)[:, j])[0])) / p.stop_window_s
-            op_speed = abs(float(value[j] - self.values[-1 - w][j])) / p.stop_window_s
+            # speeds as least-squares slopes over the window's samples: the operator's
+            # tremor averages out without delaying the test
+            ts = np.asarray(self.times[-1 - w :])
+            model_speed = abs(_slope(ts, self.model(ts)[:, j]))
+            op_speed = abs(_slope(ts, np.asarray(self.values[-1 - w :])[:, j]))
             ahead = self.model(t + np.arange(0.0, FUTURE_S, 0.05))[:, j]
-            remaining = float(np.abs(ahead[1:] - ahead[0]).max())
+            remaining = float(np.abs(ahead - value[j]).max())  # from where the operator is
             armed = model_speed >= p.min_model_speed and remaining >= p.min_remaining_rad
             if armed:
                 self.min_ratio = min(self.min_ratio, op_speed / model_speed)
-            if armed and op_speed < p.stop_ratio * model_speed:
+            if not (armed and op_speed < p.stop_ratio * model_speed):
+                self.slow_since = None
+            elif self.slow_since is None:
+                self.slow_since = t
+            elif t - self.slow_since >= p.stop_window_s - 0.5 * self.dt:
                 self.stopped_at = t
-                self._refit(len(self.times) - w)
-                # when the operator stopped: the model's pose nearest to theirs in the window
-                grid = t - p.stop_window_s + self.dt * np.arange(w + 1)
+                # when the operator stopped: the model's pose nearest to theirs since the
+                # slowing down began
+                grid = np.arange(self.slow_since - 2.0 * p.stop_window_s, t, self.dt)
                 gap = np.abs(self.model(grid) - value).max(axis=1)
-                self._clock = float(grid[int(np.argmin(gap))]) - 2.0 * self.dt
+                self._clock = float(grid[int(np.argmin(gap))])
         if self.stopped_at is None:
             return np.zeros(len(self.motion.joints))
         # resume from where the operator stopped and catch up with the fitted timeline at
         # twice its pace (no step in the targets)
-        self._clock = max(self._clock + 2.0 * self.dt, t - self.params.stop_window_s)
-        self._clock = min(self._clock, t)
+        self._clock = min(self._clock + 2.0 * self.dt, t)
         out: FloatArray = np.zeros(len(self.motion.joints))
         j = self.motion.principal
         out[j] = self.model(np.array([self._clock], dtype=np.float64))[0, j] - value[j]
@@ -307,14 +347,21 @@ class ObservationAssistant:
         self._last_offset = np.zeros(N_JOINTS)
         self._theta0: FloatArray | None = None  # the operator's pose at the lift's end
         self._fits = {k: _Completion(m, self.params, self.dt) for k, m in self.motions.items()}
+        #: The skill being completed: the first whose stop was latched while the recogniser
+        #: put it first.
+        self._active: str | None = None
+        self._authority = 0.0  # its weight: its posterior when the operator slowed down
         self._posts: list[dict[str, float]] = []
-        #: Each stopped skill's weight: its posterior a stop window before the stop.
-        self._authority: dict[str, float] = {}
         self._steps = 0
 
     def posterior(self) -> dict[str, float]:
         """The recogniser's posterior after the last :meth:`act`."""
         return dict(self._post)
+
+    @property
+    def completing(self) -> str | None:
+        """The skill this session completes (None: no stop latched yet)."""
+        return self._active
 
     @property
     def min_ratios(self) -> dict[str, float]:
@@ -356,15 +403,19 @@ class ObservationAssistant:
             if self._theta0 is None:
                 self._theta0 = theta.copy()
             refit = self._steps % REFIT_EVERY == 0
-            lag = round(self.params.stop_window_s / self.dt)
             for name, fit in self._fits.items():
                 value = (theta - self._theta0)[fit.motion.joints]
+                latched = fit.stopped_at is not None
                 part = fit.update(t, value, refit)
-                if fit.stopped_at is not None and name not in self._authority:
-                    # the skill as recognised before the operator stopped: what they meant
-                    before = self._posts[max(len(self._posts) - 1 - lag, 0)]
-                    self._authority[name] = before.get(name, 0.0)
-                offset[fit.motion.joints] += self._authority.get(name, 0.0) * part
+                if not latched and fit.stopped_at is not None and fit.slow_since is not None:
+                    # the skill as recognised when the operator began to slow down: what
+                    # they meant; the first stop of the skill recognised first is completed
+                    back = round((t - fit.slow_since) / self.dt)
+                    before = self._posts[max(len(self._posts) - 1 - back, 0)]
+                    if self._active is None and max(before, key=before.__getitem__) == name:
+                        self._active, self._authority = name, before[name]
+                if name == self._active:
+                    offset[fit.motion.joints] += self._authority * part
         self._steps += 1
         out: FloatArray = np.clip(offset / self.scale, -1.0, 1.0)
         self._last_offset = out * self.scale
