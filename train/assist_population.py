@@ -2,7 +2,7 @@
 assisted with the recogniser and assisted without skill knowledge, with 95 % intervals, on
 persons drawn by a seed (``--set held-out``: one the fitting never saw).
 
-    python train/assist_population.py --persons 30 --seed S --set held-out \
+    python train/assist_population.py --db out/library.db --persons 30 --seed S --set held-out \
         --impairment none --impairment stops:at=0.4 --out docs/assist_population.json
 """
 
@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-from tqdm import tqdm
 
 import ias_gym  # noqa: F401  (registers the envs)
 from ias_gym.assist.assistance_evaluation import reference_session
@@ -28,8 +30,51 @@ from ias_gym.glove.impairments import reference_kwargs
 from ias_gym.glove.population import population_ids
 from ias_gym.outputs import atomic_output, check_output_file
 from ias_gym.rates import SET_KINDS, Rate
+from ias_gym.runtime.jobs import Backend, run_jobs
 
 ARMS = ("unassisted", "assisted", "no_skill_knowledge")
+
+
+@dataclass(frozen=True)
+class PersonJob:
+    """A picklable job: one person's sessions, every spec, skill and arm.
+
+    Returns rows ``(spec, skill, arm, success)``; ``(spec, skill, None, None)`` for a
+    session without a reference."""
+
+    specs: tuple[str, ...]
+    skills: tuple[str, ...]
+    db: str | None
+    reset_seed: int
+
+    def __call__(self, person: str) -> list[tuple[str, str, str | None, bool | None]]:
+        layout = observation_layout(OBSERVATION_PARTS)
+        assistants = {
+            "assisted": make_assistant(self.db, recogniser="phase", layout=layout),
+            "no_skill_knowledge": make_assistant(self.db, recogniser="none", layout=layout),
+        }
+        references: dict[tuple[str, str], Any] = {}
+        rows: list[tuple[str, str, str | None, bool | None]] = []
+        for spec in self.specs:
+            for skill in self.skills:
+                env = gym.make("IAS-GloveAssist-v0", person_id=person, skill=skill, impairment=spec)
+                same = reference_kwargs(env.unwrapped.impairment)  # type: ignore[attr-defined]
+                key = (skill, repr(same))
+                if key not in references:
+                    references[key] = reference_session(person, skill, self.reset_seed, **same)
+                ref = references[key]
+                if ref is None:
+                    rows.append((spec, skill, None, None))
+                for arm in ARMS if ref is not None else ():
+                    result = run_session(env, assistants.get(arm), self.reset_seed)
+                    rows.append((spec, skill, arm, session_success(result, ref)))
+                env.close()
+        return rows
+
+
+def _rate(outcomes: list[bool]) -> dict[str, Any] | None:
+    """The rate's JSON; None without a session judged."""
+    return Rate.of(outcomes).to_dict() if outcomes else None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -37,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__.split("\n\n")[0],
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
+    ap.add_argument("--db", help="skill library of development persons (default: the shipped one)")
     ap.add_argument("--persons", type=int, default=30, help="population persons")
     ap.add_argument("--seed", type=int, required=True, help="population seed")
     ap.add_argument(
@@ -44,51 +90,45 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--impairment", action="append", help="spec, repeatable")
     ap.add_argument("--reset-seed", type=int, default=0, help="reset seed of every session")
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes")
     ap.add_argument("--out", required=True, help="JSON file written")
     ap.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     args = ap.parse_args(argv)
+    if args.db is not None and not Path(args.db).is_file():
+        print(f"--db {args.db} does not exist (build one: ias-gym assist library)", file=sys.stderr)
+        return 2
     out = check_output_file(args.out, overwrite=args.overwrite, what="--out")
     specs = expand_specs(args.impairment or ["none", "stops:at=0.4"])
     persons = population_ids(args.persons, args.seed)
-    skills = sorted(load_motions())  # the skills with a motion of their own
-    layout = observation_layout(OBSERVATION_PARTS)
-    assistants = {
-        "assisted": make_assistant(recogniser="phase", layout=layout),
-        "no_skill_knowledge": make_assistant(recogniser="none", layout=layout),
-    }
+    skills = sorted(load_motions(args.db))  # the skills with a motion of their own
+    rows = run_jobs(
+        PersonJob(tuple(specs), tuple(skills), args.db, args.reset_seed),
+        persons,
+        Backend.from_options(args.workers),
+        desc="persons",
+        progress=True,
+    )
     outcomes: dict[str, dict[str, list[bool]]] = {s: {a: [] for a in ARMS} for s in specs}
+    by_skill: dict[str, dict[str, list[bool]]] = {s: {k: [] for k in skills} for s in specs}
     excluded = dict.fromkeys(specs, 0)
-    references: dict[Any, Any] = {}
-    with tqdm(total=len(specs) * len(persons) * len(skills), desc="sessions") as bar:
-        for spec in specs:
-            for person in persons:
-                for skill in skills:
-                    env = gym.make(
-                        "IAS-GloveAssist-v0", person_id=person, skill=skill, impairment=spec
-                    )
-                    same = reference_kwargs(env.unwrapped.impairment)  # type: ignore[attr-defined]
-                    key = (person, skill, repr(same))
-                    if key not in references:
-                        references[key] = reference_session(person, skill, args.reset_seed, **same)
-                    ref = references[key]
-                    if ref is None:
-                        excluded[spec] += 1
-                    else:
-                        for arm in ARMS:
-                            assistant = assistants.get(arm)
-                            result = run_session(env, assistant, args.reset_seed)
-                            outcomes[spec][arm].append(session_success(result, ref))
-                    env.close()
-                    bar.update()
+    for spec, skill, arm, ok in (row for person_rows in rows for row in person_rows):
+        if arm is None:
+            excluded[spec] += 1
+            continue
+        outcomes[spec][arm].append(bool(ok))
+        if arm == "assisted":
+            by_skill[spec][skill].append(bool(ok))
     table = {
         "set": args.set,
         "persons": args.persons,
         "population_seed": args.seed,
+        "library": Path(args.db).name if args.db else "shipped",
         "skills": skills,
         "by_impairment": {
             spec: {
-                **{arm: Rate.of(outcomes[spec][arm]).to_dict() for arm in ARMS},
+                **{arm: _rate(outcomes[spec][arm]) for arm in ARMS},
                 "excluded": excluded[spec],
+                "assisted_by_skill": {k: _rate(v) for k, v in by_skill[spec].items()},
             }
             for spec in specs
         },

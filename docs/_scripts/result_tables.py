@@ -58,11 +58,14 @@ def percent(value: float | None) -> str:
     return "-" if value is None else f"{100 * value:.0f} %"
 
 
-def interval(rate: Mapping[str, Any]) -> str:
+def interval(rate: Mapping[str, Any] | None) -> str:
     """A rate of the JSON (:meth:`ias_gym.rates.Rate.to_dict`) as ``84 % [75, 90] (42/50)``:
-    its counts, checked and printed by :class:`ias_gym.rates.Rate`."""
+    its counts, checked and printed by :class:`ias_gym.rates.Rate`; ``-`` for none (no
+    session judged)."""
     from ias_gym.rates import Rate
 
+    if rate is None:
+        return "-"
     return str(Rate(int(rate["successes"]), int(rate["trials"])))
 
 
@@ -222,13 +225,28 @@ def assist_population(result: Mapping[str, Any]) -> str:
         [f"`{spec}`", *(interval(row[arm]) for arm in arms), str(row["excluded"])]
         for spec, row in result["by_impairment"].items()
     ]
+    library = result.get("library", "shipped")
     intro = (
         f"{result['persons']} persons of population seed {result['population_seed']} "
         f"(**{result['set']}**), the skills with a motion of their own "
-        f"({', '.join(result['skills'])}), reset seed 0; success [95 % interval] "
-        "(successes/sessions judged), and the sessions left out for want of a reference.\n\n"
+        f"({', '.join(result['skills'])}), reset seed 0, library `{library}`; success [95 % "
+        "interval] (successes/sessions judged), and the sessions left out for want of a "
+        "reference.\n\n"
     )
-    return intro + rows(["impairment", *arms.values(), "left out"], body)
+    table = intro + rows(["impairment", *arms.values(), "left out"], body)
+    specs = [s for s, row in result["by_impairment"].items() if "assisted_by_skill" in row]
+    if specs:
+        skill_rows = [
+            [
+                f"`{skill}`",
+                *(interval(result["by_impairment"][s]["assisted_by_skill"][skill]) for s in specs),
+            ]
+            for skill in result["skills"]
+        ]
+        table += "\nAssisted (phase recogniser), by skill:\n\n" + rows(
+            ["skill", *(f"`{s}`" for s in specs)], skill_rows
+        )
+    return table
 
 
 def assistance(phase: Mapping[str, Any], residual: Mapping[str, Any]) -> str:
