@@ -35,7 +35,15 @@ demo: setup
 	$(BIN)/ias-gym glove-bench --interface virtual --rate 1000 --seconds 3
 	$(BIN)/ias-gym skills transfer --id 2 --hand all --method gt
 	$(BIN)/ias-gym assist demo --video $(OUT)/assist.mp4 --overwrite
+	$(MAKE) $(OUT)/library.db
+	$(BIN)/ias-gym assist demo --db $(OUT)/library.db --impairment stops:at=0.4 --skill tilt_left \
+		--person alice --assistant observation --video $(OUT)/assist_stops.mp4 --overwrite
 	@echo "make demo: figures, videos and the expert's scores are in $(OUT)/"
+
+# The assistant's skill library: 8 persons of the population, every skill twice (about a
+# minute; made once, `assist library` adds to an existing file).
+$(OUT)/library.db: | setup
+	$(BIN)/ias-gym assist library --db $@ --population 8 --population-seed 61
 
 lint: setup
 	$(BIN)/ruff check .

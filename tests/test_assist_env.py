@@ -713,3 +713,8 @@ def test_cli_demo_writes_both_sessions_side_by_side(tmp_path: Path) -> None:
     with pytest.raises(SystemExit) as bad:  # argparse's usage error
         main([*argv, "--duration", "0"])
     assert bad.value.code == 2
+    # the observation assistant too (a stopped skill), and a recogniser it cannot take
+    other = [*argv[:3], str(tmp_path / "stops.mp4"), *argv[4:], "--assistant", "observation"]
+    assert main([*other, "--impairment", "stops:at=0.4", "--recogniser", "oracle"]) == 2
+    assert main([*other, "--impairment", "stops:at=0.4"]) == 0
+    assert iio.imread(tmp_path / "stops.mp4").shape == (11, 360, 960, 3)

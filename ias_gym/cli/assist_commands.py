@@ -208,7 +208,7 @@ def _recogniser_factory(method: str, db: Path | None) -> Any:
     return lambda: recogniser
 
 
-def _assistant_factory(kind: str, recogniser: str, db: Path) -> Any:
+def _assistant_factory(kind: str, recogniser: str, db: Path | None) -> Any:
     """``() -> assistant``: the observation assistant
     (:func:`~ias_gym.assist.policy.make_assistant`, recogniser ``phase``, ``dtw`` or
     ``none``) or the analytic one on the env's state."""
@@ -302,14 +302,12 @@ def _demo(args: argparse.Namespace) -> int:
     import gymnasium as gym
     import numpy as np
 
-    from ias_gym.assist.assistants import AnalyticAssistant
     from ias_gym.assist.sessions import AssistantPolicy
-    from ias_gym.assist.skill_templates import load_templates
     from ias_gym.evaluation import write_video
     from ias_gym.rollout import FrameRecorder, rollout
 
-    templates = load_templates(args.db)
-    recogniser = _recogniser_factory(args.recogniser, None if args.db is None else Path(args.db))()
+    db = None if args.db is None else Path(args.db)
+    make = _assistant_factory(args.assistant, args.recogniser, db)
     runs: list[list[Any]] = []
     for assisted in (False, True):
         env = gym.make(
@@ -321,7 +319,7 @@ def _demo(args: argparse.Namespace) -> int:
             render_mode="rgb_array",
         )
         u: Any = env.unwrapped
-        assistant = AnalyticAssistant(templates, recogniser) if assisted else None
+        assistant = make() if assisted else None
         frames = FrameRecorder()  # the reset and every step
         policy = AssistantPolicy(env, assistant)
         rollout(
@@ -416,7 +414,8 @@ def add_assist_demo(commands: argparse._SubParsersAction[Any]) -> argparse.Argum
         "demo",
         help="video: an assisted session beside the same session unassisted",
         description="Render one IAS-GloveAssist-v0 session without (left) and with (right) "
-        "the analytic assistant, side by side, into an MP4.",
+        "an assistant, side by side, into an MP4 (a stopped skill: --impairment stops:at=0.4 "
+        "--assistant observation).",
         formatter_class=HelpFormatter,
     )
     p.add_argument("--video", required=True, metavar="FILE", help="the MP4 to write")
@@ -432,7 +431,18 @@ def add_assist_demo(commands: argparse._SubParsersAction[Any]) -> argparse.Argum
         "--duration", type=_duration, default=4.0, metavar="S", help="session length [s]"
     )
     p.add_argument(
-        "--recogniser", default=ASSIST_METHOD, metavar="oracle|dtw|phase", help="intent source"
+        "--assistant",
+        default="analytic",
+        choices=("observation", "analytic"),
+        help="observation: the policy on observations that completes a stopped skill; "
+        "analytic: the assistant that reads the env's state (tremor, bias, weak grip)",
+    )
+    p.add_argument(
+        "--recogniser",
+        default=ASSIST_METHOD,
+        metavar="oracle|dtw|phase|none",
+        help="intent source (oracle: the analytic assistant only; none: the observation "
+        "assistant without skill knowledge)",
     )
     p.set_defaults(run=_demo)
     return p
