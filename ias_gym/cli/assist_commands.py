@@ -306,8 +306,7 @@ def _demo(args: argparse.Namespace) -> int:
     from ias_gym.evaluation import write_video
     from ias_gym.rollout import FrameRecorder, rollout
 
-    db = None if args.db is None else Path(args.db)
-    make = _assistant_factory(args.assistant, args.recogniser, db)
+    make = _assistant_factory(args.assistant, args.recogniser, Path(args.db) if args.db else None)
     runs: list[list[Any]] = []
     for assisted in (False, True):
         env = gym.make(
@@ -319,9 +318,8 @@ def _demo(args: argparse.Namespace) -> int:
             render_mode="rgb_array",
         )
         u: Any = env.unwrapped
-        assistant = make() if assisted else None
         frames = FrameRecorder()  # the reset and every step
-        policy = AssistantPolicy(env, assistant)
+        policy = AssistantPolicy(env, make() if assisted else None)
         rollout(
             env,
             policy,
@@ -348,6 +346,16 @@ def _demo(args: argparse.Namespace) -> int:
     write_video(video, side, fps=50.0, overwrite=args.overwrite)
     print(f"wrote {video}: left unassisted, right assisted ({args.impairment}, {args.skill})")
     return 0
+
+
+def _add_assistant_argument(p: argparse.ArgumentParser, default: str) -> None:
+    p.add_argument(
+        "--assistant",
+        default=default,
+        choices=("observation", "analytic"),
+        help="observation: the policy on observations that completes a stopped skill; "
+        "analytic: the assistant that reads the env's state (tremor, bias, weak grip)",
+    )
 
 
 def add_assist_evaluate(commands: argparse._SubParsersAction[Any]) -> argparse.ArgumentParser:
@@ -382,13 +390,7 @@ def add_assist_evaluate(commands: argparse._SubParsersAction[Any]) -> argparse.A
         "scale; stops at (default: none and all)",
     )
     episode_arguments(p, 6, "sessions per person", seed_help="first seed")
-    p.add_argument(
-        "--assistant",
-        default="observation",
-        choices=("observation", "analytic"),
-        help="observation: the policy on observations that completes the recognised skill; "
-        "analytic: the older assistant that reads the env's state",
-    )
+    _add_assistant_argument(p, "observation")
     p.add_argument(
         "--recogniser",
         default=ASSIST_METHOD,
@@ -430,13 +432,7 @@ def add_assist_demo(commands: argparse._SubParsersAction[Any]) -> argparse.Argum
     p.add_argument(
         "--duration", type=_duration, default=4.0, metavar="S", help="session length [s]"
     )
-    p.add_argument(
-        "--assistant",
-        default="analytic",
-        choices=("observation", "analytic"),
-        help="observation: the policy on observations that completes a stopped skill; "
-        "analytic: the assistant that reads the env's state (tremor, bias, weak grip)",
-    )
+    _add_assistant_argument(p, "analytic")
     p.add_argument(
         "--recogniser",
         default=ASSIST_METHOD,
