@@ -24,7 +24,7 @@ Every step:
    skill's motion set in: amplitude ``a``, speed ``v`` and start ``t0``, the most probable
    under the library's spread of persons and the operator's own unsteadiness before the
    motion, so that ``a m_k(v (t - t0))`` is this person's motion. When the operator's
-   motion falls short of the fitted model's (their displacement over
+   motion falls short of the fitted model's (their speed over
    :attr:`AssistParams.stop_window_s` below :attr:`AssistParams.stop_ratio` of the model's,
    on the skill's principal joint, with at least :attr:`AssistParams.min_remaining_rad` of
    the model's motion still to go from the operator's pose), the fit is held, and once
@@ -206,9 +206,6 @@ class _Completion:
         self.stopped_at: float | None = None
         self.slow_since: float | None = None  # the stop test holds since then [s]
         self._clock = 0.0  # the completion's time on the fitted timeline [s]
-        #: The smallest operator-to-model speed ratio seen where a stop could be latched
-        #: (what ``train/fit_assistant.py`` fits ``stop_ratio`` on).
-        self.min_ratio = math.inf
 
     def model(self, t: NDArray[Any]) -> FloatArray:
         """``(len(t), J)`` the fitted motion at episode times ``t``."""
@@ -279,8 +276,6 @@ class _Completion:
             ahead = self.model(t + np.arange(0.0, FUTURE_S, 0.05))[:, j]
             remaining = float(np.abs(ahead - value[j]).max())  # from where the operator is
             armed = model_speed >= p.min_model_speed and remaining >= p.min_remaining_rad
-            if armed:
-                self.min_ratio = min(self.min_ratio, op_speed / model_speed)
             if not (armed and op_speed < p.stop_ratio * model_speed):
                 self.slow_since = None
             elif self.slow_since is None:
@@ -362,12 +357,6 @@ class ObservationAssistant:
     def completing(self) -> str | None:
         """The skill this session completes (None: no stop latched yet)."""
         return self._active
-
-    @property
-    def min_ratios(self) -> dict[str, float]:
-        """Each skill's smallest operator-to-model speed ratio in this session at which a
-        stop could have been latched (inf: never armed)."""
-        return {k: c.min_ratio for k, c in self._fits.items()}
 
     @property
     def stopped(self) -> dict[str, float]:

@@ -169,7 +169,7 @@ def _amplitude_speed(tau: FloatArray, mean: FloatArray, demo: FloatArray) -> tup
     (least squares, ``a`` in closed form for each ``v`` of :data:`DEMO_SPEEDS`)."""
     best = (np.inf, 1.0, 1.0)
     for v in DEMO_SPEEDS:
-        m = np.stack([np.interp(v * tau, tau, mean[:, j]) for j in range(mean.shape[1])], 1)
+        m = _resample(tau, mean, float(v))
         a = float((m * demo).sum() / max(float((m * m).sum()), 1e-12))
         res = float(((a * m - demo) ** 2).sum())
         if res < best[0]:
