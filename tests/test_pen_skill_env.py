@@ -10,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
-from test_transfer import synthetic_skill
+from transfer_fixtures import synthetic_skill
 
 import ias_gym  # noqa: F401  (registers the ids)
 from ias_gym.baselines.expert import ExpertPolicy

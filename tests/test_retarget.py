@@ -157,7 +157,7 @@ def cli(*args: str, hide_package: bool = False) -> subprocess.CompletedProcess[s
 
 @pytest.fixture(scope="module")
 def skill_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from test_transfer import synthetic_skill
+    from transfer_fixtures import synthetic_skill
 
     from ias_gym.skills.db import SkillDB
 

@@ -20,6 +20,14 @@ import pytest
 from closed_loop import perturbed_starts
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from transfer_fixtures import (
+    DT,
+    MU,
+    antipodal_pinch,
+    random_contacts,
+    synthetic_skill,
+    transfer_cli,
+)
 
 from ias_gym.baselines.expert import ExpertPolicy
 from ias_gym.baselines.kinematic import KinematicPolicy
@@ -31,10 +39,7 @@ from ias_gym.grasp.grasp_margin import (
     margin_series,
     scale_to_margin,
 )
-from ias_gym.grasp.wrench_matrix import wrench_matrix
-from ias_gym.sim.pen import matrix_to_rpy, rpy_to_matrix
 from ias_gym.skills.db import SkillDB
-from ias_gym.skills.skill import Demonstration, Skill, SkillModel
 from ias_gym.skills.transfer import (
     HandWorkspace,
     SkillTransferError,
@@ -42,29 +47,6 @@ from ias_gym.skills.transfer import (
     transfer_reference,
 )
 from ias_gym.skills.transfer_run import run_transfer
-
-MU = 0.25
-
-
-def antipodal_pinch(weight: float, squeeze: float) -> tuple[np.ndarray, np.ndarray]:
-    """Two point contacts pinching an object along x, holding its weight by friction.
-
-    Contact 1 at (-r, 0, 0) pushes +x, contact 2 at (+r, 0, 0) pushes -x; t1 = +y, t2 = +z.
-    Returns ``(c_p, c_h)``: c_p = W+ [0, weight, 0, 0, 0, 0], c_h = the squeeze.
-    """
-    r = 0.01
-    points = np.array([[-r, 0.0, 0.0], [r, 0.0, 0.0]])
-    frames = np.array(
-        [
-            [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-            [[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-        ]
-    )
-    W = wrench_matrix(points, frames)
-    c_p = np.linalg.pinv(W) @ np.array([0.0, weight, 0.0, 0.0, 0.0, 0.0])
-    c_h = np.array([squeeze, 0.0, 0.0, squeeze, 0.0, 0.0])
-    assert np.allclose(W @ c_h, 0.0)
-    return c_p, c_h
 
 
 # ---------------------------------------------------------------------------- the margin
@@ -130,12 +112,7 @@ def test_least_squeeze_is_the_least_feasible_scale_found_by_a_scan(per: int) -> 
     grid = np.linspace(0.0, 20.0, 20001)
     found = {"finite": 0, "inf": 0}
     for _ in range(300):
-        c_p = rng.normal(size=3 * per)
-        c_h = 0.12 * rng.normal(size=3 * per)
-        c_h[::per] = rng.uniform(0.3, 2.0, 3)
-        if per == 4:
-            c_p[3::4] *= 0.01
-            c_h[3::4] *= 0.005
+        c_p, c_h = random_contacts(rng, per)
         s = least_squeeze(c_p, c_h, MU, mu_t, per)
         feasible = inside(c_p + grid[:, None] * c_h, MU, per, mu_t)
         if math.isinf(s):
@@ -167,71 +144,6 @@ def test_margin_series_is_nan_where_a_contact_is_missing() -> None:
 
 
 # ---------------------------------------------------------------------------- a synthetic skill
-DT = 0.01
-
-
-def synthetic_skill(
-    *,
-    lift: float = 0.02,
-    tilt: float = 0.15,
-    heading: float = 0.0,
-    squeeze: float = 4.0,
-    grasp_at: float = 0.3,
-    duration: float = 2.5,
-    touching: bool = True,
-    success: bool = True,
-) -> Skill:
-    """A pinch that grasps at ``grasp_at``, then lifts the pen by ``lift`` [m] and tilts it
-    by ``tilt`` [rad] along smooth ramps; its margin is ``2 mu squeeze / 1 N`` throughout."""
-    t = np.arange(0.0, duration + 1e-9, DT)
-    T = len(t)
-    u = np.clip((t - grasp_at) / 1.0, 0.0, 1.0)
-    ramp = u * u * (3 - 2 * u)  # smoothstep 0 -> 1 over one second
-    pos = np.zeros((T, 3))
-    pos[:, 1] = lift * ramp
-    pos[:, 0] = 0.2 * lift * ramp
-    rpy = np.zeros((T, 3))
-    rpy[:, 0] = 2.0 * ramp  # the roll about the pen's own axis must not matter
-    rpy[:, 2] = tilt * np.sin(np.pi * ramp)
-    # the whole demonstration turned about the vertical by `heading`
-    c, s = math.cos(heading), math.sin(heading)
-    turn = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])  # R_y(heading)
-    pos = pos @ turn.T
-    rpy = np.array([matrix_to_rpy(turn @ rpy_to_matrix(r)) for r in rpy])
-    c_p, c_h = antipodal_pinch(1.0, squeeze)
-    on = np.tile([touching, touching], (T, 1)) & (t >= grasp_at)[:, None]
-    c_h_rows = np.where(on.all(1)[:, None], c_h, np.nan)
-    model = SkillModel(
-        time=t,
-        touching=on,
-        sliding=np.zeros((T, 2), dtype=bool),
-        pen_position=pos,
-        pen_rpy=rpy,
-        pen_velocity=np.gradient(pos, DT, axis=0),
-        pen_omega=np.zeros((T, 3)),
-        c=np.tile(c_p, (T, 1)) + np.nan_to_num(c_h_rows),
-        c_h=c_h_rows,
-        f_ext=np.tile([0.0, 1.0, 0.0, 0.0, 0.0, 0.0], (T, 1)),
-        f_int=np.where(on.all(1), squeeze, np.nan)[:, None],
-    )
-    demo = Demonstration(
-        observations=np.zeros((T, 2)),
-        actions=np.zeros((T - 1, 1)),
-        rewards=np.zeros(T - 1),
-        terminations=np.zeros(T - 1, dtype=bool),
-        truncations=np.zeros(T - 1, dtype=bool),
-    )
-    skill = Skill(
-        name="synthetic-lift-tilt",
-        task="IAS-GloveGrasp-v0",
-        source="test",
-        demonstration=demo,
-        model=model,
-        is_success=success,
-        person_id="synthetic",
-    )
-    skill.validate()
-    return skill
 
 
 def test_reference_starts_at_the_grasp_and_is_scaled_into_the_workspace() -> None:
@@ -350,13 +262,6 @@ def test_the_kinematic_baseline_runs_and_holds_a_slow_skill(hand: str) -> None:
 
 
 # ---------------------------------------------------------------------------- the CLI
-def cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "ias_gym.cli", "skills", "transfer", *args],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
 
 
 @pytest.fixture(scope="module")
@@ -370,11 +275,13 @@ def skill_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_cli_prints_one_json_object_per_hand_with_units(skill_db: Path) -> None:
-    out = cli("--db", str(skill_db), "--id", "1", "--hand", "all", "--json", "--duration", "1.2")
+    out = transfer_cli(
+        "--db", str(skill_db), "--id", "1", "--hand", "all", "--json", "--duration", "1.2"
+    )
     assert out.returncode == 0, out.stderr
     lines = out.stdout.strip().splitlines()
     rows = [json.loads(line) for line in lines]
-    listing = cli("--list-hands")
+    listing = transfer_cli("--list-hands")
     assert len(rows) == len(listing.stdout.strip().splitlines())
     keys = {"hand", "method", "success", "rot_rms_deg", "pos_rms_mm", "margin_err_rel", "scale"}
     for row in rows:
@@ -399,14 +306,14 @@ def test_cli_prints_one_json_object_per_hand_with_units(skill_db: Path) -> None:
 def test_cli_errors_are_one_line_with_exit_code_2(
     skill_db: Path, args: list[str], message: str
 ) -> None:
-    out = cli("--db", str(skill_db), *args)
+    out = transfer_cli("--db", str(skill_db), *args)
     assert out.returncode == 2
     assert message in out.stderr and len(out.stderr.strip().splitlines()) == 1
     assert "Traceback" not in out.stderr
 
 
 def test_cli_runs_under_a_disturbance_class_and_names_the_terms() -> None:
-    out = cli("--id", "1", "--hand", "ias4f", "--disturbance", "mass_x1.3", "--json")
+    out = transfer_cli("--id", "1", "--hand", "ias4f", "--disturbance", "mass_x1.3", "--json")
     assert out.returncode == 0, out.stderr
     row = json.loads(out.stdout)
     assert row["disturbance"] == "mass_x1.3"
@@ -416,16 +323,18 @@ def test_cli_runs_under_a_disturbance_class_and_names_the_terms() -> None:
 
 
 def test_cli_refuses_an_unknown_disturbance_in_one_line() -> None:
-    out = cli("--id", "1", "--disturbance", "gravity_x2")
+    out = transfer_cli("--id", "1", "--disturbance", "gravity_x2")
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
     assert "unknown --disturbance 'gravity_x2'" in out.stderr and "friction_x0.7" in out.stderr
 
 
 def test_a_failed_demonstration_is_refused_unless_allowed(skill_db: Path) -> None:
     """A demonstration whose own episode failed is not a skill to transfer by default."""
-    refused = cli("--db", str(skill_db), "--id", "3", "--hand", "ias3f", "--duration", "0.5")
+    refused = transfer_cli(
+        "--db", str(skill_db), "--id", "3", "--hand", "ias3f", "--duration", "0.5"
+    )
     assert refused.returncode == 2 and "--allow-failed" in refused.stderr
-    allowed = cli(
+    allowed = transfer_cli(
         "--db",
         str(skill_db),
         "--id",
@@ -444,7 +353,7 @@ def test_a_failed_demonstration_is_refused_unless_allowed(skill_db: Path) -> Non
 def test_cli_refuses_an_existing_video_before_any_work(skill_db: Path, tmp_path: Path) -> None:
     video = tmp_path / "v.mp4"
     video.write_bytes(b"keep")
-    out = cli("--db", str(skill_db), "--id", "1", "--video", str(video))
+    out = transfer_cli("--db", str(skill_db), "--id", "1", "--video", str(video))
     assert out.returncode == 2 and "exists" in out.stderr
     assert video.read_bytes() == b"keep"
 
@@ -555,7 +464,7 @@ def test_the_shipped_human_skills_hold_with_a_margin_of_at_least_one() -> None:
 
 
 def test_cli_runs_a_shipped_skill_by_default() -> None:
-    out = cli("--id", "2", "--hand", "ias3f", "--json", "--duration", "0.6")
+    out = transfer_cli("--id", "2", "--hand", "ias3f", "--json", "--duration", "0.6")
     assert out.returncode == 0, out.stderr
     (row,) = [json.loads(line) for line in out.stdout.strip().splitlines()]
     assert (row["hand"], row["skill"], row["person"]) == ("ias3f", "seesaw_slow", "p1")

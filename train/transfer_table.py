@@ -13,10 +13,13 @@ successful glove skill of ``--db`` on every hand with every method (``run_transf
 success and its terms held / tracked / margin kept, RMS rotation error [deg], RMS position
 error [mm], grasp-margin error [-]) under every class of ``--disturbances`` (the robustness
 suite's names) and writes one JSON file (every run and the summaries) and a markdown table,
-both atomically; ``--heldout`` names the persons never used while developing (reported
-separately). ``--weak`` adds, nominal only, the executions the success test must fail: the
-grip-transform expert holding the pen still (``weak_still``) or squeezing to a constant
-margin of 1.2 or 2.0 (``weak_margin_1.2``, ``weak_margin_2.0``).
+both atomically. A hand that refuses a skill (``plan_transfer``: its scaled motion within
+the person's repeatability of a still pen, or a sliding contact) gets one row per method
+and disturbance with ``"success": false`` and ``"refused"``, and no run; the summaries count
+them as failures and say how many. ``--heldout`` names the persons never used while
+developing (reported separately). ``--weak`` adds, nominal only, the executions the success
+test must fail: the grip-transform expert holding the pen still (``weak_still``) or
+squeezing to a constant margin of 1.2 or 2.0 (``weak_margin_1.2``, ``weak_margin_2.0``).
 """
 
 from __future__ import annotations
@@ -120,24 +123,26 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Success rate and mean errors of a group of runs (errors over all runs)."""
 
     def mean(key: str) -> float | None:
-        values = [r[key] for r in rows if r[key] is not None]
+        values = [r[key] for r in rows if r.get(key) is not None]
         return float(np.mean(values)) if values else None
 
     def worst(key: str) -> float | None:
-        values = [r[key] for r in rows if r[key] is not None]
+        values = [r[key] for r in rows if r.get(key) is not None]
         return float(np.max(values)) if values else None
 
+    ran = [r for r in rows if not r.get("refused")]
     return {
         "runs": len(rows),
         "success_rate": float(np.mean([r["success"] for r in rows])) if rows else math.nan,
-        "held": int(sum(r["held"] for r in rows)),
-        "tracked": int(sum(r["tracked"] for r in rows)),
-        "margin_kept": int(sum(r["margin_kept"] for r in rows)),
+        "refused": len(rows) - len(ran),
+        "held": int(sum(r["held"] for r in ran)),
+        "tracked": int(sum(r["tracked"] for r in ran)),
+        "margin_kept": int(sum(r["margin_kept"] for r in ran)),
         "rot_rms_deg": mean("rot_rms_deg"),
         "rot_rms_deg_max": worst("rot_rms_deg"),
         "pos_rms_mm": mean("pos_rms_mm"),
         "margin_err_rel": mean("margin_err_rel"),
-        "dropped": int(sum(r["held_s"] < r["duration_s"] - 1e-6 for r in rows)),
+        "dropped": int(sum(r["held_s"] < r["duration_s"] - 1e-6 for r in ran)),
     }
 
 
@@ -149,8 +154,8 @@ def markdown(summary: dict[str, Any], heldout: Sequence[str]) -> str:
     """The table: per hand, method and skill class, then all classes, then held-out people."""
     lines = [
         "| hand | method | disturbance | skills | runs | success | held / tracked / margin "
-        "kept | rot RMS [deg] mean / max | pos RMS [mm] | margin error | dropped |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "kept | rot RMS [deg] mean / max | pos RMS [mm] | margin error | dropped | refused |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for key, s in summary.items():
         hand, method, disturbance, group = key.split("|")
@@ -161,7 +166,7 @@ def markdown(summary: dict[str, Any], heldout: Sequence[str]) -> str:
             f"{fmt(s['rot_rms_deg'], '.2f')} / {fmt(s['rot_rms_deg_max'], '.2f')} | "
             f"{fmt(s['pos_rms_mm'], '.2f')} | "
             f"{fmt(None if s['margin_err_rel'] is None else 100 * s['margin_err_rel'], '.1f')} % | "
-            f"{s['dropped']} |"
+            f"{s['dropped']} | {s.get('refused', 0)} |"
         )
     note = f"\nHeld-out persons (never used while developing): {', '.join(heldout)}.\n"
     return "\n".join(lines) + "\n" + (note if heldout else "")
@@ -246,6 +251,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     from ias_gym.skills.db import SkillDB
     from ias_gym.skills.transfer import hand_names, shipped_skill_db, transfer_reference
+    from ias_gym.skills.transfer_plan import plan_transfer
     from ias_gym.skills.transfer_run import run_transfer
 
     db_path = Path(args.db) if args.db else shipped_skill_db()
@@ -263,7 +269,32 @@ def main(argv: Sequence[str] | None = None) -> int:
     ]
     if args.weak:
         jobs += [(s, k, h, w, "nominal") for s, k in skills for h in hands for w in WEAK]
+    plans = {
+        (summary.id, hand): plan_transfer(skill, hand, duration=args.duration)
+        for summary, skill in tqdm(skills, desc="plan", unit="skill")
+        for hand in hands
+    }
     for summary, skill, hand, method, disturbance in tqdm(jobs, desc="transfer", unit="run"):
+        plan = plans[(summary.id, hand)]
+        if plan.refused is not None:  # a failure, with its reason and no run
+            rows.append(
+                {
+                    "hand": hand,
+                    "method": method,
+                    "skill_id": summary.id,
+                    "person": summary.person_id,
+                    "skill": skill.name,
+                    "success": False,
+                    "refused": plan.refused,
+                    "scale": plan.scale,
+                    "scale_rot": plan.scale_rotation,
+                    "disturbance": disturbance,
+                    "skill_class": skill_class(summary),
+                    "heldout": summary.person_id in heldout,
+                    "duration_s": args.duration,
+                }
+            )
+            continue
         reference = transfer_reference(skill, hand, duration=args.duration)
         weak = method in WEAK
         name, gains = ("gt", None) if weak else method_gains(method, hand)
@@ -279,6 +310,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         row = run.to_json()
         row.update(
+            refused=None,
+            executed_mm=plan.executed_mm,
+            executed_deg=plan.executed_deg,
             method=method,
             disturbance=disturbance,
             skill_class=skill_class(summary),

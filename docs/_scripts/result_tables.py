@@ -105,6 +105,7 @@ def transfer(result: Mapping[str, Any]) -> str:
                 disturbance,
                 str(s["runs"]),
                 _with_interval(s["success_rate"], s["runs"]),
+                str(s.get("refused", 0)),
                 f"{s['held']} / {s['tracked']} / {s['margin_kept']}",
                 f"{number(s['rot_rms_deg'], 2)} / {number(s['rot_rms_deg_max'], 2)}",
                 number(s["pos_rms_mm"], 2),
@@ -117,6 +118,7 @@ def transfer(result: Mapping[str, Any]) -> str:
         "disturbance",
         "runs",
         "success [95 % interval]",
+        "refused",
         "held / tracked / margin kept",
         "rotation RMS [deg] mean / worst",
         "position RMS [mm]",
@@ -145,9 +147,14 @@ def transfer_skills(result: Mapping[str, Any]) -> str:
             cells = []
             for hand in hands:
                 s = summary.get(f"{hand}|{method}|nominal|{skill}")
-                cells.append("-" if s is None else f"{percent(s['success_rate'])} ({s['runs']})")
+                if s is None:
+                    cells.append("-")
+                    continue
+                refused = f", {s['refused']} refused" if s.get("refused") else ""
+                cells.append(f"{percent(s['success_rate'])} ({s['runs']}{refused})")
             body.append([method, skill, *cells])
-    return "Success (runs) per skill class, nominal.\n\n" + rows(header, body)
+    intro = "Success (runs, of them refused by the hand) per skill class, nominal.\n\n"
+    return intro + rows(header, body)
 
 
 #: The recognition rates with intervals (``methods.<m>.rates`` of the JSON) -> column titles.

@@ -7,8 +7,15 @@ grip-transform expert (``--method gt``: Theorem 1), the kinematic baseline
 and joint position control, ``pip install 'ias-gym[retarget]'``), nominal or under a class of
 the robustness suite (``--disturbance``); prints the transfer metrics per hand, with
 ``--json`` one JSON object per hand and line (``hand``, ``method``, ``success``, ``rot_rms_deg``,
-``pos_rms_mm``, ``margin_err_rel``, ``scale``, ...). ``--list-hands`` lists the hands. A
-demonstration whose own episode failed is refused unless ``--allow-failed``.
+``pos_rms_mm``, ``margin_err_rel``, ``scale``, the per-axis excursions
+``demonstrated_mm`` / ``executed_mm`` and ``demonstrated_deg`` / ``executed_deg``, and
+``fingers``: which demonstrated contact each finger stands in for, with its margin).
+``--list-hands`` lists the hands. A demonstration whose own episode failed is refused unless
+``--allow-failed``. A hand that cannot execute the skill refuses it
+(:func:`ias_gym.skills.transfer_plan.plan_transfer`: its motion, scaled into the hand,
+would not differ from a still pen by more than the person repeats it, or the skill slides a
+contact): with one ``--hand`` that is a one-line error, with ``--hand all`` the hand's line
+says ``"success": false, "refused": "<why>"`` and the other hands run.
 """
 
 from __future__ import annotations
@@ -46,6 +53,27 @@ def _list_hands() -> int:
     return 0
 
 
+def _axes(values: dict[str, float]) -> str:
+    """``1.2/3.4/0.5``: a plan's per-axis excursions, one decimal."""
+    return "/".join(f"{v:.1f}" for v in values.values())
+
+
+def _refused_json(plan: Any, args: argparse.Namespace) -> dict[str, Any]:
+    """The JSON line of a hand that refuses the skill: not a success, and why."""
+    return {
+        "hand": plan.hand,
+        "method": args.method,
+        "skill_id": plan.skill_id,
+        "person": plan.person,
+        "skill": plan.name,
+        "success": False,
+        "disturbance": args.disturbance,
+        "scale": plan.scale,
+        "scale_rot": plan.scale_rotation,
+        **plan.to_json(),
+    }
+
+
 def _transfer(args: argparse.Namespace) -> int:
     if args.list_hands:
         return _list_hands()
@@ -54,6 +82,7 @@ def _transfer(args: argparse.Namespace) -> int:
     from ias_gym.outputs import check_output_file
     from ias_gym.skills.db import SkillDB, SkillNotFoundError
     from ias_gym.skills.transfer import hand_names, shipped_skill_db, transfer_reference
+    from ias_gym.skills.transfer_plan import plan_transfer
     from ias_gym.skills.transfer_run import METHODS, run_transfer
 
     if args.method not in METHODS:
@@ -97,6 +126,16 @@ def _transfer(args: argparse.Namespace) -> int:
         )
     frames_all: list[Any] = []
     for hand in hands:
+        plan = plan_transfer(skill, hand, duration=args.duration)
+        if plan.refused is not None:
+            if args.hand != "all":
+                raise InputError(f"{plan.refused}; try another --hand (--list-hands)")
+            if args.json:
+                print(json.dumps(_refused_json(plan, args)))
+            else:
+                print(f"{hand} {args.method}: REFUSED ({plan.refused})")
+            sys.stdout.flush()
+            continue
         reference = transfer_reference(skill, hand, duration=args.duration)
         run, frames = run_transfer(
             reference,
@@ -109,7 +148,7 @@ def _transfer(args: argparse.Namespace) -> int:
         )
         frames_all += frames
         if args.json:
-            print(json.dumps({**run.to_json(), "disturbance": args.disturbance}))
+            print(json.dumps({**run.to_json(), "disturbance": args.disturbance, **plan.to_json()}))
         else:
             failed = [k for k in ("held", "tracked", "margin_kept") if not getattr(run, k)]
             verdict = "success" if run.success else f"FAILED (not {', '.join(failed)})"
@@ -117,7 +156,9 @@ def _transfer(args: argparse.Namespace) -> int:
                 f"{hand} {args.method}: {verdict}, rotation RMS "
                 f"{run.rot_rms_deg:.2f} deg, position RMS {run.pos_rms_mm:.2f} mm, margin "
                 f"error {100 * run.margin_err_rel:.1f} %, scale {run.scale:.3f} "
-                f"(rotation {run.scale_rotation:.3f}), held {run.held_s:.2f} s"
+                f"(rotation {run.scale_rotation:.3f}), held {run.held_s:.2f} s; largest "
+                f"excursion x/y/z {_axes(plan.executed_mm)} of {_axes(plan.demonstrated_mm)} "
+                f"mm, tilt/turn {_axes(plan.executed_deg)} of {_axes(plan.demonstrated_deg)} deg"
             )
         sys.stdout.flush()
     if video is not None:
@@ -147,10 +188,14 @@ def add_transfer_command(commands: argparse._SubParsersAction[Any]) -> argparse.
         "baseline (retarget: dex-retargeting and joint position control, the retarget "
         "extra), nominal or under a disturbance class. Success: the pen held, the motion "
         "tracked and the margin kept within the tolerances of the person's own "
-        "repeatability. Prints the transfer metrics per hand; with --json one JSON object "
+        "repeatability. A hand whose scaled motion could not be told from a still pen by "
+        "the person's own repeatability, or that would have to slide a finger, refuses the "
+        "skill (an error with one --hand; with --hand all its line says why and the others "
+        "run). Prints the transfer metrics per hand; with --json one JSON object "
         "per hand and line (hand, "
-        "method, disturbance, success, held, tracked, margin_kept, rot_rms_deg, "
-        "pos_rms_mm, margin_err_rel, tolerance, scale, scale_rot, held_s, skill_id, "
+        "method, disturbance, success, refused, held, tracked, margin_kept, rot_rms_deg, "
+        "pos_rms_mm, margin_err_rel, tolerance, scale, scale_rot, demonstrated_mm, "
+        "executed_mm, demonstrated_deg, executed_deg, fingers, held_s, skill_id, "
         "person, skill).",
     )
     transfer.add_argument(

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ias_gym.envs.pen_skill_env import PenSkillConfig
+from ias_gym.errors import InputError
 from ias_gym.figures._io import save_png_atomic
 from ias_gym.outputs import check_output_file
 from ias_gym.skills.db import SkillDB
@@ -27,6 +29,7 @@ from ias_gym.skills.transfer import (
     skill_start_index,
     transfer_reference,
 )
+from ias_gym.skills.transfer_plan import plan_transfer
 from ias_gym.skills.transfer_run import TransferRun, run_transfer
 
 #: The skill the figure shows by default: p1's slow see-saw in the shipped library.
@@ -55,10 +58,12 @@ def transfer_figure(
         overwrite: replace an existing ``out``.
 
     Returns:
-        The executions, by hand.
+        The executions, by hand; a hand that refuses the skill
+        (:func:`~ias_gym.skills.transfer_plan.plan_transfer`) is named in the title instead.
 
     Raises:
-        InputError: an unusable output path (checked first), an unknown skill id.
+        InputError: an unusable output path (checked first), an unknown skill id, or a
+            skill that every hand refuses.
         OutputExistsError: ``out`` exists and ``overwrite`` is false.
     """
     import matplotlib
@@ -70,9 +75,14 @@ def transfer_figure(
     db_path = Path(skill_db) if skill_db is not None else shipped_skill_db()
     with SkillDB(db_path, readonly=True) as db:
         skill = db.get(skill_id)
-    runs = {}
+    runs, refused = {}, []
     for hand in hand_names():
+        if plan_transfer(skill, hand, duration=PenSkillConfig.duration).refused is not None:
+            refused.append(hand)  # its scaled motion would not show the skill
+            continue
         runs[hand] = run_transfer(transfer_reference(skill, hand), hand, "gt", seed=seed)[0]
+    if not runs:
+        raise InputError(f"every hand refuses skill {skill_id} of {db_path}; choose another")
     model = skill.model
     start = skill_start_index(skill)
     t_h = model.time[start:] - model.time[start]
@@ -121,6 +131,8 @@ def transfer_figure(
         for h, r in runs.items()
         if math.isfinite(r.margin_err_rel)
     ]
+    if refused:
+        rows.append(f"refused (the scaled motion would not show the skill): {', '.join(refused)}")
     text = "\n".join("; ".join(rows[i : i + 2]) for i in range(0, len(rows), 2))
     fig.suptitle(f"Skill transfer (G(t)) RMS errors\n{text}", fontsize=9)
     fig.tight_layout()

@@ -81,6 +81,22 @@ def _cone_interval(
     return lo_n, min(r1, hi_n)
 
 
+def _contacts(
+    c_p: ArrayLike, c_h: ArrayLike, mu: float, mu_torsion: float, intensities: int | None
+) -> tuple[FloatArray, FloatArray, int]:
+    """``(c_p, c_h, intensities per contact)``, checked (:func:`least_squeeze`'s rules)."""
+    a = np.asarray(c_p, dtype=float)
+    b = np.asarray(c_h, dtype=float)
+    if a.shape != b.shape or a.ndim != 1:
+        raise ValueError(f"c_p and c_h must be equal 1-D shapes, got {a.shape} and {b.shape}")
+    if mu < 0 or mu_torsion < 0:
+        raise ValueError(f"friction coefficients must be >= 0, got mu={mu}, mu_t={mu_torsion}")
+    per = intensities or (4 if a.size % 4 == 0 and a.size % 3 else 3)
+    if per not in (3, 4) or a.size % per:
+        raise ValueError(f"{a.size} intensities are not contacts of {per} (3 or 4) each")
+    return a, b, per
+
+
 def least_squeeze(
     c_p: ArrayLike,
     c_h: ArrayLike,
@@ -108,15 +124,7 @@ def least_squeeze(
     Raises:
         ValueError: shapes that do not fit, or a negative friction coefficient.
     """
-    a = np.asarray(c_p, dtype=float)
-    b = np.asarray(c_h, dtype=float)
-    if a.shape != b.shape or a.ndim != 1:
-        raise ValueError(f"c_p and c_h must be equal 1-D shapes, got {a.shape} and {b.shape}")
-    if mu < 0 or mu_torsion < 0:
-        raise ValueError(f"friction coefficients must be >= 0, got mu={mu}, mu_t={mu_torsion}")
-    per = intensities or (4 if a.size % 4 == 0 and a.size % 3 else 3)
-    if per not in (3, 4) or a.size % per:
-        raise ValueError(f"{a.size} intensities are not contacts of {per} (3 or 4) each")
+    a, b, per = _contacts(c_p, c_h, mu, mu_torsion, intensities)
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
         return math.inf
     k = a.size // per
@@ -125,18 +133,67 @@ def least_squeeze(
         raise ValueError(f"active must have shape ({k},), got {use.shape}")
     lo, hi = 0.0, math.inf
     for i in np.flatnonzero(use):
-        ai, bi = a[per * i : per * (i + 1)], b[per * i : per * (i + 1)]
-        l1, h1 = _cone_interval(ai[0], ai[1:3], bi[0], bi[1:3], mu)
-        lo, hi = max(lo, l1), min(hi, h1)
-        if per == 4:  # |tors| <= mu_t n: two half-lines
-            for sign in (1.0, -1.0):
-                l2, h2 = _linear_interval(
-                    mu_torsion * ai[0] - sign * ai[3], mu_torsion * bi[0] - sign * bi[3]
-                )
-                lo, hi = max(lo, l2), min(hi, h2)
+        li, hi_i = _contact_interval(a, b, int(i), per, mu, mu_torsion)
+        lo, hi = max(lo, li), min(hi, hi_i)
+    return _left_end(lo, hi)
+
+
+def _contact_interval(
+    a: FloatArray, b: FloatArray, i: int, per: int, mu: float, mu_torsion: float
+) -> tuple[float, float]:
+    """The squeezes ``s`` that keep contact ``i`` alone inside its cone(s): an interval."""
+    ai, bi = a[per * i : per * (i + 1)], b[per * i : per * (i + 1)]
+    lo, hi = _cone_interval(ai[0], ai[1:3], bi[0], bi[1:3], mu)
+    if per == 4:  # |tors| <= mu_t n: two half-lines
+        for sign in (1.0, -1.0):
+            l2, h2 = _linear_interval(
+                mu_torsion * ai[0] - sign * ai[3], mu_torsion * bi[0] - sign * bi[3]
+            )
+            lo, hi = max(lo, l2), min(hi, h2)
+    return lo, hi
+
+
+def _left_end(lo: float, hi: float) -> float:
+    """``max(lo, 0)`` of a squeeze interval, ``inf`` when it is empty."""
+    lo = max(lo, 0.0)
     # an empty intersection up to rounding (a contact exactly on its boundary) still counts
     tol = 1e-9 * max(1.0, abs(lo))
     return lo if lo <= hi + tol else math.inf
+
+
+def contact_margins(
+    c_p: ArrayLike,
+    c_h: ArrayLike,
+    mu: float,
+    mu_torsion: float = 0.0,
+    intensities: int | None = None,
+) -> FloatArray:
+    """Each contact's own margin: ``1 / s_i*``, with ``s_i*`` the least squeeze of the
+    demonstrated kind that keeps contact ``i`` alone inside its cone.
+
+    The grasp margin is their minimum (:func:`grasp_margin`: ``s* = max_i s_i*`` when the
+    contacts' intervals overlap); a contact with a larger margin squeezes more than it
+    needs, relative to the others.
+
+    Args:
+        c_p, c_h, mu, mu_torsion, intensities: as :func:`least_squeeze`.
+
+    Returns:
+        ``(k,)`` margins [-]: ``inf`` for a contact that needs no squeeze, 0 for one that no
+        squeeze of this kind holds, NaN for non-finite input.
+
+    Raises:
+        ValueError: as :func:`least_squeeze`.
+    """
+    a, b, per = _contacts(c_p, c_h, mu, mu_torsion, intensities)
+    k = a.size // per
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        return np.full(k, np.nan)
+    out = np.empty(k)
+    for i in range(k):
+        s = _left_end(*_contact_interval(a, b, i, per, mu, mu_torsion))
+        out[i] = math.inf if s == 0.0 else (0.0 if math.isinf(s) else 1.0 / s)
+    return out
 
 
 def grasp_margin(

@@ -207,6 +207,28 @@ def motion_reference(
     )
 
 
+def skill_motion(skill: Skill) -> tuple[FloatArray, FloatArray]:
+    """The pen's motion from the skill's start (:func:`skill_start_index`), unscaled.
+
+    Returns:
+        ``(displacement, angles)``: ``(T, 3)`` the centre's displacement [m] in the frame
+        of the start's heading (x along the pen's initial heading, y up, z lateral: gravity
+        vertical), and ``(T, 2)`` the axis' tilt (elevation) and turn (heading) from the
+        start [rad], one row per stored sample from the start on.
+
+    Raises:
+        SkillTransferError: the skill has no grasp.
+    """
+    model = skill.model
+    start = skill_start_index(skill)
+    tilt, turn = _axis_angles(model.pen_rpy[start:])
+    b0 = float(turn[0])
+    c, s = math.cos(b0), math.sin(b0)
+    heading_inverse = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])  # R_y(-b0)
+    displacement = (model.pen_position[start:] - model.pen_position[start]) @ heading_inverse.T
+    return displacement, np.stack([tilt - tilt[0], turn - turn[0]], axis=1)
+
+
 def transfer_reference(
     skill: Skill,
     hand: str = "ias4f",
@@ -251,21 +273,14 @@ def transfer_reference(
     def resample(values: FloatArray) -> FloatArray:
         return np.stack([np.interp(grid, t_rel, v) for v in values.T], axis=1)
 
-    tilt, turn = _axis_angles(model.pen_rpy[start:])
-    tilt, turn = tilt - tilt[0], turn - turn[0]
-    # the displacement in the heading frame of the start: gravity vertical, pen along +x
-    b0 = float(_axis_angles(model.pen_rpy[start : start + 1])[1][0])
-    c, s = math.cos(b0), math.sin(b0)
-    heading_inverse = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])  # R_y(-b0)
-    displacement = (model.pen_position[start:] - model.pen_position[start]) @ heading_inverse.T
-
+    displacement, turns = skill_motion(skill)
     largest_move = float(np.max(np.linalg.norm(displacement, axis=1)))
-    largest_turn = float(np.max(np.hypot(tilt, turn)))
+    largest_turn = float(np.max(np.hypot(turns[:, 0], turns[:, 1])))
     scale = min(1.0, ws.reach / largest_move) if largest_move > 0 else 1.0
     scale_rot = min(1.0, ws.tilt / largest_turn) if largest_turn > 0 else 1.0
 
     position = scale * resample(displacement)
-    angles = scale_rot * resample(np.stack([tilt, turn], axis=1))
+    angles = scale_rot * resample(turns)
 
     margin = demonstrated_margin(skill, mu)[start:]
     defined = np.isfinite(margin) | np.isposinf(margin)
