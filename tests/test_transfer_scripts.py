@@ -1,0 +1,87 @@
+"""train/transfer_table.py counts refusals as failures; train/hand_reach.py scans a hand's reach."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+import pytest
+
+from tests.train_scripts import load_train_script
+
+
+@pytest.fixture(scope="module")
+def table() -> ModuleType:
+    return load_train_script("transfer_table")
+
+
+@pytest.fixture(scope="module")
+def reach() -> ModuleType:
+    return load_train_script("hand_reach")
+
+
+def _run(success: bool, held_s: float = 3.0) -> dict[str, Any]:
+    return {
+        "success": success,
+        "held": held_s >= 3.0,
+        "tracked": success,
+        "margin_kept": True,
+        "held_s": held_s,
+        "duration_s": 3.0,
+        "rot_rms_deg": 0.1,
+        "pos_rms_mm": 0.2,
+        "margin_err_rel": 0.05,
+        "refused": None,
+    }
+
+
+def test_a_refused_skill_is_a_failure_that_ran_nothing(table: ModuleType) -> None:
+    refused = {"success": False, "refused": "too small", "duration_s": 3.0}
+    summary = table.summarise([_run(True), _run(False, held_s=1.0), refused])
+    assert summary["runs"] == 3 and summary["refused"] == 1
+    assert summary["success_rate"] == pytest.approx(1 / 3)
+    # the terms and errors are over the runs that ran
+    assert (summary["held"], summary["tracked"], summary["dropped"]) == (1, 1, 1)
+    assert summary["rot_rms_deg"] == pytest.approx(0.1)
+    assert "| 1 |" in table.markdown({"ias4f|gt|nominal|all": summary}, [])
+
+
+def test_the_probe_goes_out_and_back_along_its_axis_tilting(reach: ModuleType) -> None:
+    ref = reach.probe_reference(1, 0.006, 0.2)
+    assert ref.position.shape[1] == 3
+    assert np.abs(ref.position[:, [0, 2]]).max() == 0.0
+    assert ref.position[:, 1].max() == pytest.approx(0.006, rel=1e-3)
+    assert abs(ref.position[0, 1]) < 1e-6 and abs(ref.position[-1, 1]) < 1e-6
+    tilt = np.arcsin(ref.axis[:, 1])
+    assert tilt.max() == pytest.approx(0.2, rel=0.02)
+
+
+def test_the_reach_is_the_largest_amplitude_before_the_first_failure(
+    reach: ModuleType, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # a fake hand: tracked up to 6 mm along y, never along z, always along x, except once
+    # at 10 mm along x: the scan stops there even though 12 mm would pass
+    asked: list[tuple[int, float]] = []
+
+    def probe(hand: str, axis: int, amplitude: float, seed: int) -> dict[str, Any]:
+        mm = round(1000 * amplitude)
+        asked.append((axis, mm))
+        ok = {0: mm != 10, 1: mm <= 6, 2: False}[axis]
+        return {"held": True, "pos_rms_mm": 0.1, "rot_rms_deg": 0.1, "tracked": ok}
+
+    monkeypatch.setattr(reach, "probe", probe)
+    out = tmp_path / "reach.json"
+    assert reach.main(["--hands", "ias4f", "--seeds", "2", "--out-json", str(out)]) == 0
+    result = json.loads(out.read_text())
+    assert result["reach"]["ias4f"] == {"x_mm": 8.0, "y_mm": 6.0, "z_mm": 0.0}
+    assert (0, 12) not in asked and (1, 8) in asked and (1, 10) not in asked
+    assert all(math.isfinite(p["pos_rms_mm"]) for p in result["probes"])
+    # an existing output is refused before any probe runs
+    asked.clear()
+    with pytest.raises(Exception, match="exists"):
+        reach.main(["--hands", "ias4f", "--out-json", str(out)])
+    assert asked == []
