@@ -88,7 +88,7 @@ def test_a_hand_too_small_for_a_lift_refuses_it_and_a_larger_one_executes_it() -
     skill = synthetic_skill(lift=0.03, tilt=0.0)
     tolerance = skill_tolerance(skill.name)
     small, large = plan_transfer(skill, "shadow"), plan_transfer(skill, "ias4f")
-    assert small.refused is not None
+    assert small.refused is not None and small.too_small
     assert "shadow" in small.refused and "repeatability" in small.refused
     assert _still_distance(skill, "shadow")[1] < tolerance.position
     assert large.refused is None
@@ -118,6 +118,7 @@ def test_a_scheduled_slide_in_the_executed_window_is_refused() -> None:
     sliding = synthetic_skill(lift=0.005, tilt=0.05, sliding_from=1.0)
     plan = plan_transfer(sliding, "ias4f")
     assert plan.refused is not None and "slides its index contact" in plan.refused
+    assert not plan.too_small  # no hand would take it
     # a slide after the executed window is not executed, and not refused
     assert plan_transfer(sliding, "ias4f", duration=0.5).refused is None
 
@@ -154,7 +155,7 @@ def test_with_one_hand_a_refusal_is_a_one_line_error(lift_db: Path) -> None:
     out = transfer_cli("--db", str(lift_db), "--id", "1", "--hand", "shadow", "--duration", "1.2")
     assert out.returncode == 2 and out.stdout == ""
     assert len(out.stderr.strip().splitlines()) == 1 and "Traceback" not in out.stderr
-    assert "hand shadow" in out.stderr and "--hand" in out.stderr
+    assert "hand shadow" in out.stderr and "--list-hands" in out.stderr
 
 
 def test_the_transfer_figure_leaves_out_a_refusing_hand(lift_db: Path, tmp_path: Path) -> None:

@@ -129,7 +129,8 @@ def _transfer(args: argparse.Namespace) -> int:
         plan = plan_transfer(skill, hand, duration=args.duration)
         if plan.refused is not None:
             if args.hand != "all":
-                raise InputError(f"{plan.refused}; try another --hand (--list-hands)")
+                hint = "; another hand may take it (--list-hands)" if plan.too_small else ""
+                raise InputError(f"{plan.refused}{hint}")
             if args.json:
                 print(json.dumps(_refused_json(plan, args)))
             else:

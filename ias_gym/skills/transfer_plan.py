@@ -108,6 +108,8 @@ class TransferPlan:
         demonstrated_deg, executed_deg: the axis' largest ``tilt`` and ``turn`` [deg].
         scale, scale_rotation: the reference's translation and rotation scales [-].
         refused: why the hand refuses the skill (one line), or None.
+        too_small: it refuses for its workspace (another hand may take the skill), not for
+            the skill's contacts (no hand would).
     """
 
     hand: str
@@ -122,6 +124,7 @@ class TransferPlan:
     scale: float
     scale_rotation: float
     refused: str | None
+    too_small: bool = False
 
     def to_json(self) -> dict[str, Any]:
         """The plan as a JSON-ready dict (units in the keys; a non-finite margin is None)."""
@@ -242,7 +245,8 @@ def plan_transfer(
     full = transfer_reference(skill, workspace=UNSCALED, duration=duration, tolerances=tolerances)
     tolerance = skill_tolerance(skill.name, tolerances)
     shows_nothing = _still_passes(reference, tolerance) and not _still_passes(full, tolerance)
-    if refused is None and shows_nothing:
+    too_small = refused is None and shows_nothing
+    if too_small:
         ws = hand_workspace(hand)
         refused = (
             f"hand {hand} moves the pen at most {1000 * ws.reach:.1f} mm and "
@@ -273,6 +277,7 @@ def plan_transfer(
         scale=reference.scale,
         scale_rotation=reference.scale_rotation,
         refused=refused,
+        too_small=too_small,
     )
 
 
