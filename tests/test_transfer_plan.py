@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -82,9 +83,14 @@ def _still_distance(skill: object, hand: str) -> tuple[float, float]:
     return rotation, position
 
 
-def test_a_hand_too_small_for_a_lift_refuses_it_and_a_larger_one_executes_it() -> None:
-    # 30 mm lifted, no turn: the Shadow hand's reach (2.4 mm) cannot show it above the
-    # person's repeatability, the four-finger hand's (6 mm) can
+def test_a_hand_too_small_for_a_lift_refuses_it_and_a_larger_one_executes_it(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # 30 mm lifted, no turn: a Shadow hand that carried the pen 2 mm along every axis could
+    # not show it above the person's repeatability; the four-finger hand (14 mm) can
+    spec = hands.get_hand("shadow")
+    small_reach = ((0.002, 0.002, 0.002),) * len(spec.reach_by_tilt)
+    monkeypatch.setitem(hands.HANDS, "shadow", dataclasses.replace(spec, reach_by_tilt=small_reach))
     skill = synthetic_skill(lift=0.03, tilt=0.0)
     tolerance = skill_tolerance(skill.name)
     small, large = plan_transfer(skill, "shadow"), plan_transfer(skill, "ias4f")
@@ -130,7 +136,8 @@ def test_a_scheduled_slide_in_the_executed_window_is_refused() -> None:
 def lift_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("plan") / "skills.db"
     with SkillDB(path) as db:
-        db.add(synthetic_skill(lift=0.03, tilt=0.0, duration=1.5))
+        # an 11.5 deg tilt in place: the LEAP and Shadow hands tilt the pen 4.3 and 8.6 deg
+        db.add(synthetic_skill(lift=0.0, tilt=0.2, duration=1.5, name="tilt_left"))
     return path
 
 
@@ -141,13 +148,14 @@ def test_with_every_hand_a_refusing_hand_says_why_in_its_json_line(lift_db: Path
     assert out.returncode == 0, out.stderr
     rows = {row["hand"]: row for row in map(json.loads, out.stdout.strip().splitlines())}
     assert set(rows) == set(hands.hand_names())
-    shadow = rows.pop("shadow")
-    assert shadow["success"] is False and "repeatability" in shadow["refused"]
-    assert "held" not in shadow  # nothing ran
+    for refusing in ("leap", "shadow"):
+        row = rows.pop(refusing)
+        assert row["success"] is False and "repeatability" in row["refused"]
+        assert "held" not in row  # nothing ran
     for row in rows.values():
         assert row["refused"] is None and "held" in row
         assert set(row["executed_mm"]) == {"x", "y", "z"}
-        assert row["executed_mm"]["y"] <= row["demonstrated_mm"]["y"]
+        assert row["executed_deg"]["tilt"] == pytest.approx(row["demonstrated_deg"]["tilt"])
         assert {f["side"] for f in row["fingers"]} == {"top", "bottom"}
 
 
@@ -163,5 +171,5 @@ def test_the_transfer_figure_leaves_out_a_refusing_hand(lift_db: Path, tmp_path:
     from ias_gym.figures.transfer_figure import transfer_figure
 
     runs = transfer_figure(tmp_path / "transfer.png", lift_db, 1)
-    assert set(runs) == set(hands.hand_names()) - {"shadow"}
+    assert set(runs) == set(hands.hand_names()) - {"leap", "shadow"}
     assert (tmp_path / "transfer.png").stat().st_size > 10_000

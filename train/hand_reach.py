@@ -6,18 +6,16 @@ A transferred skill is scaled into the hand's workspace (``ias_gym.skills.transf
 axis of the pen's start frame (x along the pen, y up, z lateral) the workspace is the
 largest amplitude of a probe the Theorem-1 expert tracks from every seed. The probe is a
 translation out and back along that axis (minimum-jerk, 1 s each way, 0.5 s held between),
-with a see-saw of the hand's largest tilt (``HandSpec.max_tilt``, 1 Hz) over it. The glove
-skills combine the two, and a hand must still hold the pen tilted at the far end. Tracked
-means held for the whole 3 s episode, an RMS position error within :data:`SHARE` of the
-amplitude, and an RMS axis error within :data:`SHARE` of the see-saw's RMS. Amplitudes are
+with a see-saw over it at a share of the hand's largest tilt (``HandSpec.max_tilt``, 1 Hz;
+the shares :data:`TILT_SHARES`). The glove skills combine the two, and a hand must still hold
+the pen tilted at the far end. Tracked means held for the whole 3 s episode, an RMS position
+error within :data:`SHARE` of the amplitude, and an RMS axis error within :data:`SHARE` of
+the see-saw's RMS angle (at least :data:`STILL_DEG`). Amplitudes are
 scanned in :data:`STEP_MM` steps up to :data:`MAX_MM` (below the env's 15 mm holding limit);
 the largest one tracked below the first one that fails is the reach. The JSON (written
-atomically) has every probe and the reach per hand and axis (docs/hands.md shows them).
-
-It is a measurement of the hands, not an input of the transfer: the transfer scales every
-translation into one ball per hand (``ias_gym.skills.transfer.hand_workspace``), and the
-probe's worst case (the largest tilt at the far end of every translation) is not what the
-glove skills ask.
+atomically) has every probe and the reach per hand, tilt share and axis;
+``HandSpec.reach_by_tilt`` (``ias_gym.sim.hands``) carries the numbers, and a test checks
+that they agree with ``docs/hand_reach.json``.
 """
 
 from __future__ import annotations
@@ -41,6 +39,10 @@ MAX_MM = 14.0
 DURATION, START, MOVE, HOLD = 3.0, 0.2, 1.0, 0.5
 #: The see-saw's frequency [Hz].
 SEESAW_HZ = 1.0
+#: The see-saw amplitudes probed, as shares of the hand's largest tilt [-].
+TILT_SHARES = (0.25, 0.5, 1.0)
+#: The axis error allowed without a see-saw [deg] (the pen kept level while it moves).
+STILL_DEG = 0.5
 
 
 def probe_reference(axis: int, amplitude: float, tilt: float, dt: float = 0.01) -> Any:
@@ -61,15 +63,18 @@ def probe_reference(axis: int, amplitude: float, tilt: float, dt: float = 0.01) 
     return motion_reference(position, angles, np.full(len(t), 1.5), dt, name="reach-probe")
 
 
-def probe(hand: str, axis: int, amplitude: float, seed: int) -> dict[str, Any]:
-    """One probe run: held, and the RMS errors against the allowed ones."""
+def probe(
+    hand: str, axis: int, amplitude: float, seed: int, tilt_share: float = 1.0
+) -> dict[str, Any]:
+    """One probe run (the see-saw at ``tilt_share`` of the hand's largest tilt): held, and
+    the RMS errors against the allowed ones (a still axis: within 0.5 deg)."""
     from ias_gym.sim.hands import get_hand
     from ias_gym.skills.transfer_run import run_transfer
 
-    tilt = get_hand(hand).max_tilt
+    tilt = tilt_share * get_hand(hand).max_tilt
     run, _ = run_transfer(probe_reference(axis, amplitude, tilt), hand, "gt", seed=seed)
     allowed_mm = SHARE * 1000.0 * amplitude
-    allowed_deg = SHARE * math.degrees(tilt) / math.sqrt(2.0)
+    allowed_deg = max(SHARE * math.degrees(tilt) / math.sqrt(2.0), STILL_DEG)
     return {
         "held": run.held,
         "pos_rms_mm": run.pos_rms_mm,
@@ -95,26 +100,38 @@ def main(argv: Sequence[str] | None = None) -> int:
     check_output_file(args.out_json, overwrite=args.overwrite)
     hands = hand_names() if args.hands == "all" else args.hands.split(",")
     amplitudes = np.arange(STEP_MM, MAX_MM + 1e-9, STEP_MM)
-    jobs = [(h, a, mm) for h in hands for a in range(3) for mm in amplitudes]
+    jobs = [
+        (h, share, a, mm)
+        for h in hands
+        for share in TILT_SHARES
+        for a in range(3)
+        for mm in amplitudes
+    ]
     probes: list[dict[str, Any]] = []
-    reach = {h: {f"{a}_mm": 0.0 for a in "xyz"} for h in hands}
-    failed: set[tuple[str, int]] = set()
-    for hand, axis, mm in tqdm(jobs, desc="reach", unit="amplitude"):
-        if (hand, axis) in failed:
+    reach = {
+        h: {str(share): {f"{a}_mm": 0.0 for a in "xyz"} for share in TILT_SHARES} for h in hands
+    }
+    failed: set[tuple[str, float, int]] = set()
+    for hand, share, axis, mm in tqdm(jobs, desc="reach", unit="amplitude"):
+        if (hand, share, axis) in failed:
             continue  # the reach ends at the first amplitude that fails
-        runs = [probe(hand, axis, mm / 1000.0, seed) for seed in range(args.seeds)]
+        runs = [probe(hand, axis, mm / 1000.0, seed, share) for seed in range(args.seeds)]
         ok = all(r["tracked"] for r in runs)
-        probes += [{"hand": hand, "axis": "xyz"[axis], "amplitude_mm": mm, **r} for r in runs]
+        probes += [
+            {"hand": hand, "tilt_share": share, "axis": "xyz"[axis], "amplitude_mm": mm, **r}
+            for r in runs
+        ]
         if ok:
-            reach[hand]["xyz"[axis] + "_mm"] = float(mm)
+            reach[hand][str(share)]["xyz"[axis] + "_mm"] = float(mm)
         else:
-            failed.add((hand, axis))
+            failed.add((hand, share, axis))
     for hand in hands:
         print(hand, reach[hand])
     result = {
         "what": "largest amplitude per axis the expert carries the pen, tilting it (train/"
         "hand_reach.py)",
         "share": SHARE,
+        "tilt_shares": list(TILT_SHARES),
         "seeds": args.seeds,
         "reach": reach,
         "probes": probes,

@@ -47,8 +47,14 @@ def _list_hands() -> int:
 
     for name in hand_names():
         ws = hand_workspace(name)
+        carries = ", ".join(
+            f"{'/'.join(f'{1000 * v:.0f}' for v in ws.limits(share * ws.tilt))} mm at "
+            f"{math.degrees(share * ws.tilt):.1f} deg"
+            for share in ws.tilt_shares
+        )
         print(
-            f"{name}: reach {1000 * ws.reach:.1f} mm, largest tilt {math.degrees(ws.tilt):.1f} deg"
+            f"{name}: tilts the pen up to {math.degrees(ws.tilt):.1f} deg; carries it x/y/z "
+            f"{carries}"
         )
     return 0
 

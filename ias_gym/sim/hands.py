@@ -31,6 +31,10 @@ from ias_gym.errors import InputError
 __all__ = ["DEFAULT_HAND", "HANDS", "HandSpec", "get_hand", "hand_names"]
 
 
+#: The see-saw amplitudes of ``HandSpec.reach_by_tilt``, as shares of ``max_tilt`` [-].
+REACH_TILT_SHARES = (0.25, 0.5, 1.0)
+
+
 @dataclass(frozen=True)
 class HandSpec:
     """The layout of one robot hand holding the pen (paper frame, SI units).
@@ -52,6 +56,10 @@ class HandSpec:
             on the pen's cylinder |x| <= 5 cm; scanned in 1 mm steps).
         max_tilt: the largest see-saw amplitude about the paper's z the Theorem-1 expert
             tracks on this hand [rad] (measured, docs/DESIGN.md).
+        reach_by_tilt: how far the expert carries the pen's centre out and back along x
+            (the pen), y (up) and z (lateral) [m] while see-sawing it at
+            :data:`REACH_TILT_SHARES` of ``max_tilt``, one ``(x, y, z)`` per share (measured
+            by ``train/hand_reach.py``, ``docs/hand_reach.json``).
         description: one line for listings.
     """
 
@@ -64,6 +72,7 @@ class HandSpec:
     reach: float
     contact_range: tuple[tuple[float, float], ...]
     max_tilt: float
+    reach_by_tilt: tuple[tuple[float, float, float], ...]
     description: str
 
     def __post_init__(self) -> None:
@@ -72,6 +81,8 @@ class HandSpec:
             raise ValueError(
                 f"hand {self.name!r}: sides, contact_x and contact_range need one entry per finger"
             )
+        if len(self.reach_by_tilt) != len(REACH_TILT_SHARES):
+            raise ValueError(f"hand {self.name!r}: reach_by_tilt needs one (x, y, z) per share")
         if not ({1.0, -1.0} <= set(self.sides) <= {1.0, -1.0}):
             raise ValueError(f"hand {self.name!r}: sides must be +1 or -1, on both sides")
 
@@ -102,6 +113,7 @@ HANDS: dict[str, HandSpec] = {
         contact_range=((-0.05, 0.012), (-0.05, 0.022), (-0.022, 0.05), (-0.012, 0.05)),
         # PenRotate's limit since v0 (docs/DESIGN.md, "Envelope of the 4-finger hand").
         max_tilt=0.35,
+        reach_by_tilt=((0.014, 0.014, 0.014), (0.014, 0.014, 0.014), (0.014, 0.004, 0.014)),
         description="four fingers, two above and two below the pen (the paper's skill example)",
     ),
     "ias3f": HandSpec(
@@ -115,6 +127,7 @@ HANDS: dict[str, HandSpec] = {
         contact_range=((-0.05, 0.014), (-0.049, 0.049), (-0.014, 0.05)),
         # 5 / 5 seeds succeed at A = 0.4 rad for w = 2..12 rad/s, not at 0.45 rad, 12 rad/s.
         max_tilt=0.4,
+        reach_by_tilt=((0.014, 0.014, 0.014), (0.014, 0.014, 0.014), (0.014, 0.008, 0.014)),
         description="three fingers: two short ones above the pen, a long thumb below its centre",
     ),
     "shadow": HandSpec(
@@ -129,6 +142,7 @@ HANDS: dict[str, HandSpec] = {
         # 8 / 8 seeds at A = 0.15 rad for w = 2, 7, 12 rad/s; at 12 rad/s 0.2 rad loses 1 of
         # 6 (the contacts creep around the pen until the internal-force LP is infeasible).
         max_tilt=0.15,
+        reach_by_tilt=((0.008, 0.012, 0.006), (0.008, 0.012, 0.006), (0.006, 0.012, 0.006)),
         description="the Shadow hand (Gymnasium-Robotics' model): first and little finger "
         "above the pen, the thumb below",
     ),
@@ -144,6 +158,7 @@ HANDS: dict[str, HandSpec] = {
         # 3 / 3 development seeds 100-102 at A = 0.075 rad for w = 2, 7, 12 rad/s (RMS tilt
         # error 3.5-3.8 % of A at 12 rad/s)
         max_tilt=0.075,
+        reach_by_tilt=((0.014, 0.014, 0.014), (0.014, 0.014, 0.014), (0.014, 0.014, 0.014)),
         description="the LEAP hand (MuJoCo Playground's model): index and middle finger "
         "below the pen, the thumb on top",
     ),

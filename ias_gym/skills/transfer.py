@@ -7,9 +7,11 @@ can reuse is not the glove's joint angles but
 - the object's motion **relative to its grasp frame**: the pen's displacement from its pose
   at the skill's own start (the instant the grasp is established), expressed in a frame
   that keeps gravity vertical and turns the pen's initial heading onto the hand's x axis;
-- scaled into the target hand's **workspace** (:class:`HandWorkspace`): translations by
-  ``scale = min(1, reach / largest displacement)``, rotations by ``scale_rotation =
-  min(1, largest tilt / largest rotation)``. Two scales, not one: a hand geometrically
+- scaled into the target hand's **workspace** (:class:`HandWorkspace`): rotations by
+  ``scale_rotation = min(1, largest tilt / largest rotation)``, translations by one
+  ``scale`` that keeps every axis within how far the hand carries the pen along it at that
+  rotation (:meth:`HandWorkspace.translation_scale`), and never above ``scale_rotation``
+  (the pivot of a turn stays where the person's was). Two scales, not one: a hand geometrically
   similar to the person's but k times smaller moves the object k times less far but
   through the same angles, so angles are left alone unless the hand cannot reach them;
 - resampled to the env's control period and differentiated by a Savitzky-Golay filter
@@ -75,17 +77,49 @@ class HandWorkspace:
     """The part of a hand's workspace a transferred skill is scaled into.
 
     Attributes:
-        reach: how far the hand moves the held pen's centre [m].
+        reach: how far the hand moves the held pen's centre in any direction [m]: the ball
+            of synthetic motions (:mod:`ias_gym.skills.synthetic`), and of a transfer
+            where ``axes`` is None.
         tilt: the largest rotation of the pen's axis the expert handles [rad].
+        axes: how far the expert carries the pen's centre along x (the pen's heading), y
+            (up) and z (lateral) [m] while tilting it by up to each of ``tilt_shares`` of
+            ``tilt`` (``HandSpec.reach_by_tilt``); None: ``reach`` along every axis.
+        tilt_shares: the tilts of ``axes``, as shares of ``tilt`` [-], increasing.
     """
 
     reach: float
     tilt: float
+    axes: tuple[tuple[float, float, float], ...] | None = None
+    tilt_shares: tuple[float, ...] = hands.REACH_TILT_SHARES
+
+    def limits(self, turn: float = math.inf) -> tuple[float, float, float]:
+        """The largest excursion of the pen's centre per axis (x, y, z) [m] for a motion
+        that turns the pen's axis by at most ``turn`` [rad]: measured at the least probed
+        tilt not below it (the reach shrinks as the tilt grows)."""
+        if self.axes is None:
+            return (self.reach, self.reach, self.reach)
+        for share, axes in zip(self.tilt_shares, self.axes, strict=True):
+            if turn <= share * self.tilt * (1 + 1e-9):
+                return axes
+        return self.axes[-1]
+
+    def translation_scale(self, displacement: FloatArray, turn: float = math.inf) -> float:
+        """The one scale that keeps a ``(T, 3)`` displacement [m] within every axis' limit
+        (:meth:`limits` at the motion's ``turn``) and its length within the largest:
+        ``min(1, limit_a / max |d_a|, max limit / max |d|)``. One scale for the three axes
+        keeps the motion's direction."""
+        limits = self.limits(turn)
+        peaks = np.max(np.abs(displacement), axis=0)
+        ratios = [limit / peak for limit, peak in zip(limits, peaks, strict=True) if peak > 0]
+        length = float(np.max(np.linalg.norm(displacement, axis=1)))
+        if length > 0:
+            ratios.append(max(limits) / length)
+        return float(min([1.0, *ratios]))
 
 
-#: The held pen's centre moves at most this fraction of the tips' reach along the pen: the
-#: reach is measured with the pen at rest, and the tips must still hold the pen at the far
-#: end of a translation, tilted (measured on both hands: docs/transfer.md).
+#: Synthetic motions stay in a ball of this fraction of the tips' reach along the pen
+#: (measured with the pen at rest; the tips must still hold the pen at the far end of a
+#: translation, tilted).
 TRANSLATION_SHARE = 0.3
 
 
@@ -95,15 +129,18 @@ def hand_names() -> list[str]:
 
 
 def hand_workspace(hand: str) -> HandWorkspace:
-    """The workspace of a hand, from its ``HandSpec``: the pen centre moves up to
-    :data:`TRANSLATION_SHARE` of the tips' reach, its axis turns up to the largest tilt the
-    expert tracks.
+    """The workspace of a hand, from its ``HandSpec``: the pen centre moves along each axis
+    as far as the expert carries it at the motion's tilt (``reach_by_tilt``; synthetic
+    motions stay in a ball of :data:`TRANSLATION_SHARE` of the tips' reach), its axis turns
+    up to the largest tilt the expert tracks.
 
     Raises:
         InputError: an unknown hand (the message lists the known ones).
     """
     spec = hands.get_hand(hand)
-    return HandWorkspace(reach=TRANSLATION_SHARE * spec.reach, tilt=spec.max_tilt)
+    return HandWorkspace(
+        reach=TRANSLATION_SHARE * spec.reach, tilt=spec.max_tilt, axes=spec.reach_by_tilt
+    )
 
 
 def skill_start_index(skill: Skill) -> int:
@@ -274,10 +311,12 @@ def transfer_reference(
         return np.stack([np.interp(grid, t_rel, v) for v in values.T], axis=1)
 
     displacement, turns = skill_motion(skill)
-    largest_move = float(np.max(np.linalg.norm(displacement, axis=1)))
     largest_turn = float(np.max(np.hypot(turns[:, 0], turns[:, 1])))
-    scale = min(1.0, ws.reach / largest_move) if largest_move > 0 else 1.0
     scale_rot = min(1.0, ws.tilt / largest_turn) if largest_turn > 0 else 1.0
+    # never more translation than rotation: with both scaled by k, a turn about a pivot
+    # stays one about the same pivot (small angles); a larger translation scale would move
+    # the pivot out
+    scale = min(ws.translation_scale(displacement, scale_rot * largest_turn), scale_rot)
 
     position = scale * resample(displacement)
     angles = scale_rot * resample(turns)

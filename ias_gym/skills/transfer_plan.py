@@ -36,7 +36,8 @@ sessions) is not refused: no hand can lose a motion that is not there.
 
 Per axis, the plan reports the demonstration's largest excursion and the executed one: the
 pen centre along x (the pen's initial heading), y (up) and z (lateral) [mm], and the axis'
-tilt and turn [deg]. Translations share one scale and rotations another
+tilt and turn [deg]. Translations share one scale and rotations another, the translation's
+set by how far the hand carries the pen along each axis at the skill's tilt
 (:func:`~ias_gym.skills.transfer.transfer_reference`).
 """
 
@@ -246,18 +247,20 @@ def plan_transfer(
     tolerance = skill_tolerance(skill.name, tolerances)
     shows_nothing = _still_passes(reference, tolerance) and not _still_passes(full, tolerance)
     too_small = refused is None and shows_nothing
+    displacement, angles = skill_motion(skill)
     if too_small:
         ws = hand_workspace(hand)
+        turn = reference.scale_rotation * float(np.max(np.hypot(angles[:, 0], angles[:, 1])))
         refused = (
-            f"hand {hand} moves the pen at most {1000 * ws.reach:.1f} mm and "
-            f"{math.degrees(ws.tilt):.1f} deg: {skill.name} skill {skill.id} scaled into it "
+            f"hand {hand} tilts the pen {math.degrees(ws.tilt):.1f} deg at most and carries it "
+            f"{_mm(ws.limits(turn))} mm along x/y/z at this tilt: {skill.name} skill "
+            f"{skill.id} scaled into it "
             f"(translation x{reference.scale:.2f}, rotation x{reference.scale_rotation:.2f}) "
             f"is within its person's own repeatability of a still pen "
             f"({1000 * tolerance.position:.1f} mm, {math.degrees(tolerance.rotation):.1f} deg "
             "RMS)"
         )
 
-    displacement, angles = skill_motion(skill)
     demo_mm = 1000.0 * np.max(np.abs(displacement), axis=0)
     demo_deg = np.degrees(np.max(np.abs(angles), axis=0))
 
@@ -279,6 +282,11 @@ def plan_transfer(
         refused=refused,
         too_small=too_small,
     )
+
+
+def _mm(values: tuple[float, ...]) -> str:
+    """``6/14/10``: lengths in m as whole mm, one per axis."""
+    return "/".join(f"{1000 * v:.0f}" for v in values)
 
 
 def _contact_margins(skill: Skill) -> np.ndarray:
