@@ -70,8 +70,9 @@ def test_the_reach_is_the_largest_amplitude_before_the_first_failure(
     asked: list[tuple[int, float]] = []
 
     def probe(
-        hand: str, axis: int, amplitude: float, seed: int, tilt_share: float
+        hand: str, axis: int, amplitude: float, seed: int, tilt_share: float, disturbance: str
     ) -> dict[str, Any]:
+        assert disturbance == "nominal"
         mm = round(1000 * amplitude)
         if tilt_share == 1.0:
             asked.append((axis, mm))

@@ -64,15 +64,22 @@ def probe_reference(axis: int, amplitude: float, tilt: float, dt: float = 0.01) 
 
 
 def probe(
-    hand: str, axis: int, amplitude: float, seed: int, tilt_share: float = 1.0
+    hand: str,
+    axis: int,
+    amplitude: float,
+    seed: int,
+    tilt_share: float = 1.0,
+    disturbance: str = "nominal",
 ) -> dict[str, Any]:
-    """One probe run (the see-saw at ``tilt_share`` of the hand's largest tilt): held, and
-    the RMS errors against the allowed ones (a still axis: within 0.5 deg)."""
+    """One probe run (the see-saw at ``tilt_share`` of the hand's largest tilt, under a
+    class of the robustness suite): held, and the RMS errors against the allowed ones."""
+    from ias_gym.robustness import DISTURBANCES
     from ias_gym.sim.hands import get_hand
     from ias_gym.skills.transfer_run import run_transfer
 
     tilt = tilt_share * get_hand(hand).max_tilt
-    run, _ = run_transfer(probe_reference(axis, amplitude, tilt), hand, "gt", seed=seed)
+    reference = probe_reference(axis, amplitude, tilt)
+    run, _ = run_transfer(reference, hand, "gt", seed=seed, **DISTURBANCES[disturbance])
     allowed_mm = SHARE * 1000.0 * amplitude
     allowed_deg = max(SHARE * math.degrees(tilt) / math.sqrt(2.0), STILL_DEG)
     return {
@@ -91,13 +98,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--hands", default="all", help="comma-separated hands, or all")
     parser.add_argument("--seeds", type=int, default=3, help="reset seeds 0..N-1 per probe")
+    parser.add_argument(
+        "--disturbance",
+        default="nominal",
+        help="a class of the robustness suite, e.g. friction_x0.7",
+    )
     parser.add_argument("--out-json", required=True, help="the probes and the reach per axis")
     parser.add_argument("--overwrite", action="store_true", help="replace --out-json")
     args = parser.parse_args(argv)
     from ias_gym.outputs import atomic_output, check_output_file
+    from ias_gym.robustness import check_classes
     from ias_gym.sim.hands import hand_names
 
     check_output_file(args.out_json, overwrite=args.overwrite)
+    check_classes([args.disturbance])
     hands = hand_names() if args.hands == "all" else args.hands.split(",")
     amplitudes = np.arange(STEP_MM, MAX_MM + 1e-9, STEP_MM)
     jobs = [
@@ -115,7 +129,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     for hand, share, axis, mm in tqdm(jobs, desc="reach", unit="amplitude"):
         if (hand, share, axis) in failed:
             continue  # the reach ends at the first amplitude that fails
-        runs = [probe(hand, axis, mm / 1000.0, seed, share) for seed in range(args.seeds)]
+        runs = [
+            probe(hand, axis, mm / 1000.0, seed, share, args.disturbance)
+            for seed in range(args.seeds)
+        ]
         ok = all(r["tracked"] for r in runs)
         probes += [
             {"hand": hand, "tilt_share": share, "axis": "xyz"[axis], "amplitude_mm": mm, **r}
@@ -131,6 +148,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "what": "largest amplitude per axis the expert carries the pen, tilting it (train/"
         "hand_reach.py)",
         "share": SHARE,
+        "disturbance": args.disturbance,
         "tilt_shares": list(TILT_SHARES),
         "seeds": args.seeds,
         "reach": reach,
