@@ -42,13 +42,14 @@ def _run(success: bool, held_s: float = 3.0) -> dict[str, Any]:
 
 def test_a_refused_skill_is_a_failure_that_ran_nothing(table: ModuleType) -> None:
     refused = {"success": False, "refused": "too small", "duration_s": 3.0}
-    summary = table.summarise([_run(True), _run(False, held_s=1.0), refused])
-    assert summary["runs"] == 3 and summary["refused"] == 1
-    assert summary["success_rate"] == pytest.approx(1 / 3)
+    summary = table.summarise([_run(True), _run(False, held_s=1.0), refused, refused])
+    assert summary["runs"] == 4 and summary["refused"] == 2
+    assert summary["success_rate"] == pytest.approx(1 / 4)
     # the terms and errors are over the runs that ran
     assert (summary["held"], summary["tracked"], summary["dropped"]) == (1, 1, 1)
     assert summary["rot_rms_deg"] == pytest.approx(0.1)
-    assert "| 1 |" in table.markdown({"ias4f|gt|nominal|all": summary}, [])
+    row = table.markdown({"ias4f|gt|nominal|all": summary}, []).splitlines()[2]
+    assert row.endswith("| 1 | 2 |")  # dropped, then refused
 
 
 def test_the_probe_goes_out_and_back_along_its_axis_tilting(reach: ModuleType) -> None:

@@ -250,7 +250,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return write_table(args, merged_rows, parts[0]["db"], parts[0]["heldout"], **merged)
 
     from ias_gym.skills.db import SkillDB
-    from ias_gym.skills.transfer import hand_names, shipped_skill_db, transfer_reference
+    from ias_gym.skills.transfer import hand_names, shipped_skill_db
     from ias_gym.skills.transfer_plan import plan_transfer
     from ias_gym.skills.transfer_run import run_transfer
 
@@ -264,30 +264,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ias_gym.robustness import DISTURBANCES
 
     rows: list[dict[str, Any]] = []
-    jobs = [
-        (s, k, h, m, d) for s, k in skills for h in hands for m in methods for d in disturbances
-    ]
+    jobs = [(s, h, m, d) for s, _ in skills for h in hands for m in methods for d in disturbances]
     if args.weak:
-        jobs += [(s, k, h, w, "nominal") for s, k in skills for h in hands for w in WEAK]
+        jobs += [(s, h, w, "nominal") for s, _ in skills for h in hands for w in WEAK]
     plans = {
         (summary.id, hand): plan_transfer(skill, hand, duration=args.duration)
         for summary, skill in tqdm(skills, desc="plan", unit="skill")
         for hand in hands
     }
-    for summary, skill, hand, method, disturbance in tqdm(jobs, desc="transfer", unit="run"):
+    for summary, hand, method, disturbance in tqdm(jobs, desc="transfer", unit="run"):
         plan = plans[(summary.id, hand)]
         if plan.refused is not None:  # a failure, with its reason and no run
             rows.append(
                 {
-                    "hand": hand,
+                    **plan.refusal_row(),
                     "method": method,
-                    "skill_id": summary.id,
-                    "person": summary.person_id,
-                    "skill": skill.name,
-                    "success": False,
-                    "refused": plan.refused,
-                    "scale": plan.scale,
-                    "scale_rot": plan.scale_rotation,
                     "disturbance": disturbance,
                     "skill_class": skill_class(summary),
                     "heldout": summary.person_id in heldout,
@@ -295,7 +286,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 }
             )
             continue
-        reference = transfer_reference(skill, hand, duration=args.duration)
+        reference = plan.reference
         weak = method in WEAK
         name, gains = ("gt", None) if weak else method_gains(method, hand)
         run, _ = run_transfer(

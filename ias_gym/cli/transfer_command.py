@@ -64,22 +64,6 @@ def _axes(values: dict[str, float]) -> str:
     return "/".join(f"{v:.1f}" for v in values.values())
 
 
-def _refused_json(plan: Any, args: argparse.Namespace) -> dict[str, Any]:
-    """The JSON line of a hand that refuses the skill: not a success, and why."""
-    return {
-        "hand": plan.hand,
-        "method": args.method,
-        "skill_id": plan.skill_id,
-        "person": plan.person,
-        "skill": plan.name,
-        "success": False,
-        "disturbance": args.disturbance,
-        "scale": plan.scale,
-        "scale_rot": plan.scale_rotation,
-        **plan.to_json(),
-    }
-
-
 def _transfer(args: argparse.Namespace) -> int:
     if args.list_hands:
         return _list_hands()
@@ -87,7 +71,7 @@ def _transfer(args: argparse.Namespace) -> int:
         raise InputError("skills transfer needs --id N (or --list-hands)")
     from ias_gym.outputs import check_output_file
     from ias_gym.skills.db import SkillDB, SkillNotFoundError
-    from ias_gym.skills.transfer import hand_names, shipped_skill_db, transfer_reference
+    from ias_gym.skills.transfer import hand_names, shipped_skill_db
     from ias_gym.skills.transfer_plan import plan_transfer
     from ias_gym.skills.transfer_run import METHODS, run_transfer
 
@@ -138,14 +122,14 @@ def _transfer(args: argparse.Namespace) -> int:
                 hint = "; another hand may take it (--list-hands)" if plan.too_small else ""
                 raise InputError(f"{plan.refused}{hint}")
             if args.json:
-                print(json.dumps(_refused_json(plan, args)))
+                row = {**plan.refusal_row(), "method": args.method}
+                print(json.dumps({**row, "disturbance": args.disturbance}))
             else:
                 print(f"{hand} {args.method}: REFUSED ({plan.refused})")
             sys.stdout.flush()
             continue
-        reference = transfer_reference(skill, hand, duration=args.duration)
         run, frames = run_transfer(
-            reference,
+            plan.reference,
             hand,
             args.method,
             seed=args.seed,

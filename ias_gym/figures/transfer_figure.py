@@ -27,7 +27,6 @@ from ias_gym.skills.transfer import (
     hand_names,
     shipped_skill_db,
     skill_start_index,
-    transfer_reference,
 )
 from ias_gym.skills.transfer_plan import plan_transfer
 from ias_gym.skills.transfer_run import TransferRun, run_transfer
@@ -77,10 +76,11 @@ def transfer_figure(
         skill = db.get(skill_id)
     runs, refused = {}, []
     for hand in hand_names():
-        if plan_transfer(skill, hand, duration=PenSkillConfig.duration).refused is not None:
+        plan = plan_transfer(skill, hand, duration=PenSkillConfig.duration)
+        if plan.refused is not None:
             refused.append(hand)  # its scaled motion would not show the skill
             continue
-        runs[hand] = run_transfer(transfer_reference(skill, hand), hand, "gt", seed=seed)[0]
+        runs[hand] = run_transfer(plan.reference, hand, "gt", seed=seed)[0]
     if not runs:
         raise InputError(f"every hand refuses skill {skill_id} of {db_path}; choose another")
     model = skill.model

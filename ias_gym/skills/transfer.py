@@ -176,12 +176,19 @@ def demonstrated_margin(skill: Skill, mu: float | None = None) -> FloatArray:
             intensities per finger) also bound the torsion with the glove pads' torsional
             friction.
     """
+    m = skill.model
+    glove_mu, mu_t = demonstration_friction(skill)
+    return margin_series(m.c_p, m.c_h, m.touching, glove_mu if mu is None else mu, mu_t)
+
+
+def demonstration_friction(skill: Skill) -> tuple[float, float]:
+    """``(mu, mu_torsion)`` the demonstration's margins are measured with: the glove world's
+    pen contacts (:func:`~ias_gym.sim.scene_constants.glove_pad_friction`), the torsional
+    part only for soft-finger records (4 intensities per contact) [-], [m]."""
     glove_mu, glove_torsion = glove_pad_friction()
     m = skill.model
-    k = m.touching.shape[1]
-    per = m.c.shape[1] // k
-    mu_t = glove_torsion if per == 4 else 0.0
-    return margin_series(m.c_p, m.c_h, m.touching, glove_mu if mu is None else mu, mu_t)
+    per = m.c.shape[1] // m.touching.shape[1]
+    return glove_mu, glove_torsion if per == 4 else 0.0
 
 
 def _axis_angles(rpy: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 
 from ias_gym.envs.skill_reference import SkillReference
+from ias_gym.errors import SkillTransferError
 from ias_gym.grasp.grasp_margin import contact_margins
 from ias_gym.sim import hands
 from ias_gym.skills.skill import Skill
@@ -61,7 +62,7 @@ from ias_gym.skills.tolerance import (
 )
 from ias_gym.skills.transfer import (
     HandWorkspace,
-    demonstrated_margin,
+    demonstration_friction,
     hand_workspace,
     skill_motion,
     skill_start_index,
@@ -111,6 +112,8 @@ class TransferPlan:
         refused: why the hand refuses the skill (one line), or None.
         too_small: it refuses for its workspace (another hand may take the skill), not for
             the skill's contacts (no hand would).
+        reference: the reference the hand executes (:func:`transfer_reference` over the
+            planned window).
     """
 
     hand: str
@@ -125,7 +128,8 @@ class TransferPlan:
     scale: float
     scale_rotation: float
     refused: str | None
-    too_small: bool = False
+    too_small: bool
+    reference: SkillReference
 
     def to_json(self) -> dict[str, Any]:
         """The plan as a JSON-ready dict (units in the keys; a non-finite margin is None)."""
@@ -151,6 +155,19 @@ class TransferPlan:
             ],
         }
 
+    def refusal_row(self) -> dict[str, Any]:
+        """A refusing hand's result: which skill, not a success, why, and the plan."""
+        return {
+            "hand": self.hand,
+            "skill_id": self.skill_id,
+            "person": self.person,
+            "skill": self.name,
+            "success": False,
+            "scale": self.scale,
+            "scale_rot": self.scale_rotation,
+            **self.to_json(),
+        }
+
 
 def source_contacts(skill: Skill) -> tuple[tuple[str, float], ...]:
     """The demonstration's contacts as ``(name, side)``, in its skill model's order.
@@ -162,8 +179,6 @@ def source_contacts(skill: Skill) -> tuple[tuple[str, float], ...]:
     Raises:
         SkillTransferError: the record's number of contacts fits neither.
     """
-    from ias_gym.errors import SkillTransferError
-
     k = skill.model.touching.shape[1]
     if k == len(GLOVE_CONTACTS):
         return GLOVE_CONTACTS
@@ -220,7 +235,7 @@ def plan_transfer(
             f"t = {when:.2f} s; a transfer holds every finger (sliding is IAS-PenSlide-v0)"
         )
 
-    per_contact = _contact_margins(skill)[window]
+    per_contact = _contact_margins(skill, window)
     roles = []
     for finger, side in zip(spec.fingers, spec.sides, strict=True):
         mine = [i for i, (_, s) in enumerate(contacts) if s == side]
@@ -281,6 +296,7 @@ def plan_transfer(
         scale_rotation=reference.scale_rotation,
         refused=refused,
         too_small=too_small,
+        reference=reference,
     )
 
 
@@ -289,16 +305,14 @@ def _mm(values: tuple[float, ...]) -> str:
     return "/".join(f"{1000 * v:.0f}" for v in values)
 
 
-def _contact_margins(skill: Skill) -> np.ndarray:
-    """``(T, k)`` each contact's demonstrated margin, NaN where the grasp's is undefined."""
+def _contact_margins(skill: Skill, window: slice) -> np.ndarray:
+    """``(W, k)`` each contact's demonstrated margin in ``window``, NaN where a contact is
+    missing (as :func:`~ias_gym.skills.transfer.demonstrated_margin`)."""
     m = skill.model
-    k = m.touching.shape[1]
-    grasp = demonstrated_margin(skill)  # NaN exactly where a contact or c_h is missing
-    from ias_gym.sim.scene_constants import glove_pad_friction
-
-    mu, torsion = glove_pad_friction()
-    per = m.c.shape[1] // k
-    out = np.full((len(m.time), k), math.nan)
-    for t in np.flatnonzero(~np.isnan(grasp)):
-        out[t] = contact_margins(m.c_p[t], m.c_h[t], mu, torsion if per == 4 else 0.0, per)
+    mu, mu_t = demonstration_friction(skill)
+    touching, c_p, c_h = m.touching[window], m.c_p[window], m.c_h[window]
+    per = c_p.shape[1] // touching.shape[1]
+    out = np.full(touching.shape, math.nan)
+    for t in np.flatnonzero(touching.all(axis=1)):
+        out[t] = contact_margins(c_p[t], c_h[t], mu, mu_t, per)
     return out
