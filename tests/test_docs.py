@@ -91,6 +91,7 @@ def test_every_results_table_is_made_from_its_json() -> None:
     assert set(tables) == {
         "transfer.md",
         "transfer_skills.md",
+        "hand_reach.md",
         "recognition.md",
         "assistance.md",
         "assist_population.md",

@@ -20,7 +20,8 @@ from ias_gym.errors import InputError
 from ias_gym.glove.skills import SKILLS
 from ias_gym.skills.check import check_database
 from ias_gym.skills.db import SkillDB
-from ias_gym.skills.transfer import HandWorkspace, shipped_skill_db, transfer_reference
+from ias_gym.skills.transfer import shipped_skill_db, transfer_reference
+from ias_gym.skills.workspace import HandWorkspace
 
 WS = HandWorkspace(0.005, 0.2)
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from transfer_fixtures import MU, antipodal_pinch, random_contacts, synthetic_skill, transfer_cli
+from transfer_fixtures import MU, antipodal_pinch, random_contacts, synthetic_skill
 
 from ias_gym.grasp.grasp_margin import contact_margins, grasp_margin, least_squeeze
 from ias_gym.sim import hands
@@ -89,7 +89,7 @@ def test_a_hand_too_small_for_a_lift_refuses_it_and_a_larger_one_executes_it(
     # 30 mm lifted, no turn: a Shadow hand that carried the pen 2 mm along every axis could
     # not show it above the person's repeatability; the four-finger hand (14 mm) can
     spec = hands.get_hand("shadow")
-    small_reach = ((0.002, 0.002, 0.002),) * len(spec.reach_by_tilt)
+    small_reach = ((0.002,) * len(hands.REACH_DIRECTIONS),) * len(spec.reach_by_tilt)
     monkeypatch.setitem(hands.HANDS, "shadow", dataclasses.replace(spec, reach_by_tilt=small_reach))
     skill = synthetic_skill(lift=0.03, tilt=0.0)
     tolerance = skill_tolerance(skill.name)
@@ -111,9 +111,28 @@ def test_a_motion_within_the_persons_spread_is_refused_by_no_hand(hand: str) -> 
     assert plan_transfer(synthetic_skill(lift=0.001, tilt=0.01), hand).refused is None
 
 
+@pytest.fixture
+def small_hands(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The LEAP and Shadow hands shrunk to 1.1 deg of tilt and 0.5 mm of travel."""
+    for name in ("leap", "shadow"):
+        spec = hands.get_hand(name)
+        small = ((0.0005,) * len(hands.REACH_DIRECTIONS),) * len(spec.reach_by_tilt)
+        monkeypatch.setitem(
+            hands.HANDS, name, dataclasses.replace(spec, skill_tilt=0.02, reach_by_tilt=small)
+        )
+
+
+def test_every_hand_takes_a_slow_tilt_in_its_envelope() -> None:
+    # an 11.5 deg tilt in place: every hand tilts the pen 17 deg or more, slowly
+    skill = synthetic_skill(lift=0.0, tilt=0.2, name="tilt_left")
+    assert all(hands.get_hand(h).skill_tilt >= 0.3 for h in hands.hand_names())
+    assert not any(plan_transfer(skill, h).refused for h in hands.hand_names())
+
+
+@pytest.mark.usefixtures("small_hands")
 def test_a_turn_beyond_a_hands_tilt_is_refused_by_it_alone() -> None:
-    # an 11.5 deg tilt in place, against tilt_left's repeatability of 3.4 deg: the LEAP
-    # and Shadow hands tilt the pen 4.3 and 8.6 deg at most, the IAS hands 20 and 23 deg
+    # the same tilt, against tilt_left's repeatability of 3.4 deg: the shrunk hands would
+    # show 1.1 deg of it
     skill = synthetic_skill(lift=0.0, tilt=0.2, name="tilt_left")
     refusing = {h for h in hands.hand_names() if plan_transfer(skill, h).refused}
     assert refusing == {"leap", "shadow"}
@@ -136,17 +155,29 @@ def test_a_scheduled_slide_in_the_executed_window_is_refused() -> None:
 def lift_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("plan") / "skills.db"
     with SkillDB(path) as db:
-        # an 11.5 deg tilt in place: the LEAP and Shadow hands tilt the pen 4.3 and 8.6 deg
+        # an 11.5 deg tilt in place (refused by the shrunk hands of `small_hands`)
         db.add(synthetic_skill(lift=0.0, tilt=0.2, duration=1.5, name="tilt_left"))
     return path
 
 
-def test_with_every_hand_a_refusing_hand_says_why_in_its_json_line(lift_db: Path) -> None:
-    out = transfer_cli(
-        "--db", str(lift_db), "--id", "1", "--hand", "all", "--json", "--duration", "1.2"
+def _cli(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
+    """``ias-gym skills transfer ARGS`` in this process (the shrunk hands are patched in)."""
+    from ias_gym.cli import main
+
+    code = main(["skills", "transfer", *args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.mark.usefixtures("small_hands")
+def test_with_every_hand_a_refusing_hand_says_why_in_its_json_line(
+    lift_db: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, stdout, stderr = _cli(
+        capsys, "--db", str(lift_db), "--id", "1", "--hand", "all", "--json", "--duration", "1.2"
     )
-    assert out.returncode == 0, out.stderr
-    rows = {row["hand"]: row for row in map(json.loads, out.stdout.strip().splitlines())}
+    assert code == 0, stderr
+    rows = {row["hand"]: row for row in map(json.loads, stdout.strip().splitlines())}
     assert set(rows) == set(hands.hand_names())
     for refusing in ("leap", "shadow"):
         row = rows.pop(refusing)
@@ -159,13 +190,19 @@ def test_with_every_hand_a_refusing_hand_says_why_in_its_json_line(lift_db: Path
         assert {f["side"] for f in row["fingers"]} == {"top", "bottom"}
 
 
-def test_with_one_hand_a_refusal_is_a_one_line_error(lift_db: Path) -> None:
-    out = transfer_cli("--db", str(lift_db), "--id", "1", "--hand", "shadow", "--duration", "1.2")
-    assert out.returncode == 2 and out.stdout == ""
-    assert len(out.stderr.strip().splitlines()) == 1 and "Traceback" not in out.stderr
-    assert "hand shadow" in out.stderr and "--list-hands" in out.stderr
+@pytest.mark.usefixtures("small_hands")
+def test_with_one_hand_a_refusal_is_a_one_line_error(
+    lift_db: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, stdout, stderr = _cli(
+        capsys, "--db", str(lift_db), "--id", "1", "--hand", "shadow", "--duration", "1.2"
+    )
+    assert code == 2 and stdout == ""
+    assert len(stderr.strip().splitlines()) == 1 and "Traceback" not in stderr
+    assert "hand shadow" in stderr and "--list-hands" in stderr
 
 
+@pytest.mark.usefixtures("small_hands")
 def test_the_transfer_figure_leaves_out_a_refusing_hand(lift_db: Path, tmp_path: Path) -> None:
     pytest.importorskip("matplotlib")
     from ias_gym.figures.transfer_figure import transfer_figure

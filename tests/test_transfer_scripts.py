@@ -52,41 +52,92 @@ def test_a_refused_skill_is_a_failure_that_ran_nothing(table: ModuleType) -> Non
     assert row.endswith("| 1 | 2 |")  # dropped, then refused
 
 
-def test_the_probe_goes_out_and_back_along_its_axis_tilting(reach: ModuleType) -> None:
-    ref = reach.probe_reference(1, 0.006, 0.2)
+def test_the_probe_goes_out_along_its_direction_and_holds_there_tilting(
+    reach: ModuleType,
+) -> None:
+    from ias_gym.sim.hands import reach_direction
+
+    ref = reach.probe_reference(reach_direction("-y+z"), 0.006, 0.2, 1.0)
     assert ref.position.shape[1] == 3
-    assert np.abs(ref.position[:, [0, 2]]).max() == 0.0
-    assert ref.position[:, 1].max() == pytest.approx(0.006, rel=1e-3)
-    assert abs(ref.position[0, 1]) < 1e-6 and abs(ref.position[-1, 1]) < 1e-6
+    assert np.abs(ref.position[:, 0]).max() == 0.0
+    assert np.allclose(-ref.position[:, 1], ref.position[:, 2])
+    assert ref.position[:, 1].max() < 1e-6 < -ref.position[:, 1].min()
+    assert np.linalg.norm(ref.position, axis=1).max() == pytest.approx(0.006, rel=1e-3)
+    assert np.linalg.norm(ref.position[0]) < 1e-6
+    held = ref.position[round((reach.START + reach.MOVE) / ref.dt) :]
+    assert np.allclose(np.linalg.norm(held, axis=1), 0.006, rtol=1e-3)
     tilt = np.arcsin(ref.axis[:, 1])
     assert tilt.max() == pytest.approx(0.2, rel=0.02)
+    # the pen starts at rest
+    assert np.abs(ref.omega[:15]).max() < 1e-3 * np.abs(ref.omega).max()
 
 
-def test_the_reach_is_the_largest_amplitude_before_the_first_failure(
+def test_the_scans_stop_at_the_first_tracked_amplitude_and_the_first_failing_seed(
     reach: ModuleType, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    # a fake hand: tracked up to 6 mm along y at its largest tilt (10 mm at less), never
-    # along z, always along x, except once at 10 mm: the scan stops there even though 12 mm
-    # would pass
-    asked: list[tuple[int, float]] = []
+    # a fake hand: it tilts 0.3 rad at 0.5 Hz, 0.25 at 1 Hz and 0.1 at 2 Hz (a rate of
+    # 2 pi 2 0.1 = 1.26 rad/s, below 2 pi 1 0.25); it carries the pen 12 mm along +x (not
+    # 14), 6 mm up at its full tilt (10 mm at less; at 8 mm its second seed fails), never
+    # along +z, 14 mm every other way; it sways the pen 5 mm along x at 1 Hz and 3 mm at
+    # 2 Hz (31 and 38 mm/s), 8 mm every other way
+    asked: list[tuple[str, int, int]] = []
+    seesaw_hz: dict[float, float] = {}
+    tilt_at = {0.5: 0.3, 1.0: 0.25, 2.0: 0.1}
 
     def probe(
-        hand: str, axis: int, amplitude: float, seed: int, tilt_share: float, disturbance: str
+        hand: str,
+        direction: str,
+        amplitude: float,
+        seed: int,
+        tilt: float,
+        hz: float,
+        disturbance: str,
+        sway: bool = False,
     ) -> dict[str, Any]:
-        assert disturbance == "nominal"
+        assert disturbance == reach.DISTURBANCE
         mm = round(1000 * amplitude)
-        if tilt_share == 1.0:
-            asked.append((axis, mm))
-        ok = {0: mm != 10, 1: mm <= (6 if tilt_share == 1.0 else 10), 2: False}[axis]
-        return {"held": True, "pos_rms_mm": 0.1, "rot_rms_deg": 0.1, "tracked": ok}
+        if sway:  # the speed scan: along x, 5 mm at 1 Hz and 3 mm at 2 Hz
+            ok = direction != "+x" or mm <= {1.0: 5, 2.0: 3}[hz]
+        elif mm == 0:  # the tilt scan
+            ok = tilt <= tilt_at[hz] + 1e-9
+        else:
+            share = round(tilt / 0.3, 6)
+            seesaw_hz[share] = hz
+            if share == 1.0:
+                asked.append((direction, mm, seed))
+            full = share == 1.0
+            ok = {
+                "+x": mm <= 12,
+                "+y": mm <= (6 if full else 10) or (full and mm == 8 and seed == 0),
+                "+z": False,
+            }.get(direction, True)
+        return {"held": True, "pos_rms_mm": 0.1, "rot_rms_deg": 0.1, "tracked": bool(ok)}
 
     monkeypatch.setattr(reach, "probe", probe)
     out = tmp_path / "reach.json"
     assert reach.main(["--hands", "ias4f", "--seeds", "2", "--out-json", str(out)]) == 0
     result = json.loads(out.read_text())
-    assert result["reach"]["ias4f"]["1.0"] == {"x_mm": 8.0, "y_mm": 6.0, "z_mm": 0.0}
-    assert result["reach"]["ias4f"]["0.25"] == {"x_mm": 8.0, "y_mm": 10.0, "z_mm": 0.0}
-    assert (0, 12) not in asked and (1, 8) in asked and (1, 10) not in asked
+    envelope = result["hands"]["ias4f"]
+    assert envelope["tilt_rad"] == pytest.approx(0.3)
+    assert envelope["tilt_rate_rad_s"] == pytest.approx(2 * math.pi * 2.0 * 0.1, abs=1e-4)
+    assert envelope["sway_by_hz_mm"]["1.0"] == {"x": 5.0, "y": 8.0, "z": 8.0}
+    assert envelope["speed_m_s"] == pytest.approx(2 * math.pi * 1.0 * 0.005, abs=1e-5)
+    full, quarter = envelope["reach"]["1.0"], envelope["reach"]["0.25"]
+    assert [full[f"{d}_mm"] for d in ("+x", "-x", "+y", "-y", "+z", "-y+z")] == [
+        12.0,
+        14.0,
+        6.0,
+        14.0,
+        0.0,
+        14.0,
+    ]
+    assert (quarter["+y_mm"], quarter["+x+y_mm"]) == (10.0, 14.0)
+    # down from 14 mm: +x stops at 12, +y's 8 mm stops at its failing seed
+    assert ("+x", 10, 0) not in asked and ("+y", 8, 1) in asked and ("+y", 8, 0) in asked
+    assert ("+y", 4, 0) not in asked
+    # the full tilt's see-saw is slowed to the tilt rate, a quarter of it is not
+    assert seesaw_hz[1.0] == pytest.approx(2.0 * 0.1 / 0.3)
+    assert seesaw_hz[0.25] == reach.SEESAW_HZ
     assert all(math.isfinite(p["pos_rms_mm"]) for p in result["probes"])
     # an existing output is refused before any probe runs
     asked.clear()
@@ -95,35 +146,30 @@ def test_the_reach_is_the_largest_amplitude_before_the_first_failure(
     assert asked == []
 
 
-def test_the_hands_carry_the_reach_their_probes_measured(reach: ModuleType) -> None:
+def test_the_hands_carry_the_envelope_their_probes_measured(reach: ModuleType) -> None:
     from ias_gym.sim import hands
 
     measured = json.loads((Path(__file__).parents[1] / "docs" / "hand_reach.json").read_text())
     assert tuple(measured["tilt_shares"]) == hands.REACH_TILT_SHARES == reach.TILT_SHARES
+    assert tuple(measured["directions"]) == hands.REACH_DIRECTIONS
     for name in hands.hand_names():
-        table = measured["reach"][name]
+        spec, envelope = hands.get_hand(name), measured["hands"][name]
+        assert spec.skill_tilt == pytest.approx(envelope["tilt_rad"], abs=1e-9)
+        assert spec.skill_tilt_rate == pytest.approx(envelope["tilt_rate_rad_s"], abs=1e-4)
         expected = tuple(
-            tuple(table[str(share)][f"{a}_mm"] / 1000.0 for a in "xyz")
+            tuple(envelope["reach"][str(share)][f"{d}_mm"] / 1000.0 for d in hands.REACH_DIRECTIONS)
             for share in hands.REACH_TILT_SHARES
         )
-        assert np.allclose(hands.get_hand(name).reach_by_tilt, expected, rtol=0, atol=1e-9)
+        assert np.allclose(spec.reach_by_tilt, expected, rtol=0, atol=1e-9)
 
 
-def test_a_transfer_scales_a_lift_into_the_reach_at_its_tilt() -> None:
-    from transfer_fixtures import synthetic_skill
-
-    from ias_gym.skills.transfer import HandWorkspace, transfer_reference
-
-    # 30 mm up and 6 mm along the pen, no turn: limited by the length, 12 mm at most (the
-    # largest reach at the least probed tilt), and by y
-    ws = HandWorkspace(
-        0.006, 0.3, axes=((0.01, 0.012, 0.01), (0.01, 0.008, 0.01), (0.01, 0.004, 0.01))
-    )
-    assert ws.limits(0.0) == ws.limits(0.075) == (0.01, 0.012, 0.01)
-    assert ws.limits(0.1) == (0.01, 0.008, 0.01) and ws.limits(0.3) == (0.01, 0.004, 0.01)
-    ref = transfer_reference(synthetic_skill(lift=0.03, tilt=0.0), workspace=ws)
-    assert ref.scale == pytest.approx(0.012 / (0.03 * math.hypot(1.0, 0.2)), rel=1e-6)
-    assert np.abs(ref.position[:, 1]).max() == pytest.approx(0.03 * ref.scale, rel=0.01)
-    # a turn beyond the probed tilts is held to the largest one's reach
-    tilted = transfer_reference(synthetic_skill(lift=0.03, tilt=0.5), workspace=ws)
-    assert tilted.scale_rotation < 1 and tilted.scale == pytest.approx(0.004 / 0.03, rel=1e-6)
+def test_the_fastest_rate_is_bound_only_by_scans_that_stopped_below_their_cap(
+    reach: ModuleType,
+) -> None:
+    two_pi = 2 * math.pi
+    # both scans stopped below the cap: the slower rate binds
+    assert reach.fastest([(1.0, 0.3), (2.0, 0.125)], 0.4) == pytest.approx(two_pi * 0.25)
+    # a scan that tracked its largest amplitude says nothing of the limit
+    assert reach.fastest([(1.0, 0.4), (2.0, 0.2)], 0.4) == pytest.approx(two_pi * 0.4)
+    # none stopped: the fastest shown is a lower bound
+    assert reach.fastest([(1.0, 0.4), (2.0, 0.4)], 0.4) == pytest.approx(two_pi * 0.8)

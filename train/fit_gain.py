@@ -55,8 +55,9 @@ from ias_gym.rates import Rate
 from ias_gym.robustness import DISTURBANCES, check_classes
 from ias_gym.runtime.jobs import Backend, run_jobs
 from ias_gym.skills import SkillDB
-from ias_gym.skills.transfer import hand_names, transfer_reference
+from ias_gym.skills.transfer import transfer_reference
 from ias_gym.skills.transfer_run import run_transfer, transfer_gains
+from ias_gym.skills.workspace import hand_names
 
 #: The gains this script can fit: the float fields of ``ControllerGains``.
 GAINS = tuple(f.name for f in dataclasses.fields(ControllerGains) if isinstance(f.default, float))

@@ -250,9 +250,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return write_table(args, merged_rows, parts[0]["db"], parts[0]["heldout"], **merged)
 
     from ias_gym.skills.db import SkillDB
-    from ias_gym.skills.transfer import hand_names, shipped_skill_db
+    from ias_gym.skills.transfer import shipped_skill_db
     from ias_gym.skills.transfer_plan import plan_transfer
     from ias_gym.skills.transfer_run import run_transfer
+    from ias_gym.skills.workspace import hand_names
 
     db_path = Path(args.db) if args.db else shipped_skill_db()
     hands = hand_names() if args.hands == "all" else args.hands.split(",")

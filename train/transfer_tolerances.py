@@ -57,7 +57,8 @@ def load_groups(db_path: Path) -> dict[tuple[str, str], list[Any]]:
     """Unscaled references of every successful glove session, by (person, skill class)."""
     from ias_gym.skills.db import SkillDB
     from ias_gym.skills.tolerance import POOLED, Tolerance
-    from ias_gym.skills.transfer import HandWorkspace, transfer_reference
+    from ias_gym.skills.transfer import transfer_reference
+    from ias_gym.skills.workspace import HandWorkspace
 
     unbounded = HandWorkspace(reach=math.inf, tilt=math.inf)
     placeholder = {POOLED: Tolerance(1.0, 1.0, 1.0)}  # what is being fitted

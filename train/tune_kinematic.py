@@ -39,8 +39,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     from ias_gym.baselines.kinematic import KinematicGains
     from ias_gym.outputs import check_output_file
-    from ias_gym.skills.transfer import hand_names, transfer_reference
+    from ias_gym.skills.transfer import transfer_reference
     from ias_gym.skills.transfer_run import run_transfer
+    from ias_gym.skills.workspace import hand_names
 
     out = None
     if args.out_json:

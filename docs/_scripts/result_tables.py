@@ -9,6 +9,7 @@ JSON in ``docs/``                      written by                          table
 =====================================  ==================================  =================
 ``transfer_results.json``              ``train/transfer_table.py``         ``transfer.md``,
                                                                            ``transfer_skills.md``
+``hand_reach.json``                    ``train/hand_reach.py``             ``hand_reach.md``
 ``recognition_results.json``           ``train/recognition_table.py``      ``recognition.md``
 ``assist_table_phase.json``,           ``train/assist_table.py``           ``assistance.md``
 ``assist_table_residual.json``
@@ -46,6 +47,7 @@ JSON in ``docs/``                      written by                          table
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -131,6 +133,51 @@ def transfer(result: Mapping[str, Any]) -> str:
         "`weak_*` are the executions the test must fail (nominal only).\n\n"
     )
     return intro + rows(header, body)
+
+
+HAND_NAMES = {"ias4f": "ias4f", "ias3f": "ias3f", "shadow": "Shadow", "leap": "LEAP"}
+"""The hands in the order and spelling of the docs' tables."""
+
+
+def hand_reach(result: Mapping[str, Any]) -> str:
+    """Per hand: its tilt and rate, then per tilt share the reach each way along each axis
+    and the least of each plane's four diagonals [mm]."""
+    directions = list(result["directions"])
+    body = []
+    for hand, name in HAND_NAMES.items():
+        envelope = result["hands"][hand]
+        tilt = math.degrees(envelope["tilt_rad"])
+        for share in result["tilt_shares"]:
+            reach = envelope["reach"][str(share)]
+            axes = [f"{reach[f'+{a}_mm']:.0f} / {reach[f'-{a}_mm']:.0f}" for a in "xyz"]
+            planes = [
+                min(reach[f"{d}_mm"] for d in directions if len(d) == 4 and d[1::2] == plane)
+                for plane in ("xy", "yz", "xz")
+            ]
+            first = share == result["tilt_shares"][0]
+            body.append(
+                [
+                    name if first else "",
+                    f"{tilt:.1f}" if first else "",
+                    f"{math.degrees(envelope['tilt_rate_rad_s']):.0f}" if first else "",
+                    f"{share * tilt:.1f}",
+                    *axes,
+                    *(f"{mm:.0f}" for mm in planes),
+                ]
+            )
+    header = [
+        "hand",
+        "tilt [deg]",
+        "rate [deg/s]",
+        "at tilt [deg]",
+        "x + / - [mm]",
+        "y + / -",
+        "z + / -",
+        "xy diagonals, least",
+        "yz",
+        "xz",
+    ]
+    return rows(header, body)
 
 
 def transfer_skills(result: Mapping[str, Any]) -> str:
@@ -703,6 +750,7 @@ def tables(docs: Path) -> dict[str, str]:
     return {
         "transfer.md": transfer(load("transfer_results.json")),
         "transfer_skills.md": transfer_skills(load("transfer_results.json")),
+        "hand_reach.md": hand_reach(load("hand_reach.json")),
         "recognition.md": recognition(load("recognition_results.json")),
         "assistance.md": assistance(
             load("assist_table_phase.json"), load("assist_table_residual.json")

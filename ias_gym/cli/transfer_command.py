@@ -43,18 +43,19 @@ def _duration(text: str) -> float:
 
 
 def _list_hands() -> int:
-    from ias_gym.skills.transfer import hand_names, hand_workspace
+    from ias_gym.skills.workspace import hand_names, hand_workspace
 
     for name in hand_names():
         ws = hand_workspace(name)
         carries = ", ".join(
-            f"{'/'.join(f'{1000 * v:.0f}' for v in ws.limits(share * ws.tilt))} mm at "
+            f"{'/'.join(f'{1000 * v:.0f}' for v in ws.limits(share * ws.tilt)[:6])} at "
             f"{math.degrees(share * ws.tilt):.1f} deg"
             for share in ws.tilt_shares
         )
         print(
-            f"{name}: tilts the pen up to {math.degrees(ws.tilt):.1f} deg; carries it x/y/z "
-            f"{carries}"
+            f"{name}: tilts the pen up to {math.degrees(ws.tilt):.1f} deg at up to "
+            f"{math.degrees(ws.tilt_rate):.0f} deg/s, moves it up to {1000 * ws.speed:.0f} mm/s; "
+            f"carries it +x/-x/+y/-y/+z/-z [mm] {carries} (diagonals too: HandSpec.reach_by_tilt)"
         )
     return 0
 
@@ -71,9 +72,10 @@ def _transfer(args: argparse.Namespace) -> int:
         raise InputError("skills transfer needs --id N (or --list-hands)")
     from ias_gym.outputs import check_output_file
     from ias_gym.skills.db import SkillDB, SkillNotFoundError
-    from ias_gym.skills.transfer import hand_names, shipped_skill_db
+    from ias_gym.skills.transfer import shipped_skill_db
     from ias_gym.skills.transfer_plan import plan_transfer
     from ias_gym.skills.transfer_run import METHODS, run_transfer
+    from ias_gym.skills.workspace import hand_names
 
     if args.method not in METHODS:
         raise InputError(f"unknown --method {args.method!r}; methods: {list(METHODS)}")

@@ -24,12 +24,12 @@ from ias_gym.outputs import check_output_file
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.transfer import (
     demonstrated_margin,
-    hand_names,
     shipped_skill_db,
     skill_start_index,
 )
 from ias_gym.skills.transfer_plan import plan_transfer
 from ias_gym.skills.transfer_run import TransferRun, run_transfer
+from ias_gym.skills.workspace import hand_names
 
 #: The skill the figure shows by default: p1's slow see-saw in the shipped library.
 DEFAULT_SKILL_ID = 2

@@ -31,8 +31,33 @@ from ias_gym.errors import InputError
 __all__ = ["DEFAULT_HAND", "HANDS", "HandSpec", "get_hand", "hand_names"]
 
 
-#: The see-saw amplitudes of ``HandSpec.reach_by_tilt``, as shares of ``max_tilt`` [-].
-REACH_TILT_SHARES = (0.25, 0.5, 1.0)
+#: The see-saw amplitudes of ``HandSpec.reach_by_tilt``, as shares of ``skill_tilt`` [-].
+REACH_TILT_SHARES = (0.25, 0.5, 0.75, 1.0)
+#: The planes of two axes (x 0, y 1, z 2) whose diagonals ``HandSpec.reach_by_tilt`` has.
+REACH_PLANES = ((0, 1), (1, 2), (0, 2))
+#: The directions of ``HandSpec.reach_by_tilt``: both ways along each axis of the pen's
+#: start frame (``+x``, ``-x``, ``+y``, ...), then the four diagonals of each of
+#: :data:`REACH_PLANES` (``+x+y``, ``+x-y``, ``-x+y``, ``-x-y``, ``+y+z``, ...).
+REACH_DIRECTIONS = tuple(f"{sign}{axis}" for axis in "xyz" for sign in "+-") + tuple(
+    f"{sa}{'xyz'[a]}{sb}{'xyz'[b]}" for a, b in REACH_PLANES for sa in "+-" for sb in "+-"
+)
+
+
+def reach_direction(name: str) -> tuple[float, float, float]:
+    """The unit vector of a name of :data:`REACH_DIRECTIONS` (``"-y+z"``: (0, -0.71, 0.71))."""
+    if name not in REACH_DIRECTIONS:
+        raise InputError(f"unknown reach direction {name!r}; known: {', '.join(REACH_DIRECTIONS)}")
+    vector = [0.0, 0.0, 0.0]
+    for sign, axis in zip(name[::2], name[1::2], strict=True):
+        vector["xyz".index(axis)] = 1.0 if sign == "+" else -1.0
+    norm = sum(v * v for v in vector) ** 0.5
+    return (vector[0] / norm, vector[1] / norm, vector[2] / norm)
+
+
+def _mm(*rows: tuple[float, ...]) -> tuple[tuple[float, ...], ...]:
+    """Rows of lengths in mm as metres (the reach tables, as ``docs/hand_reach.json`` has
+    them: one row per tilt share, one value per direction)."""
+    return tuple(tuple(v / 1000.0 for v in row) for row in rows)
 
 
 @dataclass(frozen=True)
@@ -55,11 +80,22 @@ class HandSpec:
             contacts (inverse kinematics within the joint ranges, no link touching the pen,
             on the pen's cylinder |x| <= 5 cm; scanned in 1 mm steps).
         max_tilt: the largest see-saw amplitude about the paper's z the Theorem-1 expert
-            tracks on this hand [rad] (measured, docs/DESIGN.md).
-        reach_by_tilt: how far the expert carries the pen's centre out and back along x
-            (the pen), y (up) and z (lateral) [m] while see-sawing it at
-            :data:`REACH_TILT_SHARES` of ``max_tilt``, one ``(x, y, z)`` per share (measured
-            by ``train/hand_reach.py``, ``docs/hand_reach.json``).
+            tracks on this hand at PenRotate's frequencies, up to 12 rad/s [rad] (measured,
+            docs/DESIGN.md).
+        skill_tilt: the largest see-saw amplitude the expert tracks at 0.5 Hz under 70 % of
+            the pen's friction [rad]: a transferred skill's largest tilt
+            (``train/hand_reach.py``, ``docs/hand_reach.json``).
+        skill_tilt_rate: the fastest turn of the pen's axis the expert tracks at 1 and 2 Hz
+            under 70 % of the pen's friction [rad/s]: a transferred skill's fastest.
+        skill_speed: the fastest the expert moves the pen's centre, swaying it along each
+            axis at 1 and 2 Hz under 70 % of the pen's friction [m/s]: a transferred
+            skill's fastest.
+        reach_by_tilt: how far the expert carries the pen's centre and holds it there [m],
+            along each of :data:`REACH_DIRECTIONS` (x along the pen, y up, z lateral, both
+            ways, and the diagonals between two axes), while see-sawing it at
+            :data:`REACH_TILT_SHARES` of ``skill_tilt``, under 70 % of the pen's friction:
+            one value per direction and share (measured by ``train/hand_reach.py``,
+            ``docs/hand_reach.json``).
         description: one line for listings.
     """
 
@@ -72,7 +108,10 @@ class HandSpec:
     reach: float
     contact_range: tuple[tuple[float, float], ...]
     max_tilt: float
-    reach_by_tilt: tuple[tuple[float, float, float], ...]
+    skill_tilt: float
+    skill_tilt_rate: float
+    skill_speed: float
+    reach_by_tilt: tuple[tuple[float, ...], ...]
     description: str
 
     def __post_init__(self) -> None:
@@ -81,8 +120,13 @@ class HandSpec:
             raise ValueError(
                 f"hand {self.name!r}: sides, contact_x and contact_range need one entry per finger"
             )
-        if len(self.reach_by_tilt) != len(REACH_TILT_SHARES):
-            raise ValueError(f"hand {self.name!r}: reach_by_tilt needs one (x, y, z) per share")
+        if len(self.reach_by_tilt) != len(REACH_TILT_SHARES) or any(
+            len(row) != len(REACH_DIRECTIONS) for row in self.reach_by_tilt
+        ):
+            raise ValueError(
+                f"hand {self.name!r}: reach_by_tilt needs one value per direction "
+                f"{REACH_DIRECTIONS} and tilt share {REACH_TILT_SHARES}"
+            )
         if not ({1.0, -1.0} <= set(self.sides) <= {1.0, -1.0}):
             raise ValueError(f"hand {self.name!r}: sides must be +1 or -1, on both sides")
 
@@ -113,7 +157,15 @@ HANDS: dict[str, HandSpec] = {
         contact_range=((-0.05, 0.012), (-0.05, 0.022), (-0.022, 0.05), (-0.012, 0.05)),
         # PenRotate's limit since v0 (docs/DESIGN.md, "Envelope of the 4-finger hand").
         max_tilt=0.35,
-        reach_by_tilt=((0.014, 0.014, 0.014), (0.014, 0.014, 0.014), (0.014, 0.004, 0.014)),
+        skill_tilt=0.375,
+        skill_tilt_rate=5.0265,
+        skill_speed=0.0754,
+        reach_by_tilt=_mm(
+            (14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14),
+            (14, 14, 14, 14, 12, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14),
+            (14, 14, 8, 8, 12, 12, 8, 10, 8, 10, 12, 12, 12, 12, 14, 14, 14, 14),
+            (6, 8, 2, 2, 10, 10, 2, 4, 4, 4, 2, 2, 4, 4, 14, 14, 14, 14),
+        ),
         description="four fingers, two above and two below the pen (the paper's skill example)",
     ),
     "ias3f": HandSpec(
@@ -127,7 +179,15 @@ HANDS: dict[str, HandSpec] = {
         contact_range=((-0.05, 0.014), (-0.049, 0.049), (-0.014, 0.05)),
         # 5 / 5 seeds succeed at A = 0.4 rad for w = 2..12 rad/s, not at 0.45 rad, 12 rad/s.
         max_tilt=0.4,
-        reach_by_tilt=((0.014, 0.014, 0.014), (0.014, 0.014, 0.014), (0.014, 0.008, 0.014)),
+        skill_tilt=0.4,
+        skill_tilt_rate=5.0265,
+        skill_speed=0.05027,
+        reach_by_tilt=_mm(
+            (14, 14, 14, 14, 10, 10, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14),
+            (14, 14, 14, 14, 10, 10, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14),
+            (14, 14, 14, 12, 10, 10, 12, 14, 12, 14, 12, 12, 14, 14, 14, 14, 12, 14),
+            (14, 14, 6, 10, 8, 8, 8, 12, 8, 10, 10, 10, 10, 10, 12, 12, 12, 12),
+        ),
         description="three fingers: two short ones above the pen, a long thumb below its centre",
     ),
     "shadow": HandSpec(
@@ -142,7 +202,15 @@ HANDS: dict[str, HandSpec] = {
         # 8 / 8 seeds at A = 0.15 rad for w = 2, 7, 12 rad/s; at 12 rad/s 0.2 rad loses 1 of
         # 6 (the contacts creep around the pen until the internal-force LP is infeasible).
         max_tilt=0.15,
-        reach_by_tilt=((0.008, 0.012, 0.006), (0.008, 0.012, 0.006), (0.006, 0.012, 0.006)),
+        skill_tilt=0.3,
+        skill_tilt_rate=1.7279,
+        skill_speed=0.04398,
+        reach_by_tilt=_mm(
+            (6, 8, 8, 10, 6, 6, 8, 8, 10, 6, 6, 6, 6, 14, 8, 8, 6, 8),
+            (6, 6, 6, 6, 4, 4, 8, 8, 10, 4, 4, 4, 4, 10, 6, 6, 4, 6),
+            (6, 4, 2, 4, 4, 2, 4, 6, 6, 4, 4, 2, 4, 4, 6, 2, 4, 2),
+            (2, 0, 0, 0, 4, 0, 2, 6, 0, 0, 4, 0, 2, 0, 2, 0, 2, 0),
+        ),
         description="the Shadow hand (Gymnasium-Robotics' model): first and little finger "
         "above the pen, the thumb below",
     ),
@@ -158,7 +226,15 @@ HANDS: dict[str, HandSpec] = {
         # 3 / 3 development seeds 100-102 at A = 0.075 rad for w = 2, 7, 12 rad/s (RMS tilt
         # error 3.5-3.8 % of A at 12 rad/s)
         max_tilt=0.075,
-        reach_by_tilt=((0.014, 0.014, 0.014), (0.014, 0.014, 0.014), (0.014, 0.014, 0.014)),
+        skill_tilt=0.4,
+        skill_tilt_rate=1.5708,
+        skill_speed=0.02513,
+        reach_by_tilt=_mm(
+            (14, 10, 14, 14, 10, 12, 12, 14, 12, 14, 14, 12, 10, 14, 14, 14, 14, 14),
+            (14, 8, 8, 14, 10, 10, 6, 14, 8, 14, 8, 8, 8, 14, 12, 12, 12, 10),
+            (8, 6, 4, 14, 10, 10, 4, 14, 6, 12, 6, 6, 10, 14, 10, 6, 10, 8),
+            (6, 8, 4, 14, 10, 10, 4, 14, 8, 14, 8, 6, 10, 14, 10, 6, 12, 10),
+        ),
         description="the LEAP hand (MuJoCo Playground's model): index and middle finger "
         "below the pen, the thumb on top",
     ),

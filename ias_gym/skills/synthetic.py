@@ -14,9 +14,10 @@ population's movements too) between random waypoints, every range the hand's or 
 human's, none a skill's:
 
 - waypoints of the pen centre uniform in the ball of the hand's reach, and of the axis'
-  tilt and turn uniform in the disc of the hand's largest tilt (:class:`HandWorkspace`, the
-  bounds every transferred skill is scaled into); each segment moves the centre, the axis
-  or both, or holds still;
+  tilt and turn uniform in the disc of the hand's largest tilt at PenRotate's rates
+  (``HandSpec.max_tilt``: a segment may turn the axis at up to 2.5 Hz, faster than a
+  transferred skill, whose workspace tilts further but slower); each segment moves the
+  centre, the axis or both, or holds still;
 - segment durations uniform in :data:`SEGMENT_DURATION`: a back-and-forth of two such
   segments is a 0.5-2.5 Hz oscillation, the band of voluntary hand motion (Brooks 1990,
   "Telerobotic response requirements": 1-2 Hz for unexpected signals, 2-5 Hz for learned
@@ -41,6 +42,7 @@ on; docs/results-learning.md has what they change.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 
@@ -48,7 +50,9 @@ import numpy as np
 
 from ias_gym.envs.skill_reference import SkillReference
 from ias_gym.errors import InputError
-from ias_gym.skills.transfer import FloatArray, HandWorkspace, hand_workspace, motion_reference
+from ias_gym.sim.hands import get_hand
+from ias_gym.skills.transfer import FloatArray, motion_reference
+from ias_gym.skills.workspace import HandWorkspace, hand_workspace
 
 #: The name of every synthetic skill.
 SYNTHETIC_NAME = "synthetic"
@@ -138,7 +142,7 @@ def synthetic_references(
             f"synthetic skills need a duration of >= 2 control periods, got {duration} s "
             f"at {control_dt} s"
         )
-    workspace = hand_workspace(hand)
+    workspace = dataclasses.replace(hand_workspace(hand), tilt=get_hand(hand).max_tilt)
     rng = np.random.default_rng(seed)
     grid = np.linspace(0.0, 1.0, samples)
     out = []

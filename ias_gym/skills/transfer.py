@@ -7,13 +7,12 @@ can reuse is not the glove's joint angles but
 - the object's motion **relative to its grasp frame**: the pen's displacement from its pose
   at the skill's own start (the instant the grasp is established), expressed in a frame
   that keeps gravity vertical and turns the pen's initial heading onto the hand's x axis;
-- scaled into the target hand's **workspace** (:class:`HandWorkspace`): rotations by
-  ``scale_rotation = min(1, largest tilt / largest rotation)``, translations by one
-  ``scale`` that keeps every axis within how far the hand carries the pen along it at that
-  rotation (:meth:`HandWorkspace.translation_scale`), and never above ``scale_rotation``
-  (the pivot of a turn stays where the person's was). Two scales, not one: a hand geometrically
-  similar to the person's but k times smaller moves the object k times less far but
-  through the same angles, so angles are left alone unless the hand cannot reach them;
+- scaled into the target hand's **workspace** (:class:`HandWorkspace`, measured per hand):
+  the rotation by ``scale_rotation`` (its largest turn within the hand's tilt, its fastest
+  within the hand's tilt rate), the translation by one ``scale`` (within the reach at that
+  tilt along every axis and diagonal, within the hand's speed, and never above
+  ``scale_rotation``: a turn keeps the person's pivot). Two scales, not one: a hand k times
+  smaller than the person's moves the object k times less far through the same angles;
 - resampled to the env's control period and differentiated by a Savitzky-Golay filter
   (scipy; the glove's noise would otherwise dominate the second differences);
 - with the **external wrench** it implies, ``w = [m a - m g; I alpha + omega x I omega]``
@@ -38,7 +37,6 @@ from __future__ import annotations
 import importlib.resources
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -52,13 +50,17 @@ from ias_gym.errors import (
     SkillTransferError,
 )
 from ias_gym.grasp.grasp_margin import margin_series
-from ias_gym.sim import hands
 from ias_gym.sim.pen import rpy_to_matrix
 from ias_gym.sim.scene_constants import glove_pad_friction
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.glove_session import motion_window
 from ias_gym.skills.skill import Skill
 from ias_gym.skills.tolerance import Tolerance, skill_tolerance
+from ias_gym.skills.workspace import (
+    HandWorkspace,
+    hand_workspace,
+    workspace_scales,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -70,77 +72,6 @@ MARGIN_RANGE = (1.0, 10.0)
 #: Savitzky-Golay filter of the resampled trajectory: window [samples] and polynomial order.
 SMOOTH_WINDOW = 11
 SMOOTH_ORDER = 3
-
-
-@dataclass(frozen=True)
-class HandWorkspace:
-    """The part of a hand's workspace a transferred skill is scaled into.
-
-    Attributes:
-        reach: how far the hand moves the held pen's centre in any direction [m]: the ball
-            of synthetic motions (:mod:`ias_gym.skills.synthetic`), and of a transfer
-            where ``axes`` is None.
-        tilt: the largest rotation of the pen's axis the expert handles [rad].
-        axes: how far the expert carries the pen's centre along x (the pen's heading), y
-            (up) and z (lateral) [m] while tilting it by up to each of ``tilt_shares`` of
-            ``tilt`` (``HandSpec.reach_by_tilt``); None: ``reach`` along every axis.
-        tilt_shares: the tilts of ``axes``, as shares of ``tilt`` [-], increasing.
-    """
-
-    reach: float
-    tilt: float
-    axes: tuple[tuple[float, float, float], ...] | None = None
-    tilt_shares: tuple[float, ...] = hands.REACH_TILT_SHARES
-
-    def limits(self, turn: float = math.inf) -> tuple[float, float, float]:
-        """The largest excursion of the pen's centre per axis (x, y, z) [m] for a motion
-        that turns the pen's axis by at most ``turn`` [rad]: measured at the least probed
-        tilt not below it (the reach shrinks as the tilt grows)."""
-        if self.axes is None:
-            return (self.reach, self.reach, self.reach)
-        for share, axes in zip(self.tilt_shares, self.axes, strict=True):
-            if turn <= share * self.tilt * (1 + 1e-9):
-                return axes
-        return self.axes[-1]
-
-    def translation_scale(self, displacement: FloatArray, turn: float = math.inf) -> float:
-        """The one scale that keeps a ``(T, 3)`` displacement [m] within every axis' limit
-        (:meth:`limits` at the motion's ``turn``) and its length within the largest:
-        ``min(1, limit_a / max |d_a|, max limit / max |d|)``. One scale for the three axes
-        keeps the motion's direction."""
-        limits = self.limits(turn)
-        peaks = np.max(np.abs(displacement), axis=0)
-        ratios = [limit / peak for limit, peak in zip(limits, peaks, strict=True) if peak > 0]
-        length = float(np.max(np.linalg.norm(displacement, axis=1)))
-        if length > 0:
-            ratios.append(max(limits) / length)
-        return float(min([1.0, *ratios]))
-
-
-#: Synthetic motions stay in a ball of this fraction of the tips' reach along the pen
-#: (measured with the pen at rest; the tips must still hold the pen at the far end of a
-#: translation, tilted).
-TRANSLATION_SHARE = 0.3
-
-
-def hand_names() -> list[str]:
-    """The robot hands a skill can be transferred to (:data:`ias_gym.sim.hands.HANDS`)."""
-    return list(hands.hand_names())
-
-
-def hand_workspace(hand: str) -> HandWorkspace:
-    """The workspace of a hand, from its ``HandSpec``: the pen centre moves along each axis
-    as far as the expert carries it at the motion's tilt (``reach_by_tilt``; synthetic
-    motions stay in a ball of :data:`TRANSLATION_SHARE` of the tips' reach), its axis turns
-    up to the largest tilt the expert tracks.
-
-    Raises:
-        InputError: an unknown hand (the message lists the known ones).
-    """
-    spec = hands.get_hand(hand)
-    return HandWorkspace(
-        reach=TRANSLATION_SHARE * spec.reach, tilt=spec.max_tilt, axes=spec.reach_by_tilt
-    )
 
 
 def skill_start_index(skill: Skill) -> int:
@@ -319,11 +250,22 @@ def transfer_reference(
 
     displacement, turns = skill_motion(skill)
     largest_turn = float(np.max(np.hypot(turns[:, 0], turns[:, 1])))
-    scale_rot = min(1.0, ws.tilt / largest_turn) if largest_turn > 0 else 1.0
-    # never more translation than rotation: with both scaled by k, a turn about a pivot
-    # stays one about the same pivot (small angles); a larger translation scale would move
-    # the pivot out
-    scale = min(ws.translation_scale(displacement, scale_rot * largest_turn), scale_rot)
+    _, turn_rates, _ = _derivatives(resample(turns), control_dt)
+    largest_rate = float(np.max(np.hypot(turn_rates[:, 0], turn_rates[:, 1])))
+    _, velocity, _ = _derivatives(resample(displacement), control_dt)
+    fastest = float(np.max(np.linalg.norm(velocity, axis=1)))
+    scale_rot = min(
+        1.0,
+        ws.tilt / largest_turn if largest_turn > 0 else 1.0,
+        ws.tilt_rate / largest_rate if largest_rate > 0 else 1.0,
+    )
+    speed_scale = min(1.0, ws.speed / fastest) if fastest > 0 else 1.0
+    scale, scale_rot = workspace_scales(ws, displacement, largest_turn, scale_rot, speed_scale)
+    if scale <= 0 and np.any(displacement):
+        raise SkillTransferError(
+            f"skill {skill.id} ({skill.name}): hand {hand} carries the pen nowhere along its "
+            "motion at any tilt it was probed at"
+        )
 
     position = scale * resample(displacement)
     angles = scale_rot * resample(turns)

@@ -61,13 +61,12 @@ from ias_gym.skills.tolerance import (
     still_reference,
 )
 from ias_gym.skills.transfer import (
-    HandWorkspace,
     demonstration_friction,
-    hand_workspace,
     skill_motion,
     skill_start_index,
     transfer_reference,
 )
+from ias_gym.skills.workspace import HandWorkspace, hand_workspace
 
 #: A glove session's contacts, in its skill model's order: the index on the pen's top side,
 #: the thumb below it (:mod:`ias_gym.skills.glove_session`).
@@ -267,8 +266,9 @@ def plan_transfer(
         ws = hand_workspace(hand)
         turn = reference.scale_rotation * float(np.max(np.hypot(angles[:, 0], angles[:, 1])))
         refused = (
-            f"hand {hand} tilts the pen {math.degrees(ws.tilt):.1f} deg at most and carries it "
-            f"{_mm(ws.limits(turn))} mm along x/y/z at this tilt: {skill.name} skill "
+            f"hand {hand} tilts the pen {math.degrees(ws.tilt):.1f} deg and "
+            f"{math.degrees(ws.tilt_rate):.0f} deg/s at most and carries it "
+            f"{_mm(ws.limits(turn))} mm along {_directions(ws)} at this tilt: {skill.name} skill "
             f"{skill.id} scaled into it "
             f"(translation x{reference.scale:.2f}, rotation x{reference.scale_rotation:.2f}) "
             f"is within its person's own repeatability of a still pen "
@@ -298,6 +298,11 @@ def plan_transfer(
         too_small=too_small,
         reference=reference,
     )
+
+
+def _directions(ws: HandWorkspace) -> str:
+    """``x/y/z`` or ``x/y/z/xy/yz/xz``: the directions of ``ws.limits``."""
+    return "/".join(hands.REACH_DIRECTIONS[: len(ws.limits())])
 
 
 def _mm(values: tuple[float, ...]) -> str:
