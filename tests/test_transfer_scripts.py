@@ -173,3 +173,29 @@ def test_the_fastest_rate_is_bound_only_by_scans_that_stopped_below_their_cap(
     assert reach.fastest([(1.0, 0.4), (2.0, 0.2)], 0.4) == pytest.approx(two_pi * 0.4)
     # none stopped: the fastest shown is a lower bound
     assert reach.fastest([(1.0, 0.4), (2.0, 0.4)], 0.4) == pytest.approx(two_pi * 0.8)
+
+
+def test_the_persons_rates_are_their_skills_peaks_in_mm_and_rad_per_s(tmp_path: Path) -> None:
+    from transfer_fixtures import synthetic_skill
+
+    from ias_gym.skills.db import SkillDB
+
+    rates = load_train_script("skill_rates")
+    db_path = tmp_path / "skills.db"
+    with SkillDB(db_path) as db:
+        # 20 mm up and 4 mm along the pen over a smoothstep second: a peak speed of 1.5 x
+        # 20.4 mm/s; a tilt and back of 0.15 rad
+        db.add(synthetic_skill(lift=0.02, tilt=0.15, name="lift_hold"))
+        db.add(synthetic_skill(lift=0.0, tilt=0.0, name="tilt_left", success=False))
+    out = tmp_path / "rates.json"
+    assert rates.main(["--db", str(db_path), "--out-json", str(out)]) == 0
+    classes = json.loads(out.read_text())["classes"]
+    assert set(classes) == {"lift_hold"}  # a failed session is not counted
+    lift = classes["lift_hold"]
+    assert lift["sessions"] == 1
+    assert lift["speed_mm_s_median"] == pytest.approx(
+        1.5 * 1000 * math.hypot(0.02, 0.004), rel=0.05
+    )
+    assert 0.1 < lift["turn_rate_rad_s_max"] < 2.0
+    with pytest.raises(OutputExistsError):
+        rates.main(["--db", str(db_path), "--out-json", str(out)])

@@ -47,16 +47,11 @@ def _list_hands() -> int:
 
     for name in hand_names():
         ws = hand_workspace(name)
-        carries = ", ".join(
-            f"{'/'.join(f'{1000 * v:.0f}' for v in ws.limits(share * ws.tilt)[:6])} at "
-            f"{math.degrees(share * ws.tilt):.1f} deg"
+        reach = "; ".join(
+            f"at {math.degrees(share * ws.tilt):.1f} deg it {ws.describe_reach(share * ws.tilt)}"
             for share in ws.tilt_shares
         )
-        print(
-            f"{name}: tilts the pen up to {math.degrees(ws.tilt):.1f} deg at up to "
-            f"{math.degrees(ws.tilt_rate):.0f} deg/s, moves it up to {1000 * ws.speed:.0f} mm/s; "
-            f"carries it +x/-x/+y/-y/+z/-z [mm] {carries} (diagonals too: HandSpec.reach_by_tilt)"
-        )
+        print(f"{name}: {ws.describe_motion()}; {reach} (diagonals: HandSpec.reach_by_tilt)")
     return 0
 
 

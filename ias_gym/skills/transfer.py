@@ -254,13 +254,7 @@ def transfer_reference(
     largest_rate = float(np.max(np.hypot(turn_rates[:, 0], turn_rates[:, 1])))
     _, velocity, _ = _derivatives(resample(displacement), control_dt)
     fastest = float(np.max(np.linalg.norm(velocity, axis=1)))
-    scale_rot = min(
-        1.0,
-        ws.tilt / largest_turn if largest_turn > 0 else 1.0,
-        ws.tilt_rate / largest_rate if largest_rate > 0 else 1.0,
-    )
-    speed_scale = min(1.0, ws.speed / fastest) if fastest > 0 else 1.0
-    scale, scale_rot = workspace_scales(ws, displacement, largest_turn, scale_rot, speed_scale)
+    scale, scale_rot = workspace_scales(ws, displacement, largest_turn, largest_rate, fastest)
     if scale <= 0 and np.any(displacement):
         raise SkillTransferError(
             f"skill {skill.id} ({skill.name}): hand {hand} carries the pen nowhere along its "

@@ -266,9 +266,8 @@ def plan_transfer(
         ws = hand_workspace(hand)
         turn = reference.scale_rotation * float(np.max(np.hypot(angles[:, 0], angles[:, 1])))
         refused = (
-            f"hand {hand} tilts the pen {math.degrees(ws.tilt):.1f} deg and "
-            f"{math.degrees(ws.tilt_rate):.0f} deg/s at most and carries it "
-            f"{_mm(ws.limits(turn))} mm along {_directions(ws)} at this tilt: {skill.name} skill "
+            f"hand {hand} {ws.describe_motion()} and {ws.describe_reach(turn)} at this tilt: "
+            f"{skill.name} skill "
             f"{skill.id} scaled into it "
             f"(translation x{reference.scale:.2f}, rotation x{reference.scale_rotation:.2f}) "
             f"is within its person's own repeatability of a still pen "
@@ -298,16 +297,6 @@ def plan_transfer(
         too_small=too_small,
         reference=reference,
     )
-
-
-def _directions(ws: HandWorkspace) -> str:
-    """``x/y/z`` or ``x/y/z/xy/yz/xz``: the directions of ``ws.limits``."""
-    return "/".join(hands.REACH_DIRECTIONS[: len(ws.limits())])
-
-
-def _mm(values: tuple[float, ...]) -> str:
-    """``6/14/10``: lengths in m as whole mm, one per axis."""
-    return "/".join(f"{1000 * v:.0f}" for v in values)
 
 
 def _contact_margins(skill: Skill, window: slice) -> np.ndarray:

@@ -66,6 +66,22 @@ class HandWorkspace:
                 return axes
         return self.axes[-1]
 
+    def describe_motion(self) -> str:
+        """The tilt, its rate and the speed for people: ``tilts the pen up to 22.9 deg at up
+        to 90 deg/s, moves it up to 25 mm/s``."""
+        rate = math.degrees(self.tilt_rate)
+        text = f"tilts the pen up to {math.degrees(self.tilt):.1f} deg"
+        text += f" at up to {rate:.0f} deg/s" if math.isfinite(rate) else ""
+        speed = 1000 * self.speed
+        return text + (f", moves it up to {speed:.0f} mm/s" if math.isfinite(speed) else "")
+
+    def describe_reach(self, turn: float = math.inf) -> str:
+        """The reach each way along the axes at ``turn`` [rad] for people (the diagonals are
+        in ``axes``): ``carries it +x/-x/+y/-y/+z/-z 14/10/14/14/10/12 mm``."""
+        limits = self.limits(turn)
+        names = "x/y/z" if len(limits) == 3 else "/".join(hands.REACH_DIRECTIONS[:6])
+        return f"carries it {names} {'/'.join(f'{1000 * v:.0f}' for v in limits[:6])} mm"
+
     def translation_scale(self, displacement: FloatArray, turn: float = math.inf) -> float:
         """The one scale that keeps a ``(T, 3)`` displacement [m] within the reach
         (:meth:`limits` at the motion's ``turn``): its excursion each way along each axis
@@ -143,18 +159,28 @@ def workspace_scales(
     ws: HandWorkspace,
     displacement: FloatArray,
     largest_turn: float,
-    scale_rot: float,
-    speed_scale: float = 1.0,
+    largest_rate: float = 0.0,
+    fastest: float = 0.0,
 ) -> tuple[float, float]:
-    """The translation and rotation scales of a motion (module docstring): the rotation at
-    most ``scale_rot``, the translation within the reach at the scaled tilt, at most
-    ``speed_scale`` (the hand's speed over the motion's fastest) and never above the
-    rotation's scale (with both scaled by k, a turn about a pivot stays one about the
-    same pivot; a larger translation scale would move the pivot out). As the reach shrinks
-    with the tilt, a tilt held down to a probed one below may let the hand carry more of
-    the translation: of these choices the one that keeps most of the motion, the largest
-    product of the two scales (then the largest rotation), is taken.
+    """The translation and rotation scales of a motion (module docstring) that moves the
+    pen's centre by ``displacement`` ``(T, 3)`` [m] at up to ``fastest`` [m/s] and turns its
+    axis by up to ``largest_turn`` [rad] at up to ``largest_rate`` [rad/s].
+
+    The rotation keeps the turn within the hand's tilt and its rate within the tilt rate;
+    the translation keeps the motion within the reach at the scaled tilt and its speed
+    within the hand's, and is never above the rotation's scale (with both scaled by k, a
+    turn about a pivot stays one about the same pivot; a larger translation scale would
+    move the pivot out). As the reach shrinks with the tilt, a tilt held down to a probed
+    one below may let the hand carry more of the translation: of these choices the one that
+    keeps most of the motion, the largest product of the two scales (then the largest
+    rotation), is taken.
     """
+
+    def within(limit: float, value: float) -> float:
+        return min(1.0, limit / value) if value > 0 else 1.0
+
+    scale_rot = min(within(ws.tilt, largest_turn), within(ws.tilt_rate, largest_rate))
+    speed_scale = within(ws.speed, fastest)
     candidates = [scale_rot]
     if largest_turn > 0:
         candidates += [
