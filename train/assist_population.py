@@ -27,6 +27,7 @@ from ias_gym.envs.glove_assist import OBSERVATION_PARTS
 from ias_gym.envs.layout import observation_layout
 from ias_gym.glove.impairment_spec import expand_specs
 from ias_gym.glove.impairments import reference_kwargs
+from ias_gym.glove.operator import OPERATORS
 from ias_gym.glove.population import population_ids
 from ias_gym.outputs import atomic_output, check_output_file
 from ias_gym.rates import SET_KINDS, Rate
@@ -46,6 +47,7 @@ class PersonJob:
     skills: tuple[str, ...]
     db: str | None
     reset_seed: int
+    operator: str = "closed_loop"
 
     def __call__(self, person: str) -> list[tuple[str, str, str | None, bool | None]]:
         layout = observation_layout(OBSERVATION_PARTS)
@@ -57,11 +59,19 @@ class PersonJob:
         rows: list[tuple[str, str, str | None, bool | None]] = []
         for spec in self.specs:
             for skill in self.skills:
-                env = gym.make("IAS-GloveAssist-v0", person_id=person, skill=skill, impairment=spec)
+                env = gym.make(
+                    "IAS-GloveAssist-v0",
+                    person_id=person,
+                    skill=skill,
+                    impairment=spec,
+                    operator=self.operator,
+                )
                 same = reference_kwargs(env.unwrapped.impairment)  # type: ignore[attr-defined]
                 key = (skill, repr(same))
                 if key not in references:
-                    references[key] = reference_session(person, skill, self.reset_seed, **same)
+                    references[key] = reference_session(
+                        person, skill, self.reset_seed, **same, operator=self.operator
+                    )
                 ref = references[key]
                 if ref is None:
                     rows.append((spec, skill, None, None))
@@ -90,6 +100,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--impairment", action="append", help="spec, repeatable")
     ap.add_argument("--reset-seed", type=int, default=0, help="reset seed of every session")
+    ap.add_argument(
+        "--operator",
+        choices=OPERATORS,
+        default="closed_loop",
+        help="the simulated person: in the loop, or the open script",
+    )
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes")
     ap.add_argument("--out", required=True, help="JSON file written")
     ap.add_argument("--overwrite", action="store_true", help="replace an existing --out")
@@ -102,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     persons = population_ids(args.persons, args.seed)
     skills = sorted(load_motions(args.db))  # the skills with a motion of their own
     rows = run_jobs(
-        PersonJob(tuple(specs), tuple(skills), args.db, args.reset_seed),
+        PersonJob(tuple(specs), tuple(skills), args.db, args.reset_seed, args.operator),
         persons,
         Backend.from_options(args.workers),
         desc="persons",
@@ -123,6 +139,7 @@ def main(argv: list[str] | None = None) -> int:
         "persons": args.persons,
         "population_seed": args.seed,
         "library": Path(args.db).name if args.db else "shipped",
+        "operator": args.operator,
         "skills": skills,
         "by_impairment": {
             spec: {

@@ -20,6 +20,7 @@ from tqdm import tqdm
 from ias_gym.assist.skill_templates import load_templates
 from ias_gym.errors import InputError
 from ias_gym.glove.impairments import IMPAIRMENTS
+from ias_gym.glove.operator import OPERATORS
 from ias_gym.glove.population import population_ids
 from ias_gym.learning.assist_residual import ResidualAssistEnv
 from ias_gym.outputs import atomic_output, check_output_file
@@ -59,6 +60,12 @@ def main(argv: list[str] | None = None) -> int:
         help="PPO's (3e-4 let the residual's mean drift: worse than the analytic assistant)",
     )
     parser.add_argument("--n-steps", type=int, default=400, help="PPO rollout length")
+    parser.add_argument(
+        "--operator",
+        choices=OPERATORS,
+        default="closed_loop",
+        help="the simulated person: in the loop, or the open script",
+    )
     parser.add_argument("--out", default="out/assist_residual.zip")
     parser.add_argument("--overwrite", action="store_true")
     args = parser.parse_args(argv)
@@ -68,7 +75,9 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    env = ResidualAssistEnv(load_templates(args.db), persons, list(IMPAIRMENTS))
+    env = ResidualAssistEnv(
+        load_templates(args.db), persons, list(IMPAIRMENTS), operator=args.operator
+    )
     model = PPO(
         "MlpPolicy",
         env,

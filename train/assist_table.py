@@ -14,6 +14,8 @@ errors, whether and when the pen was lost; ``ias_gym.assist.sessions.session_rec
     PYTHONPATH=$PWD python train/assist_table.py --db out/library.db --recogniser phase \
         --persons 30 --population-seed S --set held-out --out out/table_phase
 
+``--operator script`` runs the open-loop script instead of the person in the loop.
+
 The analytic assistant reads the env's state (docs/assistance.md), not only its observation:
 it is a reference of what such help can do, not an assistant of the hardware path.
 """
@@ -35,6 +37,7 @@ from ias_gym.assist.assistants import AnalyticAssistant
 from ias_gym.assist.skill_templates import load_templates
 from ias_gym.errors import InputError
 from ias_gym.glove.impairments import DEFAULT_STRENGTHS, IMPAIRMENTS
+from ias_gym.glove.operator import OPERATORS
 from ias_gym.glove.population import population_ids
 from ias_gym.glove.skills import SKILLS
 from ias_gym.outputs import atomic_output
@@ -76,6 +79,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--strength", type=float, default=None, help="override (one impairment)")
     parser.add_argument("--switch-time", type=float, default=2.2, help="episode time [s]")
     parser.add_argument(
+        "--operator",
+        choices=OPERATORS,
+        default="closed_loop",
+        help="the simulated person: in the loop, or the open script",
+    )
+    parser.add_argument(
         "--out", default="out/assist_table", help="writes OUT.md, OUT.json, OUT.sessions.json"
     )
     parser.add_argument("--overwrite", action="store_true")
@@ -116,6 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         "persons": persons,
         "skills": list(SKILLS),
         "seed": args.seed,
+        "operator": args.operator,
     }
     sessions: dict[str, Any] = {}
     total = len(assistants) * len(imps) * len(persons) * len(SKILLS)
@@ -129,12 +139,15 @@ def main(argv: list[str] | None = None) -> int:
                 args.seed,
                 progress=lambda: bar.update(1),
                 env_kwargs=None if args.strength is None else {"strength": args.strength},
+                operator=args.operator,
             )
             results[name] = {k: v.to_json() for k, v in scores.items()}
             sessions[name] = {k: v.records for k, v in scores.items()}
     latency: dict[str, Any] = {}
     for name, make in assistants.items():
-        values = switch_latency(make, persons, SWITCH_PAIRS, args.switch_time, args.seed)
+        values = switch_latency(
+            make, persons, SWITCH_PAIRS, args.switch_time, args.seed, args.operator
+        )
         finite = [v for v in values if math.isfinite(v)]
         latency[name] = {
             "median_s": float(np.median(finite)) if finite else None,

@@ -267,6 +267,13 @@ def recognition(result: Mapping[str, Any]) -> str:
     )
 
 
+#: How a table names the simulated person it was measured with (the JSON's ``operator``).
+OPERATOR_NAMES = {
+    "closed_loop": 'the person in the loop (`operator="closed_loop"`)',
+    "script": 'the open-loop script (`operator="script"`)',
+}
+
+
 def assist_population(result: Mapping[str, Any]) -> str:
     """The observation assistant on population persons: success [95 % interval] per
     impairment spec, unassisted, assisted and without skill knowledge."""
@@ -283,7 +290,8 @@ def assist_population(result: Mapping[str, Any]) -> str:
     intro = (
         f"{result['persons']} persons of population seed {result['population_seed']} "
         f"(**{result['set']}**), the skills with a motion of their own "
-        f"({', '.join(result['skills'])}), reset seed 0, library `{library}`; success [95 % "
+        f"({', '.join(result['skills'])}), reset seed 0, library `{library}`, "
+        f"{OPERATOR_NAMES[result['operator']]}; success [95 % "
         "interval] (successes/sessions judged), and the sessions left out for want of a "
         "reference.\n\n"
     )
@@ -307,8 +315,9 @@ def assistance(phase: Mapping[str, Any], residual: Mapping[str, Any]) -> str:
     """The analytic assistant with the phase recogniser and the learned residual on it (on
     the true intent) on population persons: success [95 % interval] unassisted and assisted,
     the intervention in brackets, per impairment."""
-    if (phase["population"], phase["seed"]) != (residual["population"], residual["seed"]):
-        raise ValueError("the two assistance tables are of different persons or seeds")
+    same = ("population", "seed", "operator")
+    if [phase[k] for k in same] != [residual[k] for k in same]:
+        raise ValueError("the two assistance tables are of different persons, seeds or operators")
     body = []
     for impairment, row in phase["analytic+phase"].items():
         other = residual["residual"][impairment]
@@ -341,7 +350,8 @@ def assistance(phase: Mapping[str, Any], residual: Mapping[str, Any]) -> str:
     intro = (
         f"{n} persons of population seed {seed} (**{phase['set']}**) x "
         f"{len(phase['skills'])} skills, each impairment once per person and skill (reset "
-        f"seeds {phase['seed']}-{phase['seed'] + len(phase['skills']) - 1}); success [95 % "
+        f"seeds {phase['seed']}-{phase['seed'] + len(phase['skills']) - 1}), "
+        f"{OPERATOR_NAMES[phase['operator']]}; success [95 % "
         "interval] (successes/sessions judged), the intervention in brackets, and the "
         "sessions left out for want of a reference.\n\n"
     )

@@ -127,6 +127,7 @@ def evaluate_assistance(
     skills: tuple[str, ...] | None = None,
     progress: Any = None,
     env_kwargs: dict[str, Any] | None = None,
+    operator: str = "closed_loop",
 ) -> dict[str, ImpairmentScore]:
     """Success with and without an assistant per impairment (:mod:`ias_gym.assist.sessions`).
 
@@ -145,7 +146,9 @@ def evaluate_assistance(
         seed: the first reset seed.
         skills: the skills to cycle through (default all six glove skills).
         progress: called with no argument after every session pair (e.g. a bar's update).
-        env_kwargs: further ``gym.make`` kwargs (e.g. ``strength``).
+        env_kwargs: further ``gym.make`` kwargs of the impaired sessions (e.g. ``strength``).
+        operator: the simulated person, of every session and reference: ``"closed_loop"``
+            or the open ``"script"``.
 
     Returns:
         ``{impairment: ImpairmentScore}``.
@@ -153,7 +156,7 @@ def evaluate_assistance(
     from ias_gym.glove.skills import SKILLS
 
     skills = skills or SKILLS
-    extra = dict(env_kwargs or {})
+    extra = {**(env_kwargs or {}), "operator": operator}
     references: dict[tuple[str, str, int, str], SessionResult | None] = {}
     out = {}
     for imp in impairments:
@@ -170,7 +173,7 @@ def evaluate_assistance(
                 same = reference_kwargs(drawn)  # ``sampled``: the drawn family's
                 key = (person, skill, s, repr(same))
                 if key not in references:
-                    references[key] = reference_session(person, skill, s, **same)
+                    references[key] = reference_session(person, skill, s, **same, operator=operator)
                 ref = references[key]
                 record: dict[str, Any] = {
                     "person": person,
@@ -213,9 +216,10 @@ def switch_latency(
     pairs: list[tuple[str, str]],
     switch_time: float,
     seed: int,
+    operator: str = "closed_loop",
 ) -> list[float]:
     """Intent-switch latencies [s] (:mod:`ias_gym.assist.sessions`) of an assistant, one per
-    person and (from, to) skill pair, with the unimpaired operator switching at
+    person and (from, to) skill pair, with the unimpaired ``operator`` switching at
     ``switch_time`` [s]."""
     out = []
     for person in persons:
@@ -226,6 +230,7 @@ def switch_latency(
                 skill=a,
                 switch_to=b,
                 switch_time=switch_time,
+                operator=operator,
             )
             out.append(run_session(env, make_assistant(), seed).switch_latency_s)
             env.close()

@@ -9,8 +9,8 @@ skill's motion, time to recognise, false triggers and the unknown-skill AUROC
 assistant per operator impairment; with ``--json`` the last line is one object with the
 recognition keys (the recogniser the assistant uses, :data:`ASSIST_METHOD`, on the same
 persons; null when they are in the library) and ``by_impairment``: impairment ->
-``success_unassisted``, ``success_assisted``, ``intervention``. ``assist demo`` writes a
-video of an assisted session beside the same session unassisted.
+``success_unassisted``, ``success_assisted``, ``intervention``. ``assist demo``:
+:mod:`ias_gym.cli.assist_demo`.
 """
 
 from __future__ import annotations
@@ -22,6 +22,13 @@ from pathlib import Path
 from typing import Any
 
 from ias_gym.cli.args import HelpFormatter, episode_arguments, int_at_least, non_negative_int
+from ias_gym.cli.assist_demo import (
+    ASSIST_METHOD,
+    add_assist_demo,
+    add_assistant_argument,
+    add_operator_argument,
+    assistant_factory,
+)
 from ias_gym.errors import InputError
 
 #: The recognition keys of ``assist recognise --json`` (per method).
@@ -32,9 +39,6 @@ RECOGNITION_KEYS = (
     "false_trigger_rate",
     "unknown_auroc",
 )
-#: The recogniser the assistant uses in ``assist evaluate`` (the better one on the
-#: recognition table).
-ASSIST_METHOD = "phase"
 
 
 def _recognise(args: argparse.Namespace) -> int:
@@ -191,48 +195,6 @@ def _recognition_metrics(db: Path, persons: list[str], episodes: int, seed: int)
     return {k: result.get(k) for k in RECOGNITION_KEYS}
 
 
-def _recogniser_factory(method: str, db: Path | None) -> Any:
-    """``() -> recogniser`` for the assistant: ``oracle`` (None: the assistant's oracle on
-    the env's true intent) or a recogniser of :mod:`ias_gym.assist.recognition` built once
-    on ``db`` (default: the shipped library) and reset by the assistant every session."""
-    if method == "oracle":
-        return lambda: None
-    from ias_gym.assist.recogniser_registry import METHODS, make_recogniser
-    from ias_gym.skills import SkillDB
-    from ias_gym.skills.transfer import shipped_skill_db
-
-    if method not in METHODS:
-        raise InputError(f"--recogniser {method!r}: choose oracle or one of {', '.join(METHODS)}")
-    with SkillDB(db if db is not None else shipped_skill_db(), readonly=True) as handle:
-        recogniser = make_recogniser(method, handle)
-    return lambda: recogniser
-
-
-def _assistant_factory(kind: str, recogniser: str, db: Path | None) -> Any:
-    """``() -> assistant``: the observation assistant
-    (:func:`~ias_gym.assist.policy.make_assistant`, recogniser ``phase``, ``dtw`` or
-    ``none``) or the analytic one on the env's state."""
-    if kind == "observation":
-        from ias_gym.assist.policy import RECOGNISERS, make_assistant
-        from ias_gym.envs.glove_assist import OBSERVATION_PARTS
-        from ias_gym.envs.layout import observation_layout
-
-        if recogniser not in RECOGNISERS:
-            raise InputError(
-                f"--recogniser {recogniser!r}: the observation assistant takes one of "
-                f"{', '.join(RECOGNISERS)}"
-            )
-        layout = observation_layout(OBSERVATION_PARTS)
-        assistant = make_assistant(db, recogniser, layout=layout)
-        return lambda: assistant
-    from ias_gym.assist.assistants import AnalyticAssistant
-    from ias_gym.assist.skill_templates import load_templates
-
-    templates = load_templates(db)
-    make_recogniser = _recogniser_factory(recogniser, db)
-    return lambda: AnalyticAssistant(templates, make_recogniser())
-
-
 def _evaluate(args: argparse.Namespace) -> int:
     persons = _persons_of(args, EVALUATION_POPULATION)
     impairments = _impairments(args.impairment)
@@ -243,7 +205,7 @@ def _evaluate(args: argparse.Namespace) -> int:
 
     from ias_gym.assist.assistance_evaluation import evaluate_assistance
 
-    make = _assistant_factory(args.assistant, args.recogniser, db)
+    make = assistant_factory(args.assistant, args.recogniser, db)
     total = len(persons) * len(impairments) * args.episodes
     with tqdm(total=total, desc="sessions", disable=args.json, file=sys.stderr) as bar:
         scores = evaluate_assistance(
@@ -253,6 +215,7 @@ def _evaluate(args: argparse.Namespace) -> int:
             args.episodes,
             args.seed,
             progress=lambda: bar.update(1),
+            operator=args.operator,
         )
     if args.json:
         out = _recognition_metrics(db, persons, max(1, args.episodes // 6), args.seed)
@@ -267,95 +230,6 @@ def _evaluate(args: argparse.Namespace) -> int:
                 "unimpaired session failed itself, or from a start 1e-9 away)"
             )
     return 0
-
-
-def _duration(text: str) -> float:
-    """A session length in (0, 10] s."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number of seconds, got {text!r}") from None
-    if not 0.0 < value <= 10.0:
-        raise argparse.ArgumentTypeError(f"must be in (0, 10] s, got {text}")
-    return value
-
-
-def _label(frame: Any, text: str) -> Any:
-    """``frame`` (H, W, 3) with ``text`` written in its top left corner."""
-    import numpy as np
-    from PIL import Image, ImageDraw  # pillow: matplotlib's dependency
-
-    image = Image.fromarray(np.ascontiguousarray(frame))
-    draw = ImageDraw.Draw(image)
-    draw.rectangle((0, 0, 8 + 7 * len(text), 22), fill=(255, 255, 255))
-    draw.text((4, 5), text, fill=(0, 0, 0))
-    return np.asarray(image)
-
-
-def _demo(args: argparse.Namespace) -> int:
-    from ias_gym.evaluation import VIDEO_SUFFIXES
-    from ias_gym.outputs import check_output_file
-
-    video = check_output_file(
-        args.video, overwrite=args.overwrite, suffixes=VIDEO_SUFFIXES, what="--video"
-    )
-    import gymnasium as gym
-    import numpy as np
-
-    from ias_gym.assist.sessions import AssistantPolicy
-    from ias_gym.evaluation import write_video
-    from ias_gym.rollout import FrameRecorder, rollout
-
-    make = _assistant_factory(args.assistant, args.recogniser, Path(args.db) if args.db else None)
-    runs: list[list[Any]] = []
-    for assisted in (False, True):
-        env = gym.make(
-            "IAS-GloveAssist-v0",
-            person_id=args.person,
-            skill=args.skill,
-            impairment=args.impairment,
-            duration=args.duration,
-            render_mode="rgb_array",
-        )
-        u: Any = env.unwrapped
-        frames = FrameRecorder()  # the reset and every step
-        policy = AssistantPolicy(env, make() if assisted else None)
-        rollout(
-            env,
-            policy,
-            args.seed,
-            keep_observations=False,
-            keep_infos=False,
-            on_reset=frames.on_reset,
-            on_step=frames.on_step,
-        )
-        env.close()
-        runs.append(frames.frames)
-    n = max(len(r) for r in runs)
-    # the shorter session (a dropped pen ends it) holds its last frame
-    names = (f"unassisted ({args.impairment})", f"assisted ({args.impairment})")
-    side = [
-        np.hstack(
-            [
-                _label(r[min(i, len(r) - 1)], f"{name}  t = {min(i, len(r) - 1) * u.dt:.2f} s")
-                for r, name in zip(runs, names, strict=True)
-            ]
-        )
-        for i in range(0, n, 2)
-    ]
-    write_video(video, side, fps=50.0, overwrite=args.overwrite)
-    print(f"wrote {video}: left unassisted, right assisted ({args.impairment}, {args.skill})")
-    return 0
-
-
-def _add_assistant_argument(p: argparse.ArgumentParser, default: str) -> None:
-    p.add_argument(
-        "--assistant",
-        default=default,
-        choices=("observation", "analytic"),
-        help="observation: the policy on observations that completes a stopped skill; "
-        "analytic: the assistant that reads the env's state (tremor, bias, weak grip)",
-    )
 
 
 def add_assist_evaluate(commands: argparse._SubParsersAction[Any]) -> argparse.ArgumentParser:
@@ -390,7 +264,8 @@ def add_assist_evaluate(commands: argparse._SubParsersAction[Any]) -> argparse.A
         "scale; stops at (default: none and all)",
     )
     episode_arguments(p, 6, "sessions per person", seed_help="first seed")
-    _add_assistant_argument(p, "observation")
+    add_assistant_argument(p, "observation")
+    add_operator_argument(p)
     p.add_argument(
         "--recogniser",
         default=ASSIST_METHOD,
@@ -400,47 +275,6 @@ def add_assist_evaluate(commands: argparse._SubParsersAction[Any]) -> argparse.A
     )
     p.add_argument("--json", action="store_true", help="one JSON object on the last line")
     p.set_defaults(run=_evaluate)
-    return p
-
-
-def add_assist_demo(commands: argparse._SubParsersAction[Any]) -> argparse.ArgumentParser:
-    """Add ``assist demo`` to the ``assist`` sub-commands.
-
-    Args:
-        commands: the ``assist`` group's sub-parsers.
-
-    Returns:
-        The parser.
-    """
-    p = commands.add_parser(
-        "demo",
-        help="video: an assisted session beside the same session unassisted",
-        description="Render one IAS-GloveAssist-v0 session without (left) and with (right) "
-        "an assistant, side by side, into an MP4 (a stopped skill: --impairment stops:at=0.4 "
-        "--assistant observation).",
-        formatter_class=HelpFormatter,
-    )
-    p.add_argument("--video", required=True, metavar="FILE", help="the MP4 to write")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing --video")
-    p.add_argument("--db", default=None, metavar="F", help="skill library (default: shipped)")
-    p.add_argument("--person", default="p1", metavar="ID", help="the operator")
-    p.add_argument("--skill", default="seesaw_slow", metavar="NAME", help="the skill")
-    p.add_argument(
-        "--impairment", default="biased_calibration", metavar="NAME", help="the impairment"
-    )
-    p.add_argument("--seed", type=non_negative_int, default=0, metavar="S", help="reset seed")
-    p.add_argument(
-        "--duration", type=_duration, default=4.0, metavar="S", help="session length [s]"
-    )
-    _add_assistant_argument(p, "analytic")
-    p.add_argument(
-        "--recogniser",
-        default=ASSIST_METHOD,
-        metavar="oracle|dtw|phase|none",
-        help="intent source (oracle: the analytic assistant only; none: the observation "
-        "assistant without skill knowledge)",
-    )
-    p.set_defaults(run=_demo)
     return p
 
 

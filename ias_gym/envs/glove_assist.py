@@ -12,6 +12,13 @@ The assistant sits between the glove and the hand: the glove is read one sample 
 targets the operator's next reading will give (:attr:`GloveAssistEnv.upcoming_theta`), so
 an offset corrects the command the hand is about to get, not the one it got 10 ms ago.
 
+The operator is IAS-GloveGrasp-v0's (``operator``): by default the person in the loop
+(:class:`~ias_gym.glove.closed_loop.ClosedLoopOperator`), who grips by the force they feel
+and corrects the pen's pose by what they see, with the impairment inside the loop (a weak
+grip is their plan's, a lag is the glove's, so they see their own commands arrive late); or
+the open ``"script"``. Reading the glove one sample ahead makes the person's next command
+10 ms earlier than the hand gets it, well inside their own visual and tactile delays.
+
 An intent switch (``switch_to``, ``switch_time``): the operator performs ``skill`` until
 ``switch_time`` [s], then, blended over :data:`SWITCH_BLEND` [s], ``switch_to`` (its motion
 at the phase it has then); :meth:`GloveAssistEnv.intent` is the skill intended at a time.
@@ -26,10 +33,11 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from ias_gym.envs.glove_grasp import GloveGraspEnv
+from ias_gym.envs.glove_readings import person_in_the_loop
 from ias_gym.envs.glove_world import OBSERVATION_PARTS as GLOVE_PARTS
 from ias_gym.envs.layout import observation_layout
 from ias_gym.errors import InputError
-from ias_gym.glove.device import GloveDevice, ReachPinchLiftTimings, SimulatedGlove, min_jerk
+from ias_gym.glove.device import GloveDevice, SimulatedGlove, min_jerk
 from ias_gym.glove.hand import JOINT_HIGH, JOINT_LOW, N_JOINTS, PersonParams
 from ias_gym.glove.impairments import (
     Impairment,
@@ -58,9 +66,11 @@ OBSERVATION_PARTS = (*GLOVE_PARTS, ("upcoming_theta", N_JOINTS))
 OBS_SIZE = sum(size for _, size in OBSERVATION_PARTS)
 
 
-class SwitchingOperator:
+class SwitchingOperator(SkillOperator):
     """Skill ``a`` until script time ``t_switch`` [s], then ``b`` (the same pinch-lift and
-    person; only the skill's joint offsets blend, over :data:`SWITCH_BLEND`).
+    person; only the skill's joint offsets blend, over :data:`SWITCH_BLEND`). A skill plan
+    whose :attr:`skill` is ``b`` (where the person ends up) and whose motion lasts until the
+    later of the two ends.
 
     Args:
         a, b: the two skills' operators (same base script).
@@ -68,18 +78,19 @@ class SwitchingOperator:
     """
 
     def __init__(self, a: SkillOperator, b: SkillOperator, t_switch: float) -> None:
+        super().__init__(a.base, b.skill, a.style)
         self.a, self.b, self.t_switch = a, b, float(t_switch)
 
     @property
-    def timings(self) -> ReachPinchLiftTimings:
-        """The script's phase times."""
-        return self.a.timings
+    def duration(self) -> float:
+        """Script time [s] at which both skills' motions have ended."""
+        return max(self.a.duration, self.b.duration)
 
-    def __call__(self, t: float) -> FloatArray:
-        """Θ(t) [rad]."""
+    def offsets(self, t: float) -> FloatArray:
+        """The blend of the two skills' joint offsets ``(10,)`` [rad] at script time ``t``."""
         w = min_jerk((t - self.t_switch) / SWITCH_BLEND)
-        offsets = (1.0 - w) * self.a.offsets(t) + w * self.b.offsets(t)
-        return np.asarray(self.a.base(t) + offsets + self.a.tremor(t))
+        out: FloatArray = (1.0 - w) * self.a.offsets(t) + w * self.b.offsets(t)
+        return out
 
 
 class GloveAssistEnv(GloveGraspEnv):
@@ -92,7 +103,8 @@ class GloveAssistEnv(GloveGraspEnv):
     family ``tremor``, ``weak_grip``, ``lag``, ``biased_calibration``, ``hand_size`` or
     ``stops`` with its parameters, e.g. ``"tremor:hz=5"``, families joined by ``+``, or
     ``sampled``: a family and its parameters drawn from the person's id and the skill).
-    With zero action the session is the impaired operator alone.
+    With zero action the session is the impaired operator alone: by default a person in
+    the loop (``operator="closed_loop"``), or the open script (``operator="script"``).
 
     ## Action Space
     As IAS-GloveGrasp-v0: ``Box(-1, 1, (10,))``, offsets of the joint targets times
@@ -133,7 +145,8 @@ class GloveAssistEnv(GloveGraspEnv):
     (:func:`~ias_gym.glove.impairments.resized_person`), the operator planning for that
     hand (``hand_size`` with the same scale runs the stock plan on it instead); and the
     fields of :class:`~ias_gym.envs.glove_grasp_config.GloveGraspConfig`
-    (``person_id``, ``skill``, ``control_dt``, ``duration``, ``action_scale``, ...).
+    (``person_id``, ``skill``, ``control_dt``, ``duration``, ``action_scale``, ``operator``
+    [``"closed_loop"``], ...).
 
     ## Version History
     - v0: first version (the impairment ``hand_size`` replaced ``small_hand``, a hand of
@@ -230,7 +243,11 @@ class GloveAssistEnv(GloveGraspEnv):
         if tremor is not None:
             amplitude, hz = tremor.number("amplitude_rad"), tremor.number("hz")
             script = TremorOperator(script, amplitude, hz, self.person.person_id, seed)
-        glove: GloveDevice = SimulatedGlove(self.person, FromPreShape(script), seed)
+        if self.config.operator == "closed_loop":
+            self.operator = person_in_the_loop(self.model, script, self.operator_person)
+            glove: GloveDevice = SimulatedGlove(self.person, self.operator, seed)
+        else:
+            glove = SimulatedGlove(self.person, FromPreShape(script), seed)
         if lag is not None:
             glove = LaggedGlove(glove, round(lag.number("s") / self.config.control_dt))
         return PeekGlove(glove)

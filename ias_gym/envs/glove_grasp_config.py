@@ -11,11 +11,8 @@ import dataclasses
 
 from ias_gym.errors import InputError
 from ias_gym.glove.ids import check_id
+from ias_gym.glove.operator import OPERATORS
 from ias_gym.glove.skills import check_skill
-
-#: The simulated persons: in the loop (:class:`~ias_gym.glove.closed_loop.ClosedLoopOperator`)
-#: or the open-loop script of the plan alone.
-OPERATORS: tuple[str, ...] = ("closed_loop", "script")
 
 
 @dataclasses.dataclass(frozen=True)

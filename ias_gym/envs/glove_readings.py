@@ -2,7 +2,8 @@
 
 :func:`default_glove` is the env's glove when none is given: the simulated person doing the
 pen's pinch-lift (and the skill) on a :class:`~ias_gym.glove.device.SimulatedGlove`, in the
-loop (:class:`~ias_gym.glove.closed_loop.ClosedLoopOperator`) or by the open script.
+loop (:func:`person_in_the_loop`, a :class:`~ias_gym.glove.closed_loop.ClosedLoopOperator`)
+or by the open script.
 :func:`read_theta` turns one reading into the hand's joint targets: the calibrated joint
 angles Θ = f(Ψ) [rad], clipped to the joint ranges, non-finite ones replaced.
 """
@@ -17,7 +18,7 @@ from ias_gym.glove.calibration import Calibration
 from ias_gym.glove.closed_loop import ClosedLoopOperator
 from ias_gym.glove.device import GloveDevice, SimulatedGlove
 from ias_gym.glove.hand import JOINT_HIGH, JOINT_LOW, PersonParams
-from ias_gym.glove.operator import FromPreShape, pen_operator, skill_operator
+from ias_gym.glove.operator import FromPreShape, ScriptedOperator, pen_operator, skill_operator
 
 FloatArray = NDArray[np.float64]
 
@@ -44,11 +45,19 @@ def default_glove(
     plan = pen_operator(person, radius) if skill is None else skill_operator(person, radius, skill)
     if operator == "script":
         return SimulatedGlove(person, FromPreShape(plan), seed), None
-    weight = float(model.body_subtreemass[model.body("pen").id] * -model.opt.gravity[2])
-    closed_loop = ClosedLoopOperator(
-        plan, person, object_weight=weight, friction=float(model.geom_friction[pen_geom, 0])
-    )
+    closed_loop = person_in_the_loop(model, plan, person)
     return SimulatedGlove(person, closed_loop, seed), closed_loop
+
+
+def person_in_the_loop(
+    model: mujoco.MjModel, plan: ScriptedOperator, person: PersonParams
+) -> ClosedLoopOperator:
+    """``person`` doing ``plan`` (script time; an impaired plan too) in the loop of the glove
+    scene ``model``: gripping the pen by its weight and friction, read from the model."""
+    pen = model.body("pen").id
+    weight = float(model.body_subtreemass[pen] * -model.opt.gravity[2])
+    friction = float(model.geom_friction[model.geom("pen").id, 0])
+    return ClosedLoopOperator(plan, person, object_weight=weight, friction=friction)
 
 
 def read_theta(

@@ -52,6 +52,7 @@ from ias_gym.glove.hand import (
     joint_index,
     thumb_points,
 )
+from ias_gym.glove.operator import ScriptedOperator
 from ias_gym.glove.sensor_model import index_pinch_angles
 from ias_gym.glove.skills import LIFT_GOAL, TILT_PER_PRONATION, SkillOperator, SkillStyle
 
@@ -109,12 +110,42 @@ class _Delayed(Generic[T]):
         return self.value
 
 
+def inner_plan(plan: ScriptedOperator) -> SkillOperator | ReachPinchLift:
+    """The skill's plan (or the pinch-lift) inside impairment wrappers, each of which keeps
+    the plan it changes as ``operator``.
+
+    Raises:
+        TypeError: ``plan`` wraps neither.
+    """
+    inner: object = plan
+    while not isinstance(inner, SkillOperator | ReachPinchLift):
+        if not hasattr(inner, "operator"):
+            raise TypeError(f"{type(plan).__name__} wraps no SkillOperator or ReachPinchLift")
+        inner = inner.operator
+    return inner
+
+
+def _holds_still_from(plan: ScriptedOperator) -> float:
+    """The earliest ``holds_still_from`` [s] of ``plan`` and the plans it wraps (inf: none)."""
+    out = math.inf
+    inner: object = plan
+    while inner is not None:
+        out = min(out, float(getattr(inner, "holds_still_from", math.inf)))
+        inner = getattr(inner, "operator", None)
+    return out
+
+
 class ClosedLoopOperator:
     """A person doing a plan in the loop: grip by touch, position by sight (module docstring).
 
     Args:
         plan: the person's plan (a skill's :class:`SkillOperator` or a
-            :class:`ReachPinchLift`), in script time.
+            :class:`ReachPinchLift`), in script time; or an impaired one
+            (:mod:`ias_gym.glove.impairments`: a wrapper that keeps the plan it changes as
+            ``operator``): the person moves by the wrapper and judges what they see by the
+            plan inside it (:func:`inner_plan`). A plan that stops short
+            (:class:`~ias_gym.glove.impairments.StopsOperator`, its ``holds_still_from``)
+            ends the person's corrections by sight from then on: they hold still.
         person: their hand (the finger kinematics of the felt force).
         style: how they move (delays, grip margin); default
             ``SkillStyle.sample(person.person_id)``.
@@ -128,7 +159,7 @@ class ClosedLoopOperator:
 
     def __init__(
         self,
-        plan: SkillOperator | ReachPinchLift,
+        plan: ScriptedOperator,
         person: PersonParams,
         style: SkillStyle | None = None,
         *,
@@ -141,8 +172,14 @@ class ClosedLoopOperator:
                 f"object_weight and friction must be positive, got {object_weight}, {friction}"
             )
         self.plan = plan
-        base = plan.base if isinstance(plan, SkillOperator) else plan
-        self.skill = plan.skill if isinstance(plan, SkillOperator) else None
+        #: The skill's plan (or the pinch-lift) the person judges what they see by.
+        self.intent = inner_plan(plan)
+        #: Script time [s] from which the person no longer corrects by sight (a plan that
+        #: stops; otherwise never).
+        self.holds_still_from = _holds_still_from(plan)
+        intent = self.intent
+        base = intent.base if isinstance(intent, SkillOperator) else intent
+        self.skill = intent.skill if isinstance(intent, SkillOperator) else None
         self.person = person
         self.style = style if style is not None else SkillStyle.sample(person.person_id)
         self.timings = plan.timings
@@ -230,7 +267,7 @@ class ClosedLoopOperator:
         movement: the initial impulse, then the corrections)."""
         if script_t < self.timings.lift or self._tilt_reference is None:
             return None, None
-        plan = self.plan
+        plan = self.intent
         if not isinstance(plan, SkillOperator):
             return LIFT_GOAL, self._tilt_reference
         if plan.skill_start <= script_t < plan.duration:
@@ -270,6 +307,8 @@ class ClosedLoopOperator:
             if self._tilt_reference is None and seen_t >= self.timings.lift:
                 self._tilt_reference = float(tilt)  # the pen as the lift left it
             height_goal, tilt_goal = self._goals(seen_t)
+            if script_t >= self.holds_still_from:
+                height_goal = tilt_goal = None
             k = self._vision_gain * dt
             if height_goal is not None:
                 # Extension (negative flexion) raises the pen.

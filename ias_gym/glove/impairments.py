@@ -222,7 +222,11 @@ class StopsOperator:
     """A skill's script whose own motion stops: the operator performs the first share ``at``
     of the skill's motion (:meth:`~ias_gym.glove.skills.SkillOperator.offsets`, from its
     start for ``motion_time``) and then holds the pose it reached; the pinch-lift and the
-    person's own physiological tremor go on ("the operator only gives the goal").
+    person's own physiological tremor go on ("the operator only gives the goal"). A person in
+    the loop (:class:`~ias_gym.glove.closed_loop.ClosedLoopOperator`) still means the whole
+    skill, keeps gripping by touch, and from :attr:`holds_still_from` on no longer corrects
+    the pen's pose by sight: they hold still and leave the rest to the system. ``at=1`` is
+    the unimpaired operator.
 
     Args:
         operator: the skill's script.
@@ -234,6 +238,9 @@ class StopsOperator:
         self.at = float(at)
         #: Script time at which the operator stops [s].
         self.stop_time = operator.skill_start + self.at * operator.motion_time
+        #: Script time from which a person in the loop no longer corrects by sight [s]
+        #: (inf: a motion done to its end).
+        self.holds_still_from = self.stop_time if self.at < 1.0 else math.inf
 
     @property
     def timings(self) -> ReachPinchLiftTimings:
@@ -273,8 +280,10 @@ class LaggedGlove(GloveWrapper):
 class PeekGlove(GloveWrapper):
     """A glove read one sample ahead: :meth:`read` returns the sample :attr:`upcoming`
     announced and reads the next. The assistant sits between the glove and the hand: it
-    sees the reading the hand is about to get (a scripted operator does not react to the
-    force display, so reading ahead changes nothing of the session).
+    sees the reading the hand is about to get. A scripted operator does not react to the
+    force display, so reading ahead changes nothing of the session; a person in the loop
+    makes each command one read earlier than the hand gets it, from what they perceived up
+    to then (within their own visual and tactile delays).
 
     Args:
         inner: the glove.

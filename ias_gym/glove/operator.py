@@ -117,6 +117,11 @@ def skill_operator(person: PersonParams, pen_radius: float, skill: str) -> Skill
     return SkillOperator(base, skill)
 
 
+#: The simulated persons: in the loop (:class:`~ias_gym.glove.closed_loop.ClosedLoopOperator`)
+#: or the open-loop script of the plan alone.
+OPERATORS: tuple[str, ...] = ("closed_loop", "script")
+
+
 class ScriptedOperator(Protocol):
     """A script Θ(t) [rad] with phase times (:class:`ReachPinchLift`, :class:`SkillOperator`)."""
 

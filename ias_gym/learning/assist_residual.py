@@ -58,6 +58,7 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         impairments: impairment names drawn at every reset.
         skills: skills drawn at every reset.
         max_steps: steps per episode (the env's 400 = 4 s by default).
+        operator: the simulated person: ``"closed_loop"`` or the open ``"script"``.
     """
 
     def __init__(
@@ -67,8 +68,10 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         impairments: list[str],
         skills: tuple[str, ...] = SKILLS,
         max_steps: int = 400,
+        operator: str = "closed_loop",
     ) -> None:
         self.templates = templates
+        self.operator = operator
         self.persons, self.impairments, self.skills = persons, impairments, skills
         self.max_steps = max_steps
         self.observation_space = spaces.Box(
@@ -97,11 +100,19 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         person, skill = str(rng.choice(self.persons)), str(rng.choice(list(self.skills)))
         impairment = Impairment.make(str(rng.choice(self.impairments)))
         self.env = gym.make(
-            "IAS-GloveAssist-v0", person_id=person, skill=skill, impairment=impairment.name
+            "IAS-GloveAssist-v0",
+            person_id=person,
+            skill=skill,
+            impairment=impairment.name,
+            operator=self.operator,
         )
         seed = int(rng.integers(2**31))
         reference = gym.make(
-            "IAS-GloveAssist-v0", person_id=person, skill=skill, **reference_kwargs(impairment)
+            "IAS-GloveAssist-v0",
+            person_id=person,
+            skill=skill,
+            operator=self.operator,
+            **reference_kwargs(impairment),
         )
         ref = run_session(reference, None, seed)
         reference.close()
