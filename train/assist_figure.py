@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 #: Keys of an assist_table JSON that are not assistants.
-NOT_ASSISTANTS = {"set", "population", "persons", "skills", "seed", "switch_latency"}
+NOT_ASSISTANTS = {"set", "population", "persons", "skills", "seed", "operator", "switch_latency"}
 
 
 def main(argv: list[str] | None = None) -> int:
