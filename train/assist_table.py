@@ -25,14 +25,19 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
-from ias_gym.assist.assistance_evaluation import evaluate_assistance, switch_latency
+from ias_gym.assist.assistance_evaluation import (
+    ImpairmentScore,
+    evaluate_assistance,
+    switch_latency,
+)
 from ias_gym.assist.assistants import AnalyticAssistant
 from ias_gym.assist.skill_templates import load_templates
 from ias_gym.errors import InputError
@@ -42,6 +47,7 @@ from ias_gym.glove.population import population_ids
 from ias_gym.glove.skills import SKILLS
 from ias_gym.outputs import atomic_output
 from ias_gym.rates import SET_KINDS
+from ias_gym.runtime.jobs import Backend, run_jobs
 
 #: (from, to) skill pairs of the intent-switch measurement.
 SWITCH_PAIRS = [
@@ -54,6 +60,78 @@ SWITCH_PAIRS = [
 def _seconds(value: float | None) -> str:
     """A latency for the Markdown table: two decimals, or "-" when no switch was followed."""
     return "-" if value is None else f"{value:.2f} s"
+
+
+def assistant_names(recogniser: str, residual: str | None, wanted: list[str]) -> list[str]:
+    """The assistants a table measures: the analytic one (``analytic``, or
+    ``analytic+RECOGNISER`` with a recogniser other than the oracle) and, with a trained
+    ``residual``, ``residual``; those of them ``wanted`` names."""
+    names = ["analytic" if recogniser == "oracle" else f"analytic+{recogniser}"]
+    if residual:
+        names.append("residual")
+    return [n for n in names if n.split("+")[0] in wanted]
+
+
+def make_assistants(
+    db: str | None, recogniser: str, residual: str | None, names: tuple[str, ...]
+) -> dict[str, Any]:
+    """``{name: () -> assistant}`` for :func:`assistant_names`' ``names``."""
+    templates = load_templates(db)
+    analytic: Any = lambda: AnalyticAssistant(templates)  # noqa: E731
+    if recogniser != "oracle":
+        from ias_gym.assist.recogniser_registry import make_recogniser
+        from ias_gym.skills import SkillDB
+        from ias_gym.skills.transfer import shipped_skill_db
+
+        with SkillDB(db or shipped_skill_db(), readonly=True) as handle:
+            rec = make_recogniser(recogniser, handle)
+        analytic = lambda: AnalyticAssistant(templates, rec)  # noqa: E731
+    out: dict[str, Any] = {}
+    for name in names:
+        if name == "residual":
+            from ias_gym.learning.assist_residual import ResidualAssistant
+
+            out[name] = lambda: ResidualAssistant.load(str(residual), templates)
+        else:
+            out[name] = analytic
+    return out
+
+
+@dataclass(frozen=True)
+class PersonJob:
+    """A picklable job: one person's sessions of every impairment and skill, and their
+    intent switches, for each assistant. Returns ``({name: {impairment: score}},
+    {name: latencies})``."""
+
+    db: str | None
+    recogniser: str
+    residual: str | None
+    names: tuple[str, ...]
+    impairments: tuple[str, ...]
+    seed: int
+    strength: float | None
+    operator: str
+    switch_time: float
+
+    def __call__(
+        self, person: str
+    ) -> tuple[dict[str, dict[str, ImpairmentScore]], dict[str, list[float]]]:
+        assistants = make_assistants(self.db, self.recogniser, self.residual, self.names)
+        scores, latencies = {}, {}
+        for name, make in assistants.items():
+            scores[name] = evaluate_assistance(
+                make,
+                [person],
+                list(self.impairments),
+                len(SKILLS),
+                self.seed,
+                env_kwargs=None if self.strength is None else {"strength": self.strength},
+                operator=self.operator,
+            )
+            latencies[name] = switch_latency(
+                make, [person], SWITCH_PAIRS, self.switch_time, self.seed, self.operator
+            )
+        return scores, latencies
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -87,6 +165,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--out", default="out/assist_table", help="writes OUT.md, OUT.json, OUT.sessions.json"
     )
+    parser.add_argument(
+        "--workers", type=int, default=os.cpu_count() or 1, help="processes (persons in each)"
+    )
     parser.add_argument("--overwrite", action="store_true")
     args = parser.parse_args(argv)
     out = Path(args.out)
@@ -101,24 +182,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     out.parent.mkdir(parents=True, exist_ok=True)
     imps = list(IMPAIRMENTS) if args.impairments == "all" else args.impairments.split(",")
-    templates = load_templates(args.db)
-    assistants: dict[str, Any] = {"analytic": lambda: AnalyticAssistant(templates)}
-    if args.recogniser != "oracle":
-        from ias_gym.assist.recogniser_registry import make_recogniser
-        from ias_gym.skills import SkillDB
-        from ias_gym.skills.transfer import shipped_skill_db
-
-        with SkillDB(args.db or shipped_skill_db(), readonly=True) as db:
-            recogniser = make_recogniser(args.recogniser, db)
-        assistants = {
-            f"analytic+{args.recogniser}": lambda: AnalyticAssistant(templates, recogniser)
-        }
-    if args.residual:
-        from ias_gym.learning.assist_residual import ResidualAssistant
-
-        assistants["residual"] = lambda: ResidualAssistant.load(args.residual, templates)
-    wanted = args.assistants.split(",")
-    assistants = {k: v for k, v in assistants.items() if k.split("+")[0] in wanted}
+    names = assistant_names(args.recogniser, args.residual, args.assistants.split(","))
     results: dict[str, Any] = {
         "set": args.set,
         "population": [args.persons, args.population_seed],
@@ -127,27 +191,29 @@ def main(argv: list[str] | None = None) -> int:
         "seed": args.seed,
         "operator": args.operator,
     }
+    job = PersonJob(
+        args.db,
+        args.recogniser,
+        args.residual,
+        tuple(names),
+        tuple(imps),
+        args.seed,
+        args.strength,
+        args.operator,
+        args.switch_time,
+    )
+    parts = run_jobs(
+        job, persons, Backend.from_options(args.workers), desc="persons", progress=True
+    )
     sessions: dict[str, Any] = {}
-    total = len(assistants) * len(imps) * len(persons) * len(SKILLS)
-    with tqdm(total=total, desc="session pairs") as bar:
-        for name, make in assistants.items():
-            scores = evaluate_assistance(
-                make,
-                persons,
-                imps,
-                len(SKILLS),
-                args.seed,
-                progress=lambda: bar.update(1),
-                env_kwargs=None if args.strength is None else {"strength": args.strength},
-                operator=args.operator,
-            )
-            results[name] = {k: v.to_json() for k, v in scores.items()}
-            sessions[name] = {k: v.records for k, v in scores.items()}
     latency: dict[str, Any] = {}
-    for name, make in assistants.items():
-        values = switch_latency(
-            make, persons, SWITCH_PAIRS, args.switch_time, args.seed, args.operator
-        )
+    for name in names:
+        scores = {
+            imp: ImpairmentScore.merge([scores[name][imp] for scores, _ in parts]) for imp in imps
+        }
+        results[name] = {k: v.to_json() for k, v in scores.items()}
+        sessions[name] = {k: v.records for k, v in scores.items()}
+        values = [v for _, latencies in parts for v in latencies[name]]
         finite = [v for v in values if math.isfinite(v)]
         latency[name] = {
             "median_s": float(np.median(finite)) if finite else None,
@@ -162,19 +228,19 @@ def main(argv: list[str] | None = None) -> int:
         f"(seeds {args.seed}-{args.seed + len(SKILLS) - 1}).",
         "",
         "| impairment | strength | unassisted | "
-        + " | ".join(f"{n} | {n} intervention" for n in assistants)
+        + " | ".join(f"{n} | {n} intervention" for n in names)
         + " |",
-        "|---|---|---|" + "---|---|" * len(assistants),
+        "|---|---|---|" + "---|---|" * len(names),
     ]
     for imp in imps:
-        first = next(iter(assistants))
+        first = names[0]
         row = [
             imp,
             f"{DEFAULT_STRENGTHS[imp] if args.strength is None else args.strength:g}",
             f"{100 * results[first][imp]['success_unassisted']:.0f} %"
             f" ({results[first][imp]['sessions']})",
         ]
-        for n in assistants:
+        for n in names:
             r = results[n][imp]
             row += [f"{100 * r['success_assisted']:.0f} %", f"{r['intervention']:.3f}"]
         lines.append("| " + " | ".join(row) + " |")

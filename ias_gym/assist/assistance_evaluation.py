@@ -59,6 +59,21 @@ class ImpairmentScore:
         """Share of the sessions that succeed with it (NaN: no session) [-]."""
         return self.successes_assisted / self.sessions if self.sessions else math.nan
 
+    @classmethod
+    def merge(cls, parts: list[ImpairmentScore]) -> ImpairmentScore:
+        """One score of several (e.g. one per person, computed apart): counts and records
+        added in order, the intervention averaged over all their sessions."""
+        weighted = [(p.intervention, p.sessions) for p in parts if p.sessions]
+        sessions = sum(p.sessions for p in parts)
+        return cls(
+            sum(p.successes_unassisted for p in parts),
+            sum(p.successes_assisted for p in parts),
+            sum(x * n for x, n in weighted) / sessions if sessions else math.nan,
+            sessions,
+            sum(p.excluded for p in parts),
+            [r for p in parts for r in p.records],
+        )
+
     def to_json(self) -> dict[str, Any]:
         """The three shares as a JSON object (``sessions`` and ``excluded`` as well; null
         for a share of no session), and the two successes as
