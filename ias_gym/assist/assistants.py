@@ -47,8 +47,10 @@ for the posterior over the library's skills and returns joint-target offsets, th
 3. **the object's height toward the template**: from the middle of the lift, an integrator
    on the wrist's flexion drives the pen's height above its start into the template's band
    (``sum_k p_k z_k(tau)`` for ``tau`` within :data:`HEIGHT_TIME_TOLERANCE` of now: the
-   library's mean object trajectory, a person early or late as the success test allows),
-   ignoring errors up to :data:`HEIGHT_DEADBAND` (a person's own way of lifting).
+   library's mean object trajectory, a person early or late as the success test allows;
+   ``tau`` aligned at the operator's start as the assistant sees it,
+   :meth:`AnalyticAssistant._template_time`), ignoring errors up to
+   :data:`HEIGHT_DEADBAND` (a person's own way of lifting).
 
 Confidence blending: term 3 is weighted by the posterior (the unknown share adds nothing),
 term 2's targets are the posterior's mean (the unknown share takes the library's median);
@@ -79,11 +81,12 @@ from scipy.signal import butter, sosfilt, sosfilt_zi
 from ias_gym.assist.oracle_recogniser import OracleRecogniser
 from ias_gym.assist.pinch_geometry import CLOSING_JOINTS, closing_direction, live_margin
 from ias_gym.assist.sessions import LIFT_END, MAX_TIME_SHIFT
+from ias_gym.assist.skill_motions import MOVING_JOINT
 from ias_gym.assist.skill_templates import SkillTemplate
 from ias_gym.assist.stream import frames_from_env
 from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS, joint_index
 from ias_gym.glove.impairments import TREMOR_JOINTS, pinch_direction
-from ias_gym.glove.skills import SKILL_TIMINGS, SKILLS, skill_start_time
+from ias_gym.glove.skills import SKILL_TIMINGS
 
 FloatArray = NDArray[np.float64]
 
@@ -183,6 +186,23 @@ HEIGHT_TIME_TOLERANCE = MAX_TIME_SHIFT
 _HEIGHT_SHIFTS = np.linspace(-HEIGHT_TIME_TOLERANCE, HEIGHT_TIME_TOLERANCE, 7)
 
 
+#: The operator's skill has begun once their wrist left its pose at the lift's end by this
+#: [rad]: what counts as a skill moving a joint
+#: (:data:`~ias_gym.assist.skill_motions.MOVING_JOINT`), beyond the wrist's corrections of
+#: the lifted pen and the end of a lagged lift (0.01 rad took a lagged lift's end for the
+#: skill's start, measured).
+ONSET_RAD = MOVING_JOINT
+
+
+def onset_delay(template: SkillTemplate, joints: NDArray[np.int64]) -> float:
+    """Time [s] from ``template``'s skill start until its ``joints`` leave their pose there
+    by :data:`ONSET_RAD` (inf: they never do, e.g. a skill that holds still)."""
+    k = int(np.searchsorted(template.time, template.start))
+    away = np.abs(template.theta[k:, joints] - template.theta[k, joints]).max(axis=1)
+    moved = np.flatnonzero(away > ONSET_RAD)
+    return float(template.time[k + moved[0]] - template.start) if moved.size else math.inf
+
+
 def _along(v: FloatArray, u: FloatArray) -> float:
     """The component of ``v`` along ``u``, in units of ``u``."""
     return float(u @ v / (u @ u))
@@ -224,6 +244,9 @@ class AnalyticAssistant:
         }
         self._tremor_idx = np.array([joint_index(j) for j in TREMOR_JOINTS])
         self._wf = JOINT_NAMES.index("wrist_flexion")
+        self._wrist = np.array([self._wf, JOINT_NAMES.index("wrist_pronation")])
+        self._onset_delays = {k: onset_delay(v, self._wrist) for k, v in templates.items()}
+        self._least_delay = min(self._onset_delays.values(), default=math.inf)
         self._pinch = pinch_direction()
         self._pinch_fingers = []  # each finger's part of the pinch's direction
         for idx in self._finger_idx.values():
@@ -276,9 +299,8 @@ class AnalyticAssistant:
         self._release_at: float | None = None  # when a held finger began to be let go
         self._first_touch: str | None = None  # the pad that came to the pen first (or "both")
         self._both_touched = False
-        self._person_start = skill_start_time(
-            str(cfg.skill) if cfg.skill else SKILLS[0], env.person.person_id
-        )
+        self._theta_lift: FloatArray | None = None  # the operator's targets at LIFT_END
+        self._onset: float | None = None  # when their skill's own motion was seen [s]
         self._post = {}
 
     @staticmethod
@@ -290,11 +312,29 @@ class AnalyticAssistant:
         """The recogniser's posterior of the last :meth:`act`."""
         return dict(self._post)
 
+    def _see_onset(self, t: float, theta: FloatArray) -> None:
+        """Note when the operator's wrist (``theta``: their targets, a detected tremor
+        filtered out) first leaves its pose at the lift's end by :data:`ONSET_RAD` (their
+        skill's own motion has begun)."""
+        if t < LIFT_END or self._onset is not None:
+            return
+        if self._theta_lift is None:
+            self._theta_lift = theta.copy()
+        if float(np.abs(theta - self._theta_lift)[self._wrist].max()) > ONSET_RAD:
+            if t - self._least_delay < LIFT_END:  # no skill starts before the lift's end:
+                self._theta_lift = theta.copy()  # this is the lift still ending (a lag)
+            else:
+                self._onset = t
+
     def _template_time(self, template: SkillTemplate, t: float) -> float:
-        """Template time of the operator's intent at episode time ``t`` [s]."""
-        if t < self._person_start:
+        """Template time of the operator's intent at episode time ``t`` [s]: until their
+        motion is seen, the episode time (every skill's pinch-lift is the same); then the
+        operator's start, their onset less the template's own time to the same departure
+        (:func:`onset_delay`), is the template's."""
+        delay = self._onset_delays.get(template.name, math.inf)
+        if self._onset is None or not math.isfinite(delay):
             return t
-        return t - self._person_start + template.start
+        return t - (self._onset - delay) + template.start
 
     def _tremor_offset(self, theta: FloatArray) -> FloatArray:
         """Term 1: the band-stop's correction, once the detector has seen a tremor."""
@@ -449,6 +489,7 @@ class AnalyticAssistant:
         offset = np.zeros(N_JOINTS)
         if self.tremor_filter:
             offset += self._tremor_offset(theta)
+        self._see_onset(t, theta + offset)  # a tremor is no motion of the skill's
         if self.squeeze:
             offset += self._squeeze_offset(env, t, theta, post)
         if self.coordinate:
