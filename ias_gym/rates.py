@@ -117,6 +117,11 @@ class Rate:
         return text
 
 
+def rate_json(outcomes: list[bool] | tuple[bool, ...]) -> dict[str, float | int] | None:
+    """:meth:`Rate.to_dict` of the outcomes, or None without any (a row nobody was judged in)."""
+    return Rate.of(outcomes).to_dict() if outcomes else None
+
+
 def check_set_kind(kind: str) -> str:
     """``kind`` if it is ``"development"`` or ``"held-out"``.
 

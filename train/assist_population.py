@@ -30,7 +30,7 @@ from ias_gym.glove.impairments import reference_kwargs
 from ias_gym.glove.operator import OPERATORS
 from ias_gym.glove.population import population_ids
 from ias_gym.outputs import atomic_output, check_output_file
-from ias_gym.rates import SET_KINDS, Rate
+from ias_gym.rates import SET_KINDS, rate_json
 from ias_gym.runtime.jobs import Backend, run_jobs
 
 ARMS = ("unassisted", "assisted", "no_skill_knowledge")
@@ -80,11 +80,6 @@ class PersonJob:
                     rows.append((spec, skill, arm, session_success(result, ref)))
                 env.close()
         return rows
-
-
-def _rate(outcomes: list[bool]) -> dict[str, Any] | None:
-    """The rate's JSON; None without a session judged."""
-    return Rate.of(outcomes).to_dict() if outcomes else None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -143,9 +138,9 @@ def main(argv: list[str] | None = None) -> int:
         "skills": skills,
         "by_impairment": {
             spec: {
-                **{arm: _rate(outcomes[spec][arm]) for arm in ARMS},
+                **{arm: rate_json(outcomes[spec][arm]) for arm in ARMS},
                 "excluded": excluded[spec],
-                "assisted_by_skill": {k: _rate(v) for k, v in by_skill[spec].items()},
+                "assisted_by_skill": {k: rate_json(v) for k, v in by_skill[spec].items()},
             }
             for spec in specs
         },

@@ -343,7 +343,7 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     means over the held episodes."""
     import numpy as np
 
-    from ias_gym.rates import Rate
+    from ias_gym.rates import rate_json
 
     held = [r for r in rows if r["held"]]
 
@@ -354,7 +354,7 @@ def summarise(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     return {
         "episodes": len(rows),
         "success_rate": float(np.mean([r["success"] for r in rows])) if rows else 0.0,
-        "success": Rate.of([r["success"] for r in rows]).to_dict() if rows else None,
+        "success": rate_json([r["success"] for r in rows]),
         "held_rate": len(held) / len(rows) if rows else 0.0,
         "mean_length_s": float(np.mean([r["length_s"] for r in rows])) if rows else 0.0,
         "rms_position_error_mean_mm": mean("rms_position_error_mm"),

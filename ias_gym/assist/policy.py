@@ -37,6 +37,10 @@ Every step:
    nothing, so without skill knowledge there is no completion; what the recogniser sees
    afterwards is the completion itself, no evidence of what the operator meant).
 
+3. **Acquisition** (between sessions): :meth:`ObservationAssistant.learn` stores a recorded
+   demonstration the recogniser calls unknown as a new skill of the assistant's library,
+   and from the next session on the assistant recognises and completes it.
+
 The thresholds are :class:`AssistParams`, fitted on development persons by
 ``train/fit_assistant.py`` and stored in ``ias_gym/assets/assistant_params.json``.
 """
@@ -46,7 +50,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -56,6 +60,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ias_gym.assist.recogniser_registry import METHODS, make_recogniser
+from ias_gym.assist.recognition import Acquisition, learn_demonstration
 from ias_gym.assist.sessions import LIFT_END
 from ias_gym.assist.skill_motions import SkillMotion, load_motions
 from ias_gym.assist.stream import SessionFrame
@@ -64,6 +69,7 @@ from ias_gym.glove.hand import N_JOINTS
 from ias_gym.outputs import atomic_output
 from ias_gym.sim.pen import R_PAPER_TO_MJ, matrix_to_rpy, mj_to_paper
 from ias_gym.skills.db import SkillDB
+from ias_gym.skills.skill import Skill
 from ias_gym.skills.transfer import shipped_skill_db
 
 FloatArray = NDArray[np.float64]
@@ -309,6 +315,7 @@ class ObservationAssistant:
         action_scale: the env's joint offset of a full action [rad].
         layout: the env's observation layout (``env.unwrapped.observation_layout``).
         completion: switch the completion off (an ablation).
+        library: the skill database the motions came from (:meth:`learn` adds to it).
     """
 
     #: It acts on the observation, not on an env
@@ -325,8 +332,10 @@ class ObservationAssistant:
         action_scale: float = 0.2,
         layout: Mapping[str, slice] | None = None,
         completion: bool = True,
+        library: str | Path | None = None,
     ) -> None:
         self.motions = dict(motions)
+        self.library = Path(library) if library is not None else None
         self.recogniser = recogniser
         self.params = params
         self.dt = float(control_dt)
@@ -348,6 +357,31 @@ class ObservationAssistant:
         self._authority = 0.0  # its weight: its posterior when the operator slowed down
         self._posts: list[dict[str, float]] = []
         self._steps = 0
+
+    def learn(
+        self, db: SkillDB, skill: Skill, frames: Sequence[SessionFrame], name: str
+    ) -> Acquisition:
+        """Acquisition mode for one recorded demonstration of skill ``name``
+        (:func:`~ias_gym.assist.recognition.learn_demonstration`): stored in ``db``, the
+        assistant's own library, when the recogniser calls it unknown or ``name``; then the
+        recogniser knows it and the assistant completes it like a shipped skill, its motion
+        from every stored session of it. Call it between sessions.
+
+        Raises:
+            InputError: ``db`` is not the assistant's library, or the assistant has no skill
+                knowledge to extend.
+        """
+        if self.library is None or db.path.resolve() != self.library.resolve():
+            raise InputError(
+                f"learn into the assistant's own library ({self.library}), not {db.path}"
+            )
+        if isinstance(self.recogniser, _NoRecogniser):
+            raise InputError("an assistant without skill knowledge (recogniser 'none') learns none")
+        result = learn_demonstration(db, self.recogniser, skill, frames, name)
+        if result.stored_as is not None:
+            self.motions = load_motions(self.library)
+        self.reset()
+        return result
 
     def posterior(self) -> dict[str, float]:
         """The recogniser's posterior after the last :meth:`act`."""
@@ -454,5 +488,6 @@ def make_assistant(
         control_dt=control_dt,
         action_scale=action_scale,
         layout=layout,
+        library=path,
         **switches,
     )

@@ -34,7 +34,9 @@ On-line acquisition: :meth:`Recogniser.add_skill` adds the sessions of a new (or
 skill: DTW stores them as templates, the phase model fits that one skill's mean and
 variance; the other skills and the scores already computed stay as they are, only the new
 sessions' leave-one-out scores join the pool. :func:`acquire_skill` stores the session in
-the :class:`~ias_gym.skills.SkillDB` (one transaction) before the recogniser learns it.
+the :class:`~ias_gym.skills.SkillDB` (one transaction) before the recogniser learns it;
+:func:`learn_demonstration` is acquisition mode's rule: a demonstration the recogniser
+calls unknown, or the skill being acquired, is stored as that skill.
 """
 
 from __future__ import annotations
@@ -421,3 +423,48 @@ def acquire_skill(
     skill_id = db.add(stored)
     recogniser.add_skill(name, [frames])
     return skill_id
+
+
+@dataclass(frozen=True)
+class Acquisition:
+    """What acquisition mode did with one demonstration (:func:`learn_demonstration`).
+
+    Attributes:
+        recognised: the recogniser's answer on the whole session before it learnt anything.
+        stored_as: the skill it was stored as, or None (taken for another known skill).
+        skill_id: its id in the database, or None.
+    """
+
+    recognised: str
+    stored_as: str | None
+    skill_id: int | None
+
+
+def learn_demonstration(
+    db: SkillDB,
+    recogniser: Recogniser,
+    skill: Skill,
+    frames: Sequence[SessionFrame],
+    name: str,
+) -> Acquisition:
+    """Acquisition mode (paper Flow 3: "in case of unknown tasks, the assistant automatically
+    switches in acquisition mode") for one demonstration of the skill ``name``.
+
+    The session is stored as ``name`` (:func:`acquire_skill`) when the recogniser calls it
+    ``unknown`` (the first demonstration of a new skill, or one the few stored sessions do
+    not yet cover) or recognises it as ``name`` already; a session taken for another known
+    skill is not stored, so a known skill is never acquired twice under two names.
+
+    Raises:
+        InputError: an unusable name.
+    """
+    LibraryRecogniser._check_name(name)
+    recogniser.reset()
+    post = Posterior({UNKNOWN: 1.0})
+    for frame in frames:
+        post = recogniser.update(frame)
+    recogniser.reset()
+    best = post.best
+    if best not in (UNKNOWN, name):
+        return Acquisition(best, None, None)
+    return Acquisition(best, name, acquire_skill(db, recogniser, skill, frames, name))

@@ -3,6 +3,11 @@
 from its demonstrations' skill start (aligned in amplitude and speed before they are
 averaged, :func:`align_demonstrations`), less the holding skill's (:data:`HOLD_SKILL`), on
 the joints it moves, with how much persons differ in amplitude and speed.
+
+A skill acquired on line (:func:`~ias_gym.assist.recognition.acquire_skill`, stored under a
+name of its own) is a skill like the shipped ones here: every glove session that records
+where its motion starts counts. A skill with few demonstrations borrows the other skills'
+spread (:func:`shrunk_spread`): one demonstration says nothing of how persons differ.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ from ias_gym.errors import InputError
 from ias_gym.glove.hand import N_JOINTS
 from ias_gym.glove.skills import SKILLS
 from ias_gym.skills.db import SkillDB
+from ias_gym.skills.glove_session import motion_window
 from ias_gym.skills.transfer import shipped_skill_db, skill_start_index
 
 FloatArray = NDArray[np.float64]
@@ -82,8 +88,10 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
     with SkillDB(path, readonly=True) as db:
         for skill_id in db.ids():
             skill = db.get(skill_id)
-            if skill.person_id is None or skill.name not in SKILLS:
+            if skill.person_id is None:
                 continue
+            if skill.name not in SKILLS and motion_window(skill) is None:
+                continue  # neither a shipped glove skill nor a session that says its start
             k = skill_start_index(skill)
             time = np.asarray(skill.model.time, dtype=np.float64)
             demo = skill.demonstration
@@ -106,7 +114,7 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
     # What every skill shares after its start (the grip settling, the lift's end) is the
     # holding skill's motion; each skill's own motion is what it does beyond that.
     shared = means.get(HOLD_SKILL)
-    out = {}
+    aligned = {}
     for name, (tau, mean) in means.items():
         base = np.zeros_like(mean)
         if shared is not None:
@@ -117,11 +125,36 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
         if not joints.size:
             continue
         own = np.array([(d - base)[:, joints] for d in resampled[name]])
-        m, amps, speeds = align_demonstrations(tau, own)
-        out[name] = SkillMotion(
-            name, tau, m, joints, float(np.std(amps)), float(np.std(np.log(speeds)))
+        aligned[name] = (tau, joints, *align_demonstrations(tau, own))
+    # how much persons differ, pooled over the skills: what a skill with one demonstration
+    # borrows
+    spreads = [
+        (float(np.std(a)), float(np.std(np.log(v))))
+        for _, _, _, a, v in aligned.values()
+        if len(a) > 1
+    ]
+    pooled = np.median(spreads, axis=0) if spreads else np.zeros(2)
+    return {
+        name: SkillMotion(
+            name,
+            tau,
+            m,
+            joints,
+            shrunk_spread(amps, float(pooled[0])),
+            shrunk_spread(np.log(speeds), float(pooled[1])),
         )
-    return out
+        for name, (tau, joints, m, amps, speeds) in aligned.items()
+    }
+
+
+def shrunk_spread(values: FloatArray, pooled: float) -> float:
+    """The standard deviation of ``values`` with ``pooled`` counted as one more
+    observation of the squared deviation: ``sqrt((sum (x - mean)^2 + pooled^2) / n)``.
+
+    One demonstration gives ``pooled``; many give their own spread (plus ``pooled^2 / n``).
+    """
+    x = np.asarray(values, dtype=np.float64)
+    return float(np.sqrt((float(((x - x.mean()) ** 2).sum()) + pooled**2) / len(x)))
 
 
 #: Rounds of aligning the demonstrations in amplitude and speed before they are averaged.
