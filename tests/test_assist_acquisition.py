@@ -4,6 +4,7 @@ session on, recognised and completed for a stopped operator like a shipped skill
 
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
@@ -16,6 +17,7 @@ from ias_gym.assist.policy import AssistParams, ObservationAssistant, make_assis
 from ias_gym.assist.recognition import UNKNOWN
 from ias_gym.assist.skill_motions import shrunk_spread
 from ias_gym.assist.stream import record_session
+from ias_gym.cli import main
 from ias_gym.errors import InputError
 from ias_gym.glove.hand import joint_index
 from ias_gym.glove.population import population_ids
@@ -27,7 +29,8 @@ PRON = joint_index("wrist_pronation")
 NEW = "tilt_left"
 NAME = "my_tilt"
 #: A stop detector that latches (as in tests/test_assist_policy.py): these tests are about
-#: what is completed, not about the fitted threshold's rates.
+#: what is completed, not about the fitted threshold's rates (the tremor canceller, which
+#: touches every joint a little, is off).
 LATCHING = AssistParams(stop_window_s=0.1, stop_ratio=0.3)
 
 
@@ -69,7 +72,7 @@ def acquired(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
     """The shipped library without tilt_left, its assistant before and after learning it
     from population persons' demonstrations (until two are stored)."""
     path = _library_without(tmp_path_factory.mktemp("acq"), NEW)
-    assistant = make_assistant(path, recogniser="phase", params=LATCHING)
+    assistant = make_assistant(path, recogniser="phase", params=LATCHING, tremor=False)
     before = _stopped_sessions(assistant)
     results = []
     with SkillDB(path) as db:
@@ -132,3 +135,23 @@ def test_one_demonstration_borrows_the_pooled_spread() -> None:
     # between: never below the sample's own spread
     few = np.array([0.9, 1.1])
     assert float(np.std(few)) < shrunk_spread(few, 0.2) < 0.2
+
+
+def test_cli_acquire(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _library_without(tmp_path, NEW)
+    args = ["assist", "acquire", "--db", str(path), "--skill", NEW, "--json"]
+    assert main([*args, "--person", "p1", "--name", NAME]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["recognised"] == UNKNOWN and out["stored_as"] == NAME
+    with SkillDB(path, readonly=True) as db:
+        assert db.get(out["skill_id"]).name == NAME
+    for bad, match in (
+        (["--person", "p1", "--name", UNKNOWN], "--name"),
+        (["--person", "", "--name", NAME], "--person"),
+        (["--person", "p1", "--name", NAME, "--skill", "tilt"], "--skill"),
+    ):
+        assert main([*args, *bad]) == 2
+        err = capsys.readouterr().err
+        assert match in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    with SkillDB(path, readonly=True) as db:
+        assert [db.get(i).name for i in db.ids()].count(NAME) == 1  # nothing more stored

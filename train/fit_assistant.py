@@ -167,7 +167,10 @@ def main(argv: list[str] | None = None) -> int:
         print(str(exc), file=sys.stderr)
         return 2
     persons = population_ids(args.persons, args.seed)
-    base = AssistParams()  # the defaults of what is not fitted, never a former fit's file
+    # the defaults of what is not fitted here, never a former stop fit's values; the tremor
+    # window is train/fit_tremor.py's, kept from the file
+    kept = AssistParams.load(out).tremor_window_s if out.is_file() else AssistParams.tremor_window_s
+    base = AssistParams(tremor_window_s=kept)
     grid = tuple((w, r) for w in windows for r in ratios)
     per_person = run_jobs(
         PersonJob(grid, base, args.db),

@@ -12,6 +12,9 @@ are the hand's ``joint_angles`` less the assistant's own last offset.
 
 Every step:
 
+0. **Tremor.** :class:`~ias_gym.assist.tremor.TremorCanceller` notches the strongest line
+   of the tremor band (4-12 Hz) out of the operator's targets, and what follows reads the
+   targets without it.
 1. **Recognition.** The observation becomes a
    :class:`~ias_gym.assist.stream.SessionFrame` (:func:`frame_from_observation`) and the
    recogniser (:mod:`ias_gym.assist.recognition`) updates its posterior ``p_k`` over the
@@ -24,10 +27,10 @@ Every step:
    skill's motion set in: amplitude ``a``, speed ``v`` and start ``t0``, the most probable
    under the library's spread of persons and the operator's own unsteadiness before the
    motion, so that ``a m_k(v (t - t0))`` is this person's motion. When the operator's
-   motion falls short of the fitted model's (their speed over
-   :attr:`AssistParams.stop_window_s` below :attr:`AssistParams.stop_ratio` of the model's,
-   on the skill's principal joint, with at least :attr:`AssistParams.min_remaining_rad` of
-   the model's motion still to go from the operator's pose), the fit is held, and once
+   motion falls short of the fitted model's (their speed over ``stop_window_s`` below
+   ``stop_ratio`` of the model's, on the skill's principal joint, with at least
+   ``min_remaining_rad`` of the model's motion still to go from the operator's pose: the
+   fields of :class:`~ias_gym.assist.completion.AssistParams`), the fit is held, and once
    that has lasted another window the assistant latches that the operator has stopped. It
    completes the skill the recogniser put first when the operator began to slow down
    (one skill: two completions at once would move the same joints two ways), driving its
@@ -41,17 +44,13 @@ Every step:
    demonstration the recogniser calls unknown as a new skill of the assistant's library,
    and from the next session on the assistant recognises and completes it.
 
-The thresholds are :class:`AssistParams`, fitted on development persons by
-``train/fit_assistant.py`` and stored in ``ias_gym/assets/assistant_params.json``.
+The thresholds are :class:`~ias_gym.assist.completion.AssistParams`, fitted on development
+persons by ``train/fit_assistant.py`` and stored in ``ias_gym/assets/assistant_params.json``.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import json
-import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -59,14 +58,15 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym.assist.completion import PARAMS_PATH, REFIT_EVERY, AssistParams, Completion
 from ias_gym.assist.recogniser_registry import METHODS, make_recogniser
 from ias_gym.assist.recognition import Acquisition, learn_demonstration
 from ias_gym.assist.sessions import LIFT_END
 from ias_gym.assist.skill_motions import SkillMotion, load_motions
 from ias_gym.assist.stream import SessionFrame
+from ias_gym.assist.tremor import TremorCanceller
 from ias_gym.errors import InputError
 from ias_gym.glove.hand import N_JOINTS
-from ias_gym.outputs import atomic_output
 from ias_gym.sim.pen import R_PAPER_TO_MJ, matrix_to_rpy, mj_to_paper
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.skill import Skill
@@ -74,91 +74,9 @@ from ias_gym.skills.transfer import shipped_skill_db
 
 FloatArray = NDArray[np.float64]
 
-#: Where the fitted parameters are stored (``train/fit_assistant.py`` writes it).
-PARAMS_PATH = Path(__file__).resolve().parents[1] / "assets" / "assistant_params.json"
-#: The grids the operator's speed and start are fitted on: speeds relative to the
-#: library's mean person [-] (the population's speed factors lie within 0.6-1.6) ...
-SPEED_GRID = np.linspace(0.6, 1.6, 21)
-#: ... and starts before the detected onset [s].
-START_GRID = np.arange(0.0, 0.32, 0.02)
-#: The operator's motion is refitted every this many steps (between them the last fit
-#: predicts; a fit costs about a millisecond).
-REFIT_EVERY = 5
-#: How far ahead the model's motion still to go is looked for [s] (the longest skill motion
-#: of the slowest person).
-FUTURE_S = 3.0
-#: The fit reads the operator's motion up to this many stop windows back: a stop shows
-#: in the test only once the window is past it and the env's low-pass on the operator's
-#: targets has settled, and samples from after a stop are no evidence of the motion meant.
-FIT_LAG = 2
-#: The least unsteadiness of an operator the fit assumes [rad]: about the smallest
-#: physiological tremor of a wrist (docs/population.md, ``tremor_amplitude``).
-NOISE_FLOOR = 1e-3
 #: Recognisers by name: the library's (:data:`~ias_gym.assist.recogniser_registry.METHODS`) and
 #: ``"none"``, which always says ``unknown`` (the "no skill knowledge" ablation).
 RECOGNISERS = (*METHODS, "none")
-
-
-@dataclass(frozen=True)
-class AssistParams:
-    """The assistant's fitted thresholds (``train/fit_assistant.py``).
-
-    Attributes:
-        onset_rad: the skill's motion has set in once a moving joint left its pose at the
-            lift's end by this much [rad].
-        stop_window_s: the window over which the operator's and the model's speeds are
-            compared [s].
-        stop_ratio: the operator is slowing down when their speed over the window is below
-            this share of the fitted model's, and has stopped when that lasts another
-            window [-].
-        min_model_speed: ... and the model's is at least this [rad/s] (a model at a turning
-            point says nothing).
-        min_remaining_rad: ... and the model still moves at least this far from its pose now
-            [rad] (a person who ends a motion early is not stopped).
-        fitted_on: what the values were fitted on (persons' seed and count), for the record.
-    """
-
-    onset_rad: float = 0.01
-    stop_window_s: float = 0.1
-    stop_ratio: float = 0.3
-    min_model_speed: float = 0.05
-    min_remaining_rad: float = 0.05
-    fitted_on: str = "defaults"
-
-    @classmethod
-    def load(cls, path: str | Path = PARAMS_PATH) -> AssistParams:
-        """Read the parameters from a JSON file (plain data: nothing executes).
-
-        Raises:
-            InputError: the file is missing, not JSON, or has unknown or non-numeric keys.
-        """
-        p = Path(path)
-        try:
-            data = json.loads(p.read_text())
-        except FileNotFoundError:
-            raise InputError(
-                f"assistant parameters {p} do not exist (run train/fit_assistant.py)"
-            ) from None
-        except (OSError, ValueError) as e:
-            raise InputError(f"assistant parameters {p} are unreadable: {e}") from None
-        fields = {f.name for f in dataclasses.fields(cls)}
-        if not isinstance(data, dict) or not set(data) <= fields:
-            raise InputError(f"assistant parameters {p}: keys must be among {sorted(fields)}")
-        for key, value in data.items():
-            ok = isinstance(value, str) if key == "fitted_on" else _positive(value)
-            if not ok:
-                raise InputError(f"assistant parameters {p}: {key}={value!r} is not valid")
-        return cls(**data)
-
-    def save(self, path: str | Path = PARAMS_PATH, *, overwrite: bool = False) -> None:
-        """Write the parameters as JSON, atomically (an existing file only with
-        ``overwrite``)."""
-        with atomic_output(path, overwrite=overwrite) as tmp:
-            tmp.write_text(json.dumps(dataclasses.asdict(self), indent=2) + "\n")
-
-
-def _positive(value: object) -> bool:
-    return isinstance(value, int | float) and math.isfinite(value) and value > 0
 
 
 def frame_from_observation(
@@ -180,12 +98,6 @@ def frame_from_observation(
     )
 
 
-def _slope(t: FloatArray, y: FloatArray) -> float:
-    """The least-squares slope of ``y`` over ``t``."""
-    dt = t - t.mean()
-    return float((dt * (y - y.mean())).sum() / max(float((dt * dt).sum()), 1e-12))
-
-
 class _NoRecogniser:
     """Always ``unknown``: the assistant without skill knowledge."""
 
@@ -199,111 +111,6 @@ class _NoRecogniser:
         return {"unknown": 1.0}
 
 
-class _Completion:
-    """One skill's fit of the operator's motion and its completion (module docstring, 2)."""
-
-    def __init__(self, motion: SkillMotion, params: AssistParams, dt: float) -> None:
-        self.motion, self.params, self.dt = motion, params, dt
-        self.times: list[float] = []
-        self.values: list[FloatArray] = []  # operator's joints less their pose at LIFT_END
-        self.onset: float | None = None
-        self.fit: tuple[float, float, float] | None = None  # (a, v, t0)
-        self.noise: float | None = None  # the operator's unsteadiness before the onset [rad]
-        self.stopped_at: float | None = None
-        self.slow_since: float | None = None  # the stop test holds since then [s]
-        self._clock = 0.0  # the completion's time on the fitted timeline [s]
-
-    def model(self, t: NDArray[Any]) -> FloatArray:
-        """``(len(t), J)`` the fitted motion at episode times ``t``."""
-        assert self.fit is not None
-        a, v, t0 = self.fit
-        return a * self.motion.at(v * (np.asarray(t) - t0))
-
-    def _refit(self, n: int) -> None:
-        """Fit ``(a, v, t0)`` to the first ``n`` samples: the most probable under the
-        library's spread of persons (:attr:`SkillMotion.amplitude_sd`,
-        :attr:`SkillMotion.speed_sd`) and the operator's own unsteadiness before the
-        motion (:attr:`noise`), ``a`` in closed form for each ``(v, t0)`` of the grids.
-
-        Early in a motion its amplitude and speed are hardly told apart (a minimum-jerk
-        start grows as ``a v^3``); the library's spread decides between them."""
-        assert self.onset is not None
-        t = np.asarray(self.times[:n])
-        y = np.asarray(self.values[:n])  # (N, J)
-        if self.noise is None:
-            still = y[t < self.onset]
-            spread = float(np.sqrt(np.mean((still - still.mean(axis=0)) ** 2))) if len(still) else 0
-            self.noise = max(spread, NOISE_FLOOR)
-        wa = (self.noise / max(self.motion.amplitude_sd, 1e-3)) ** 2  # prior weights, in
-        wv = (self.noise / max(self.motion.speed_sd, 1e-3)) ** 2  # units of the residual
-        best = (math.inf, (1.0, 1.0, self.onset))
-        for t0 in self.onset - START_GRID:
-            tau = SPEED_GRID[:, None] * (t[None, :] - t0)  # (V, N)
-            m = self.motion.at(tau.ravel()).reshape(len(SPEED_GRID), len(t), -1)
-            mm = (m * m).sum(axis=(1, 2))
-            my = (m * y[None]).sum(axis=(1, 2))
-            a = (my + wa) / (mm + wa)
-            res = ((a[:, None, None] * m - y[None]) ** 2).sum(axis=(1, 2))
-            cost = res + wa * (a - 1.0) ** 2 + wv * np.log(SPEED_GRID) ** 2
-            i = int(np.argmin(cost))
-            if cost[i] < best[0]:
-                best = (float(cost[i]), (float(a[i]), float(SPEED_GRID[i]), float(t0)))
-        self.fit = best[1]
-
-    def update(self, t: float, value: FloatArray, refit: bool) -> FloatArray:
-        """Take the operator's joints (less their pose at the lift's end) at ``t``; return
-        the completion's offset on the skill's joints (zero until a stop is latched).
-
-        The stop test: the model fitted to what the operator did before the last
-        ``stop_window_s`` predicts the window; the operator moved less than ``stop_ratio``
-        of it. From the first such window on the fit is held (what the operator does while
-        slowing down is no evidence of how they meant to move), and the stop is latched
-        once the test has held for another window (a turning point or a hesitation of an
-        unimpaired operator passes sooner)."""
-        p = self.params
-        if self.stopped_at is None:
-            self.times.append(t)
-            self.values.append(value)
-            if self.onset is None and float(np.abs(value).max()) > p.onset_rad:
-                self.onset = t
-            w = round(p.stop_window_s / self.dt)
-            if self.onset is None or t - self.onset < (FIT_LAG + 1) * p.stop_window_s:
-                return np.zeros(len(self.motion.joints))
-            if self.slow_since is None and (refit or self.fit is None):
-                self._refit(len(self.times) - FIT_LAG * w)
-            # on the skill's principal joint (its largest motion): the others carry what the
-            # demonstrating persons corrected on the way, which another person need not
-            j = self.motion.principal
-            # speeds as least-squares slopes over the window's samples: the operator's
-            # tremor averages out without delaying the test
-            ts = np.asarray(self.times[-1 - w :])
-            model_speed = abs(_slope(ts, self.model(ts)[:, j]))
-            op_speed = abs(_slope(ts, np.asarray(self.values[-1 - w :])[:, j]))
-            ahead = self.model(t + np.arange(0.0, FUTURE_S, 0.05))[:, j]
-            remaining = float(np.abs(ahead - value[j]).max())  # from where the operator is
-            armed = model_speed >= p.min_model_speed and remaining >= p.min_remaining_rad
-            if not (armed and op_speed < p.stop_ratio * model_speed):
-                self.slow_since = None
-            elif self.slow_since is None:
-                self.slow_since = t
-            elif t - self.slow_since >= p.stop_window_s - 0.5 * self.dt:
-                self.stopped_at = t
-                # when the operator stopped: the model's pose nearest to theirs since the
-                # slowing down began
-                grid = np.arange(self.slow_since - 2.0 * p.stop_window_s, t, self.dt)
-                gap = np.abs(self.model(grid) - value).max(axis=1)
-                self._clock = float(grid[int(np.argmin(gap))])
-        if self.stopped_at is None:
-            return np.zeros(len(self.motion.joints))
-        # resume from where the operator stopped and catch up with the fitted timeline at
-        # twice its pace (no step in the targets)
-        self._clock = min(self._clock + 2.0 * self.dt, t)
-        out: FloatArray = np.zeros(len(self.motion.joints))
-        j = self.motion.principal
-        out[j] = self.model(np.array([self._clock], dtype=np.float64))[0, j] - value[j]
-        return out
-
-
 class ObservationAssistant:
     """Completes the recognised skill, from observations alone (module docstring).
 
@@ -315,6 +122,7 @@ class ObservationAssistant:
         action_scale: the env's joint offset of a full action [rad].
         layout: the env's observation layout (``env.unwrapped.observation_layout``).
         completion: switch the completion off (an ablation).
+        tremor: switch the tremor canceller off (an ablation).
         library: the skill database the motions came from (:meth:`learn` adds to it).
     """
 
@@ -332,6 +140,7 @@ class ObservationAssistant:
         action_scale: float = 0.2,
         layout: Mapping[str, slice] | None = None,
         completion: bool = True,
+        tremor: bool = True,
         library: str | Path | None = None,
     ) -> None:
         self.motions = dict(motions)
@@ -342,15 +151,18 @@ class ObservationAssistant:
         self.scale = float(action_scale)
         self.layout = dict(layout) if layout is not None else None
         self.completion = completion
+        self.tremor = TremorCanceller(self.dt, params.tremor_window_s) if tremor else None
         self.reset()
 
     def reset(self) -> None:
         """Start a session: forget the last one's state."""
         self.recogniser.reset()
+        if self.tremor is not None:
+            self.tremor.reset()
         self._post: dict[str, float] = {}
         self._last_offset = np.zeros(N_JOINTS)
         self._theta0: FloatArray | None = None  # the operator's pose at the lift's end
-        self._fits = {k: _Completion(m, self.params, self.dt) for k, m in self.motions.items()}
+        self._fits = {k: Completion(m, self.params, self.dt) for k, m in self.motions.items()}
         #: The skill being completed: the first whose stop was latched while the recogniser
         #: put it first.
         self._active: str | None = None
@@ -415,13 +227,16 @@ class ObservationAssistant:
         obs = np.asarray(obs, dtype=np.float64)
         theta = self._operator_theta(obs, layout)
         t = float(obs[layout["time"]][0]) + self.dt  # the step the action acts on
+        offset = np.zeros(N_JOINTS)
+        if self.tremor is not None:  # a tremor is no motion of the skill's
+            offset += self.tremor.update(theta)
+            theta = theta + offset
         # the recogniser sees what the hand is commanded: the operator's targets with the
         # assistant's last offset (a completed skill looks like the skill)
-        frame = frame_from_observation(obs, layout, theta + self._last_offset)
+        frame = frame_from_observation(obs, layout, theta - offset + self._last_offset)
         post = dict(self.recogniser.update(frame))
         self._post = post
         self._posts.append(post)
-        offset = np.zeros(N_JOINTS)
         if self.completion and t >= LIFT_END:
             if self._theta0 is None:
                 self._theta0 = theta.copy()
@@ -463,7 +278,7 @@ def make_assistant(
         params: the thresholds, or a JSON file of them (default: the fitted ones).
         control_dt, action_scale: the env's (``env.unwrapped.config``).
         layout: the env's observation layout.
-        **switches: ``completion`` (an ablation).
+        **switches: ``completion``, ``tremor`` (ablations).
 
     Raises:
         InputError: an unknown recogniser, a missing library or parameter file.

@@ -68,6 +68,17 @@ UNKNOWN_QUANTILE = 0.95
 UNKNOWN_AT_MEDIAN = 0.01
 
 
+def check_skill_name(name: object, what: str = "skill name") -> str:
+    """``name`` if a library can store a skill under it (non-empty, not ``"unknown"``).
+
+    Raises:
+        InputError: an unusable name.
+    """
+    if not isinstance(name, str) or not name.strip() or name == UNKNOWN:
+        raise InputError(f"{what} {name!r} is not usable: non-empty and not {UNKNOWN!r}")
+    return name
+
+
 class Posterior(Mapping[str, float]):
     """Probabilities of the stored skills and of ``"unknown"``, summing to 1.
 
@@ -255,8 +266,7 @@ class LibraryRecogniser:
 
     @staticmethod
     def _check_name(name: str) -> None:
-        if not isinstance(name, str) or not name.strip() or name == UNKNOWN:
-            raise InputError(f"skill name {name!r} is not usable: non-empty and not {UNKNOWN!r}")
+        check_skill_name(name)
 
     @property
     def skills(self) -> tuple[str, ...]:

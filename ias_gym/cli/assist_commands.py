@@ -11,11 +11,16 @@ recognition keys (the recogniser the assistant uses, :data:`ASSIST_METHOD`, on t
 persons; null when they are in the library) and ``by_impairment``: impairment ->
 ``success_unassisted``, ``success_assisted``, ``intervention``. ``assist demo``:
 :mod:`ias_gym.cli.assist_demo`.
+
+``assist acquire`` records one demonstration in the glove world and runs the assistant's
+acquisition mode on it (:meth:`~ias_gym.assist.policy.ObservationAssistant.learn`): stored in
+the library as ``--name`` when the recogniser calls it unknown or ``--name``.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -102,6 +107,47 @@ def _library(args: argparse.Namespace) -> int:
         record_sessions(persons, skills, args.episodes, seed=args.seed, db=db, progress=tqdm)
         after = len(db)
     print(f"{args.db}: {after - before} sessions added ({after} in all)")
+    return 0
+
+
+def _acquire(args: argparse.Namespace) -> int:
+    import gymnasium as gym
+
+    import ias_gym  # noqa: F401 - registers the envs
+    from ias_gym.assist.policy import make_assistant
+    from ias_gym.assist.recognition import check_skill_name
+    from ias_gym.assist.stream import record_session
+    from ias_gym.glove.ids import check_id
+    from ias_gym.glove.skills import check_skill
+    from ias_gym.skills import SkillDB
+
+    check_id(args.person, "--person")
+    check_skill(args.skill, "--skill")
+    check_skill_name(args.name, "--name")
+    if not Path(args.db).is_file():
+        raise InputError(f"--db {args.db} does not exist (build one: ias-gym assist library)")
+    assistant = make_assistant(args.db, recogniser=args.method)
+    env = gym.make("IAS-GloveGrasp-v0", person_id=args.person, skill=args.skill)
+    try:
+        skill, frames = record_session(env, seed=args.seed)
+    finally:
+        env.close()
+    if not skill.is_success:
+        raise InputError(
+            f"{args.person}'s {args.skill} demonstration failed (the pen was not held to the "
+            "end): nothing stored; demonstrate again (another --seed or --person)"
+        )
+    with SkillDB(args.db) as db:
+        result = assistant.learn(db, skill, frames, args.name)
+    if args.json:
+        print(json.dumps(dataclasses.asdict(result)))
+    elif result.stored_as is None:
+        print(f"recognised as {result.recognised}, a known skill: not stored")
+    else:
+        print(
+            f"recognised as {result.recognised}: stored as {result.stored_as} "
+            f"(id {result.skill_id} in {args.db})"
+        )
     return 0
 
 
@@ -329,5 +375,28 @@ def add_assist_commands(subparsers: argparse._SubParsersAction[Any]) -> None:
         library, 2, "sessions per person and skill", seed_help="reset seed of the first"
     )
     library.set_defaults(run=_library)
+    acquire = commands.add_parser(
+        "acquire",
+        help="demonstrate a skill and let the assistant acquire it",
+        description="Record one IAS-GloveGrasp-v0 session of --person performing --skill and "
+        "run acquisition mode on it: the library's recogniser scores the whole session, and "
+        "it is stored in --db as --name when it is called unknown (a skill the library lacks) "
+        "or --name (more sessions of it); one recognised as another known skill is not "
+        "stored. From then on the assistant on --db recognises and completes --name. A failed "
+        "demonstration is not stored (exit 2).",
+        formatter_class=HelpFormatter,
+    )
+    acquire.add_argument("--db", required=True, metavar="FILE", help="the assistant's library")
+    acquire.add_argument("--person", required=True, metavar="ID", help="who demonstrates")
+    acquire.add_argument("--skill", required=True, metavar="NAME", help="what they perform")
+    acquire.add_argument("--name", required=True, metavar="NAME", help="the acquired skill's name")
+    acquire.add_argument(
+        "--method", default=ASSIST_METHOD, metavar="phase|dtw", help="the recogniser"
+    )
+    acquire.add_argument(
+        "--seed", type=non_negative_int, default=0, metavar="S", help="the session's reset seed"
+    )
+    acquire.add_argument("--json", action="store_true", help="print one JSON object")
+    acquire.set_defaults(run=_acquire)
     add_assist_evaluate(commands)
     add_assist_demo(commands)

@@ -1,0 +1,137 @@
+"""Tremor cancelling on the operator's joint targets, from the targets alone.
+
+Pathological tremors lie at 4-12 Hz (parkinsonian rest tremor 4-6 Hz, essential tremor
+4-12 Hz: Deuschl, Bain & Brin 1998); voluntary hand motion lies below about 2 Hz (the
+fastest skill, the fast see-saw, at 1.5 Hz). :class:`TremorCanceller` removes the strongest
+spectral line of the tremor band from the targets, without knowing the tremor's frequency,
+which joints shake or whether the operator has a tremor at all:
+
+1. **The line.** Every joint's targets pass a causal high-pass (Butterworth of order
+   :data:`HIGHPASS_ORDER` at :data:`HIGHPASS_HZ`, between the two bands, so that the
+   voluntary motion does not mask the line); the line is the peak of the high-passed
+   targets' spectrum within the tremor band (:func:`tremor_line`: Hann window, zero-padded,
+   summed over the joints, a parabola through the peak's log power) over the last
+   :data:`FREQUENCY_WINDOW_S` (at first, what there is of it).
+2. **Cancelling.** From the first ``window_s`` of the session on, a second-order notch
+   (scipy's ``iirnotch``) at the line's frequency on every joint, started at rest on the
+   current targets and retuned every ``window_s`` (its state kept); the canceller's offset
+   is the notched targets less the targets. ``window_s`` is fitted by
+   ``train/fit_tremor.py`` (:class:`~ias_gym.assist.completion.AssistParams`).
+
+There is no detection: an operator without a tremor gets the notch too, at whatever line
+their targets have. What that costs is the notch's phase lag on their voluntary motion,
+bounded by its width :data:`NOTCH_WIDTH_HZ`: at most 15 deg at 1.5 Hz under a 4 Hz notch
+(:func:`notch_phase_deg`; about 25 ms), less for higher ones.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.signal import butter, iirnotch, sosfilt, sosfilt_zi, tf2sos
+
+FloatArray = NDArray[np.float64]
+
+#: The pathological tremors' band [Hz] (module docstring).
+TREMOR_BAND = (4.0, 12.0)
+#: The high-pass [Hz] and its order: 8th order at 3 Hz takes a 1.5 Hz voluntary motion
+#: down 48 dB and passes a 4 Hz tremor whole.
+HIGHPASS_HZ = 3.0
+HIGHPASS_ORDER = 8
+#: The frequency estimate's window [s]: its Hann main lobe +-2 Hz.
+FREQUENCY_WINDOW_S = 1.0
+#: The notch's -3 dB width [Hz]: lags a 1.5 Hz motion by 12 deg under a 4 Hz notch.
+NOTCH_WIDTH_HZ = 2.0
+#: Zero-padded length of the spectrum.
+SPECTRUM_N = 1024
+
+
+def notch_phase_deg(f_hz: float, notch_hz: float, width_hz: float = NOTCH_WIDTH_HZ) -> float:
+    """The phase [deg] the continuous notch at ``notch_hz`` (-3 dB width ``width_hz``) adds
+    at ``f_hz`` below it (negative: a lag)."""
+    w, w0, q = f_hz, notch_hz, notch_hz / width_hz
+    return -math.degrees(math.atan2(w * w0 / q, w0 * w0 - w * w))
+
+
+def tremor_line(window: FloatArray, dt: float) -> tuple[float, float]:
+    """``(frequency [Hz], amplitude [rad])`` of the strongest spectral line of ``window``
+    ``(N, joints)`` (sampled every ``dt``) within the tremor band (widened by 1 Hz for the
+    search, the frequency clipped to the band): the peak of the Hann window's zero-padded
+    spectrum summed over the joints, refined by a parabola through the peak's log power;
+    the amplitude is the norm over the joints of each joint's sinusoid there
+    (``2 |X| / sum(w)``: a sinusoid of amplitude ``A`` on one joint gives ``A``)."""
+    hann = np.hanning(len(window))
+    spec = np.abs(np.fft.rfft(window * hann[:, None], SPECTRUM_N, axis=0))
+    power = np.sum(spec**2, axis=1)
+    freqs = np.fft.rfftfreq(SPECTRUM_N, dt)
+    band = np.flatnonzero((freqs >= TREMOR_BAND[0] - 1.0) & (freqs <= TREMOR_BAND[1] + 1.0))
+    k = int(band[np.argmax(power[band])])
+    a, b, c = np.log(power[k - 1 : k + 2] + 1e-300)
+    k_off = 0.5 * (a - c) / (a - 2 * b + c) if a - 2 * b + c < 0 else 0.0
+    f = float(np.clip(freqs[k] + k_off * (freqs[1] - freqs[0]), *TREMOR_BAND))
+    return f, 2.0 * math.sqrt(float(power[k])) / float(hann.sum())
+
+
+class TremorCanceller:
+    """The tremor's offset on the operator's targets (module docstring).
+
+    Args:
+        dt: the control step [s].
+        window_s: when the notch starts and how often it is retuned [s].
+        joints: how many joints the targets have.
+
+    Raises:
+        ValueError: a step too long to see the tremor band, or a window shorter than 4
+            steps.
+    """
+
+    def __init__(self, dt: float, window_s: float, joints: int = 10) -> None:
+        self.dt = float(dt)
+        self.joints = int(joints)
+        self.window = round(float(window_s) / self.dt)
+        fs = 1.0 / self.dt
+        if TREMOR_BAND[1] >= fs / 2:
+            raise ValueError(
+                f"a control step of {dt} s cannot see tremors up to {TREMOR_BAND[1]} Hz"
+            )
+        if self.window < 4:
+            raise ValueError(f"a window of {window_s} s is under 4 control steps of {dt} s")
+        self._hp = butter(HIGHPASS_ORDER, HIGHPASS_HZ, btype="highpass", fs=fs, output="sos")
+        self.reset()
+
+    def reset(self) -> None:
+        """Start a session."""
+        self._hp_state: FloatArray | None = None
+        self._recent: deque[FloatArray] = deque(maxlen=round(FREQUENCY_WINDOW_S / self.dt))
+        self._since_tuned = 0
+        self._notch: FloatArray | None = None
+        self._notch_state: FloatArray | None = None
+        #: The notch's frequency [Hz] (None before the first window is full) ...
+        self.frequency_hz: float | None = None
+        #: ... and the line's amplitude there when it was last tuned [rad].
+        self.amplitude_rad = 0.0
+
+    def update(self, theta: FloatArray) -> FloatArray:
+        """Take the operator's targets ``(joints,)`` [rad]; return the offset that cancels
+        the tremor band's line in them (zero during the first window)."""
+        x = np.asarray(theta, dtype=np.float64)
+        if self._hp_state is None:  # start at rest on the first targets: no step response
+            self._hp_state = sosfilt_zi(self._hp)[:, :, None] * x[None, None, :]
+        hp, self._hp_state = sosfilt(self._hp, x[None, :], axis=0, zi=self._hp_state)
+        self._recent.append(hp[0])
+        self._since_tuned += 1
+        if self._since_tuned >= self.window:
+            self.frequency_hz, self.amplitude_rad = tremor_line(np.asarray(self._recent), self.dt)
+            b, a = iirnotch(self.frequency_hz, self.frequency_hz / NOTCH_WIDTH_HZ, fs=1.0 / self.dt)
+            self._notch = tf2sos(b, a)
+            self._since_tuned = 0
+            if self._notch_state is None:
+                self._notch_state = sosfilt_zi(self._notch)[:, :, None] * x[None, None, :]
+        if self._notch is None or self._notch_state is None:
+            return np.zeros(self.joints)
+        y, self._notch_state = sosfilt(self._notch, x[None, :], axis=0, zi=self._notch_state)
+        out: FloatArray = y[0] - x
+        return out
