@@ -14,6 +14,7 @@ JSON in ``docs/``                      written by                          table
 ``assist_table_phase.json``,           ``train/assist_table.py``           ``assistance.md``
 ``assist_table_residual.json``
 ``assist_population.json``             ``train/assist_population.py``      ``assist_population.md``
+``assist_acquisition.json``            ``train/assist_acquisition.py``     ``assist_acquisition.md``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
 ``offline_rl_results.json``            ``train/offline_rl.py`` (runs),      ``offline_rl.md``
@@ -309,6 +310,49 @@ def assist_population(result: Mapping[str, Any]) -> str:
             ["skill", *(f"`{s}`" for s in specs)], skill_rows
         )
     return table
+
+
+def assist_acquisition(result: Mapping[str, Any]) -> str:
+    """The loop closed: a skill left out of the library, acquired from demonstrations, and
+    completed for stopped operators after each; beside the operator alone and the whole
+    library."""
+    entries = {**{f"`{k}`": v for k, v in result["by_skill"].items()}, "all": result["all"]}
+    n = len(result["all"]["stopped_after"])
+    body = [
+        [
+            name,
+            interval(e["stopped_alone"]),
+            interval(e["stopped_shipped"]),
+            *(interval(r) for r in e["stopped_after"]),
+            interval(e["recognised_after"][-1]),
+            interval(e["unimpaired_after"][-1]),
+        ]
+        for name, e in entries.items()
+    ]
+    header = [
+        "skill",
+        "alone",
+        "whole library",
+        *(f"after {k + 1}" for k in range(n)),
+        f"recognised after {n}",
+        f"unimpaired after {n}",
+    ]
+    stored = {
+        k: sum(d.get("stored") is not None for d in e["demonstrations"])
+        for k, e in result["by_skill"].items()
+    }
+    intro = (
+        f"`{result['impairment']}`, {result['persons']} persons of population seed "
+        f"{result['population_seed']} (**{result['set']}**); demonstrators: population seed "
+        f"{result['demonstrator_seed']}, library `{result['library']}` less the skill; "
+        "success [95 % interval] (successes/sessions judged) of the stopped operator alone, "
+        "assisted with the whole library, and assisted after each demonstration; the "
+        "acquired skill as the recogniser's final answer on unimpaired sessions, and their "
+        "success, after the last. Demonstrations stored: "
+        + ", ".join(f"{k} {v}" for k, v in stored.items())
+        + ".\n\n"
+    )
+    return intro + rows(header, body)
 
 
 def assistance(phase: Mapping[str, Any], residual: Mapping[str, Any]) -> str:
@@ -766,6 +810,7 @@ def tables(docs: Path) -> dict[str, str]:
             load("assist_table_phase.json"), load("assist_table_residual.json")
         ),
         "assist_population.md": assist_population(load("assist_population.json")),
+        "assist_acquisition.md": assist_acquisition(load("assist_acquisition.json")),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "pen_skill_bc_robustness.md": pen_skill_bc_robustness(load("pen_skill_bc_results.json")),
         "completion.md": completion(load("completion_table.json")),
