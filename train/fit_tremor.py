@@ -2,7 +2,7 @@
 
 The tremor canceller (:class:`~ias_gym.assist.tremor.TremorCanceller`) notches the tremor
 band's strongest line out of the operator's targets from its first window on, retuned every
-window (``tremor_window_s`` of :class:`~ias_gym.assist.completion.AssistParams`). A short
+window (``tremor_window_s`` of :class:`~ias_gym.assist.motion_completion.AssistParams`). A short
 window starts early, before the pinch closes, but on less of the line; a long one the other
 way. Its value is judged by the sessions it produces: persons drawn from the population
 with ``--seed`` (development persons) perform every skill once unimpaired and once with a
@@ -37,7 +37,7 @@ import numpy as np
 
 import ias_gym  # noqa: F401  (registers the envs)
 from ias_gym.assist.assistance_evaluation import reference_session
-from ias_gym.assist.completion import PARAMS_PATH, AssistParams
+from ias_gym.assist.motion_completion import PARAMS_PATH, AssistParams
 from ias_gym.assist.policy import make_assistant
 from ias_gym.assist.sessions import run_session, session_success
 from ias_gym.errors import InputError

@@ -30,7 +30,7 @@ Every step:
    motion falls short of the fitted model's (their speed over ``stop_window_s`` below
    ``stop_ratio`` of the model's, on the skill's principal joint, with at least
    ``min_remaining_rad`` of the model's motion still to go from the operator's pose: the
-   fields of :class:`~ias_gym.assist.completion.AssistParams`), the fit is held, and once
+   fields of :class:`~ias_gym.assist.motion_completion.AssistParams`), the fit is held, and once
    that has lasted another window the assistant latches that the operator has stopped. It
    completes the skill the recogniser put first when the operator began to slow down
    (one skill: two completions at once would move the same joints two ways), driving its
@@ -44,7 +44,7 @@ Every step:
    demonstration the recogniser calls unknown as a new skill of the assistant's library,
    and from the next session on the assistant recognises and completes it.
 
-The thresholds are :class:`~ias_gym.assist.completion.AssistParams`, fitted on development
+The thresholds are :class:`~ias_gym.assist.motion_completion.AssistParams`, fitted on development
 persons by ``train/fit_assistant.py`` and stored in ``ias_gym/assets/assistant_params.json``.
 """
 
@@ -58,7 +58,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.assist.completion import PARAMS_PATH, REFIT_EVERY, AssistParams, Completion
+from ias_gym.assist.motion_completion import PARAMS_PATH, REFIT_EVERY, AssistParams, Completion
 from ias_gym.assist.recogniser_registry import METHODS, make_recogniser
 from ias_gym.assist.recognition import Acquisition, learn_demonstration
 from ias_gym.assist.sessions import LIFT_END
