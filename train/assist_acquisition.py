@@ -101,14 +101,12 @@ class SkillJob:
                         env = gym.make("IAS-GloveAssist-v0", person_id=p, skill=self.skill)
                         whole = run_session(env, assistant, self.reset_seed)
                         env.close()
+                        post = assistant.posterior()  # its last, at the session's end
                         rows["persons"][p]["after"].append(
                             {
                                 "stopped": stopped,
                                 "unimpaired": session_success(whole, ref),
-                                "recognised": max(
-                                    assistant.posterior(), key=assistant.posterior().__getitem__
-                                )
-                                == name,
+                                "recognised": max(post, key=post.__getitem__) == name,
                             }
                         )
         return rows

@@ -225,15 +225,14 @@ class ObservationAssistant:
         if layout is None:
             raise InputError("give the observation's layout (env.unwrapped.observation_layout)")
         obs = np.asarray(obs, dtype=np.float64)
-        theta = self._operator_theta(obs, layout)
+        operator = self._operator_theta(obs, layout)
         t = float(obs[layout["time"]][0]) + self.dt  # the step the action acts on
-        offset = np.zeros(N_JOINTS)
-        if self.tremor is not None:  # a tremor is no motion of the skill's
-            offset += self.tremor.update(theta)
-            theta = theta + offset
+        # a tremor is no motion of the skill's: what follows reads the targets without it
+        offset = self.tremor.update(operator) if self.tremor is not None else np.zeros(N_JOINTS)
+        theta = operator + offset
         # the recogniser sees what the hand is commanded: the operator's targets with the
         # assistant's last offset (a completed skill looks like the skill)
-        frame = frame_from_observation(obs, layout, theta - offset + self._last_offset)
+        frame = frame_from_observation(obs, layout, operator + self._last_offset)
         post = dict(self.recogniser.update(frame))
         self._post = post
         self._posts.append(post)

@@ -468,7 +468,7 @@ def learn_demonstration(
     Raises:
         InputError: an unusable name.
     """
-    LibraryRecogniser._check_name(name)
+    check_skill_name(name)
     recogniser.reset()
     post = Posterior({UNKNOWN: 1.0})
     for frame in frames:

@@ -115,6 +115,7 @@ def _acquire(args: argparse.Namespace) -> int:
 
     import ias_gym  # noqa: F401 - registers the envs
     from ias_gym.assist.policy import make_assistant
+    from ias_gym.assist.recogniser_registry import METHODS
     from ias_gym.assist.recognition import check_skill_name
     from ias_gym.assist.stream import record_session
     from ias_gym.glove.ids import check_id
@@ -124,6 +125,8 @@ def _acquire(args: argparse.Namespace) -> int:
     check_id(args.person, "--person")
     check_skill(args.skill, "--skill")
     check_skill_name(args.name, "--name")
+    if args.method not in METHODS:  # before the session is recorded
+        raise InputError(f"--method {args.method!r}: choose one of {', '.join(METHODS)}")
     if not Path(args.db).is_file():
         raise InputError(f"--db {args.db} does not exist (build one: ias-gym assist library)")
     assistant = make_assistant(args.db, recogniser=args.method)
