@@ -25,6 +25,7 @@ from ias_gym.perturbed_starts import perturbed_starts
 from ias_gym.sim.pen import R_PAPER_TO_MJ, matrix_to_rpy, mj_to_paper
 
 PRON = joint_index("wrist_pronation")
+FLEX = joint_index("wrist_flexion")
 
 
 #: A stop detector that latches (the development value): these tests are about what the
@@ -35,9 +36,10 @@ LATCHING = AssistParams(stop_window_s=0.1, stop_ratio=0.3)
 
 
 def _sessions(recogniser: str, impairment: str, skill: str = "tilt_left") -> list[tuple]:
-    """(operator's targets, commanded targets, assistant) of the session from reset seed 0
-    and from its nearby starts (:func:`~ias_gym.perturbed_starts.perturbed_starts`), the
-    assistant fed nothing but observations (no env object)."""
+    """(operator's targets, commanded targets, assistant, pen heights [m]) of the session
+    from reset seed 0 and from its nearby starts
+    (:func:`~ias_gym.perturbed_starts.perturbed_starts`), the assistant fed nothing but
+    observations (no env object)."""
     env = gym.make("IAS-GloveAssist-v0", person_id="p1", skill=skill, impairment=impairment)
     u = env.unwrapped
     layout = dict(u.observation_layout)
@@ -48,7 +50,7 @@ def _sessions(recogniser: str, impairment: str, skill: str = "tilt_left") -> lis
             recogniser=recogniser, params=LATCHING, layout=layout, action_scale=scale, tremor=False
         )
         obs, _ = env.reset(seed=0, options=options)
-        operator, commanded = [], []
+        operator, commanded, heights = [], [], []
         done = False
         while not done:
             action = assistant.act(obs.copy())
@@ -56,8 +58,9 @@ def _sessions(recogniser: str, impairment: str, skill: str = "tilt_left") -> lis
             operator.append(theta.copy())
             commanded.append(theta + scale * action)
             obs, _, terminated, truncated, _ = env.step(action)
+            heights.append(float(obs[layout["pen_position"]][2]))
             done = terminated or truncated
-        out.append((np.array(operator), np.array(commanded), assistant))
+        out.append((np.array(operator), np.array(commanded), assistant, np.array(heights)))
     env.close()
     return out
 
@@ -94,24 +97,45 @@ def test_the_library_motions_are_the_skills_own() -> None:
 
 
 def test_a_stopped_tilt_is_completed_with_skill_knowledge_and_not_without() -> None:
-    for op, cmd, assistant in _sessions("phase", "stops:at=0.4"):
+    for op, cmd, assistant, height in _sessions("phase", "stops:at=0.4"):
         assert "tilt_left" in assistant.stopped
-        # one skill is completed, on its principal joint, though others latched too
+        # one skill is completed, on its principal joint, though others latched too, and
+        # the pen held at the skill's height by the wrist's flexion
         assert assistant.completing == "tilt_left"
-        others = np.arange(cmd.shape[1]) != PRON
+        others = ~np.isin(np.arange(cmd.shape[1]), [PRON, FLEX])
         np.testing.assert_allclose(cmd[:, others], op[:, others], atol=1e-9)
         turned_op = op[0, PRON] - op[-1, PRON]
         turned_cmd = cmd[0, PRON] - cmd[-1, PRON]
         # the hand is turned on, the way the skill turns, well beyond the operator's stop
         assert turned_cmd > turned_op + 0.04
-    for op_n, cmd_n, blind in _sessions("none", "stops:at=0.4"):
+        # the height hold starts once the motion is done and brings the pen nearer the
+        # height where the demonstrations leave it
+        goal = assistant.motions["tilt_left"].goal_height
+        held = np.flatnonzero(np.abs(cmd[:, FLEX] - op[:, FLEX]) > 1e-9)
+        assert held.size and held[0] > len(cmd) // 2
+        assert abs(height[-1] - goal) < abs(height[held[0]] - goal)
+    for op_n, cmd_n, blind, _ in _sessions("none", "stops:at=0.4"):
         assert not blind.posterior().get("tilt_left")
-        np.testing.assert_allclose(cmd_n[:, PRON], op_n[:, PRON], atol=1e-9)
+        np.testing.assert_allclose(cmd_n, op_n, atol=1e-9)
 
 
 def test_an_unimpaired_hold_is_left_alone() -> None:
-    for op, cmd, _ in _sessions("phase", "none", skill="lift_hold"):
+    for op, cmd, _, _ in _sessions("phase", "none", skill="lift_hold"):
         np.testing.assert_allclose(cmd, op, atol=1e-9)
+
+
+def test_the_height_hold_raises_a_low_pen_by_extension_within_the_authority() -> None:
+    assistant = make_assistant(recogniser="phase", params=LATCHING, tremor=False)
+    motion = assistant.motions["tilt_left"]
+    assert 0.02 < motion.goal_height < 0.06 and motion.rise_per_flexion < 0
+    low = motion.goal_height - 0.005
+    assistant._hold_height(motion, low)
+    assert assistant._sight < 0  # extension raises the pen
+    for _ in range(10_000):
+        assistant._hold_height(motion, low)
+    assert assistant._sight == pytest.approx(-assistant.scale)  # no more than an action's
+    assistant.reset()
+    assert assistant._sight == 0.0
 
 
 def test_it_runs_on_an_observation_without_upcoming_targets() -> None:

@@ -1,11 +1,15 @@
 """The library's skill templates (ias_gym.assist.skill_motions): demonstrations of one motion
-by persons of different amplitude and speed are aligned before they are averaged."""
+by persons of different amplitude and speed are aligned before they are averaged; a
+template says where its motion is done and where the demonstrations leave the pen."""
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
-from ias_gym.assist.skill_motions import align_demonstrations
+import numpy as np
+import pytest
+
+from ias_gym.assist.skill_motions import SkillMotion, align_demonstrations, lift_slope, load_motions
 
 TAU = np.arange(0.0, 3.0, 0.01)
 
@@ -38,3 +42,34 @@ def test_identical_demonstrations_are_their_own_template() -> None:
     np.testing.assert_allclose(mean, demos[0], atol=1e-12)
     np.testing.assert_allclose(a_fit, 1.0, atol=1e-12)
     np.testing.assert_allclose(v_fit, 1.0, atol=1e-12)
+
+
+def test_a_lift_slope_is_the_line_through_the_rise() -> None:
+    flexion = np.linspace(0.0, -0.3, 60)
+    height = np.clip(-0.12 * flexion, 0.0, 0.03)  # rises, then is held at 3 cm
+    height = np.r_[np.zeros(20), height, np.full(20, 0.03)]
+    flexion = np.r_[np.zeros(20), flexion, np.full(20, -0.3)]
+    assert lift_slope(height, flexion) == pytest.approx(-0.12, rel=1e-6)
+    assert math.isnan(lift_slope(height[:2], flexion[:2]))
+    assert math.isnan(lift_slope(np.zeros(50), flexion[:50]))  # never lifted
+
+
+def test_a_motion_is_done_when_its_principal_joint_settles() -> None:
+    tau = np.arange(0.0, 2.0, 0.01)
+    rise = np.clip(tau / 0.8, 0.0, 1.0)  # a ramp over 0.8 s, then held
+    delta = np.stack([0.3 * rise, 0.01 * np.sin(5 * tau)], axis=1)  # a small second joint
+    motion = SkillMotion("ramp", tau, delta, np.array([0, 2]), 0.1, 0.1)
+    assert motion.principal == 0
+    assert 0.75 <= motion.end_tau <= 0.8  # 95 % of the ramp, whatever the other joint does
+
+
+def test_the_shipped_skills_leave_the_pen_where_they_should() -> None:
+    motions = load_motions()
+    for name in ("tilt_left", "tilt_right", "seesaw_slow", "seesaw_fast"):
+        # held up after the lift (the lifted height is some centimetres)
+        assert 0.02 < motions[name].goal_height < 0.06
+        assert 0.0 < motions[name].end_tau <= motions[name].tau[-1]
+    assert abs(motions["lift_place"].goal_height) < 0.005  # placed back on the support
+    # extension raises the pen, by about a tenth of a metre per radian (a hand's length)
+    for motion in motions.values():
+        assert -0.3 < motion.rise_per_flexion < -0.03

@@ -167,10 +167,10 @@ def main(argv: list[str] | None = None) -> int:
         print(str(exc), file=sys.stderr)
         return 2
     persons = population_ids(args.persons, args.seed)
-    # the defaults of what is not fitted here, never a former stop fit's values; the tremor
-    # window is train/fit_tremor.py's, kept from the file
-    kept = AssistParams.load(out).tremor_window_s if out.is_file() else AssistParams.tremor_window_s
-    base = AssistParams(tremor_window_s=kept)
+    # the defaults of what is not fitted here, never a former stop fit's values; the fields
+    # train/fit_assist_field.py fits are kept from the file
+    before = AssistParams.load(out) if out.is_file() else AssistParams()
+    base = AssistParams(tremor_window_s=before.tremor_window_s, sight_gain=before.sight_gain)
     grid = tuple((w, r) for w in windows for r in ratios)
     per_person = run_jobs(
         PersonJob(grid, base, args.db),
@@ -201,9 +201,12 @@ def main(argv: list[str] | None = None) -> int:
         base,
         stop_window_s=window,
         stop_ratio=ratio,
-        fitted_on=(
-            f"{args.persons} population persons, seed {args.seed}, {args.objective}, "
-            f"library {Path(args.db).name if args.db else 'shipped'}"
+        fitted_on="; ".join(
+            [
+                f"{args.persons} population persons, seed {args.seed}, {args.objective}, "
+                f"library {Path(args.db).name if args.db else 'shipped'}",
+                *before.fitted_on.split("; ")[1:],  # the fields fitted elsewhere
+            ]
         ),
     )
     fitted.save(out, overwrite=args.overwrite)

@@ -65,7 +65,13 @@ class AssistParams:
             [rad] (a person who ends a motion early is not stopped).
         tremor_window_s: when the tremor canceller's notch starts and how often it is
             retuned [s] (:class:`~ias_gym.assist.tremor.TremorCanceller`;
-            ``train/fit_tremor.py``).
+            ``train/fit_assist_field.py``).
+        sight_gain: once a completed motion is done, the rate [1/s] at which the assistant
+            brings the pen's height to where the skill's demonstrations leave it
+            (:attr:`~ias_gym.assist.skill_motions.SkillMotion.goal_height`), as the person
+            would by sight: the wrist flexion moves by ``sight_gain x`` the height error
+            per second, in radians through the lift's ``rise_per_flexion``
+            (``train/fit_assist_field.py``).
         fitted_on: what the values were fitted on (persons' seed and count), for the record.
     """
 
@@ -75,6 +81,7 @@ class AssistParams:
     min_model_speed: float = 0.05
     min_remaining_rad: float = 0.05
     tremor_window_s: float = 0.5
+    sight_gain: float = 3.0
     fitted_on: str = "defaults"
 
     @classmethod
@@ -132,6 +139,15 @@ class Completion:
         self.stopped_at: float | None = None
         self.slow_since: float | None = None  # the stop test holds since then [s]
         self._clock = 0.0  # the completion's time on the fitted timeline [s]
+
+    @property
+    def motion_done(self) -> bool:
+        """A stop is latched and the completion has come to the end of the fitted motion
+        (:attr:`~ias_gym.assist.skill_motions.SkillMotion.end_tau` on its timeline)."""
+        if self.stopped_at is None or self.fit is None:
+            return False
+        _, v, t0 = self.fit
+        return self._clock >= t0 + self.motion.end_tau / v
 
     def model(self, t: NDArray[Any]) -> FloatArray:
         """``(len(t), J)`` the fitted motion at episode times ``t``."""

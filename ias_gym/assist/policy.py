@@ -39,6 +39,12 @@ Every step:
    ``p_k`` the skill's posterior when the slowing down began (the ``unknown`` share adds
    nothing, so without skill knowledge there is no completion; what the recogniser sees
    afterwards is the completion itself, no evidence of what the operator meant).
+   Once the fitted motion is done, the assistant holds the pen where the skill's
+   demonstrations leave it, as the person in the loop would by sight and the stopped
+   operator no longer does: the pen's height error against the skill's
+   :attr:`~ias_gym.assist.skill_motions.SkillMotion.goal_height` is integrated into the
+   wrist's flexion at ``sight_gain``, through the lifts' ``rise_per_flexion`` (both from
+   the demonstrations), weighted by ``p_k`` as well.
 
 3. **Acquisition** (between sessions): :meth:`ObservationAssistant.learn` stores a recorded
    demonstration the recogniser calls unknown as a new skill of the assistant's library,
@@ -62,7 +68,7 @@ from ias_gym.assist.motion_completion import PARAMS_PATH, REFIT_EVERY, AssistPar
 from ias_gym.assist.recogniser_registry import METHODS, make_recogniser
 from ias_gym.assist.recognition import Acquisition, learn_demonstration
 from ias_gym.assist.sessions import LIFT_END
-from ias_gym.assist.skill_motions import SkillMotion, load_motions
+from ias_gym.assist.skill_motions import WRIST_FLEXION, SkillMotion, load_motions
 from ias_gym.assist.stream import SessionFrame
 from ias_gym.assist.tremor import TremorCanceller
 from ias_gym.errors import InputError
@@ -167,6 +173,7 @@ class ObservationAssistant:
         #: put it first.
         self._active: str | None = None
         self._authority = 0.0  # its weight: its posterior when the operator slowed down
+        self._sight = 0.0  # the wrist flexion that holds the pen at the skill's goal [rad]
         self._posts: list[dict[str, float]] = []
         self._steps = 0
 
@@ -208,6 +215,16 @@ class ObservationAssistant:
     def stopped(self) -> dict[str, float]:
         """Each skill's episode time [s] of the stop latched in this session."""
         return {k: c.stopped_at for k, c in self._fits.items() if c.stopped_at is not None}
+
+    def _hold_height(self, motion: SkillMotion, height: float) -> None:
+        """One step of the height hold (step 2's end): integrate the pen's height error
+        against the skill's :attr:`~SkillMotion.goal_height` into the wrist flexion."""
+        if not (np.isfinite(motion.goal_height) and motion.rise_per_flexion < 0):
+            return
+        step = self.params.sight_gain * self.dt * (motion.goal_height - height)
+        self._sight = float(
+            np.clip(self._sight + step / motion.rise_per_flexion, -self.scale, self.scale)
+        )
 
     def _operator_theta(self, obs: FloatArray, layout: Mapping[str, slice]) -> FloatArray:
         if "upcoming_theta" in layout:
@@ -253,6 +270,9 @@ class ObservationAssistant:
                         self._active, self._authority = name, before[name]
                 if name == self._active:
                     offset[fit.motion.joints] += self._authority * part
+                    if fit.motion_done:
+                        self._hold_height(fit.motion, float(obs[layout["pen_position"]][2]))
+            offset[WRIST_FLEXION] += self._authority * self._sight
         self._steps += 1
         out: FloatArray = np.clip(offset / self.scale, -1.0, 1.0)
         self._last_offset = out * self.scale

@@ -2,7 +2,9 @@
 :func:`load_motions`): each glove skill's typical trajectory of the operator's joint targets
 from its demonstrations' skill start (aligned in amplitude and speed before they are
 averaged, :func:`align_demonstrations`), less the holding skill's (:data:`HOLD_SKILL`), on
-the joints it moves, with how much persons differ in amplitude and speed.
+the joints it moves, with how much persons differ in amplitude and speed, and where the
+demonstrations leave the pen (:attr:`SkillMotion.goal_height`; what a person in the loop
+holds by sight once the motion is done).
 
 A skill acquired on line (:func:`~ias_gym.assist.recognition.acquire_skill`, stored under a
 name of its own) is a skill like the shipped ones here: every glove session that records
@@ -21,7 +23,7 @@ from numpy.typing import NDArray
 from ias_gym.assist.stream import THETA_INFO
 from ias_gym.envs.glove_world import OBSERVATION
 from ias_gym.errors import InputError
-from ias_gym.glove.hand import N_JOINTS
+from ias_gym.glove.hand import JOINT_NAMES, N_JOINTS
 from ias_gym.glove.skills import SKILLS
 from ias_gym.skills.db import SkillDB
 from ias_gym.skills.glove_session import motion_window
@@ -29,11 +31,20 @@ from ias_gym.skills.transfer import shipped_skill_db, skill_start_index
 
 FloatArray = NDArray[np.float64]
 
+#: The joint that raises and lowers the pen in the hand (the lift's).
+WRIST_FLEXION = JOINT_NAMES.index("wrist_flexion")
+
 #: A skill's template moves a joint if its range over the motion, beyond the holding
 #: skill's, exceeds this [rad] (under a third of the smallest, the fast see-saw's 0.1 rad).
 MOVING_JOINT = 0.03
 #: The skill that holds the pen still after the lift: what the others share.
 HOLD_SKILL = "lift_hold"
+#: A template's motion is done once every joint stays within this share of its range of
+#: where it ends [-].
+SETTLED = 0.05
+#: The pen's height [m] at a demonstration's end is read as the mean over its last this many
+#: samples.
+END_SAMPLES = 30
 
 
 @dataclass(frozen=True)
@@ -50,6 +61,11 @@ class SkillMotion:
         speed_sd: ... and of the logarithm of their speeds relative to the mean [-] (each
             demonstration's best pair on :data:`DEMO_SPEEDS`, least squares on ``joints``):
             how much persons differ, the prior of an operator's fit.
+        goal_height: where the demonstrations leave the pen: the median over them of the
+            pen's height above its start at their end [m].
+        rise_per_flexion: how much the pen rises per radian of wrist flexion in the
+            demonstrations' lifts [m/rad] (negative: extension raises it; the median over
+            them of the least-squares slope, :func:`lift_slope`).
     """
 
     name: str
@@ -58,11 +74,22 @@ class SkillMotion:
     joints: NDArray[np.int64]
     amplitude_sd: float
     speed_sd: float
+    goal_height: float = float("nan")
+    rise_per_flexion: float = float("nan")
 
     @property
     def principal(self) -> int:
         """The position in :attr:`joints` of the joint the skill moves most."""
         return int(np.argmax(np.ptp(self.delta, axis=0)))
+
+    @property
+    def end_tau(self) -> float:
+        """The template's time [s] by which its motion is done: the last at which its
+        principal joint is still farther than :data:`SETTLED` of its range from where it
+        ends."""
+        d = self.delta[:, self.principal]
+        moving = np.flatnonzero(np.abs(d - d[-1]) > SETTLED * np.ptp(d))
+        return float(self.tau[moving[-1] + 1]) if moving.size else 0.0
 
     def at(self, tau: FloatArray) -> FloatArray:
         """``(len(tau), J)`` the motion at times ``tau`` (0 before the start, held after)."""
@@ -85,6 +112,8 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
     if not path.is_file():
         raise InputError(f"skill library {path} does not exist (give an existing --db)")
     groups: dict[str, list[tuple[FloatArray, FloatArray]]] = {}
+    heights: dict[str, list[float]] = {}  # where each demonstration leaves the pen [m]
+    slopes: dict[str, list[float]] = {}  # its lift's rise per wrist flexion [m/rad]
     with SkillDB(path, readonly=True) as db:
         for skill_id in db.ids():
             skill = db.get(skill_id)
@@ -102,6 +131,10 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
                 obs = np.asarray(demo.observations, dtype=np.float64)
                 theta = obs[: len(time), OBSERVATION["joint_angles"]]
             groups.setdefault(skill.name, []).append((time[k:] - time[k], theta[k:] - theta[k]))
+            z = np.asarray(demo.observations, dtype=np.float64)[: len(time)]
+            z = z[:, OBSERVATION["pen_position"]][:, 2]
+            heights.setdefault(skill.name, []).append(float(z[-END_SAMPLES:].mean()))
+            slopes.setdefault(skill.name, []).append(lift_slope(z[:k], theta[:k, WRIST_FLEXION]))
     means: dict[str, tuple[FloatArray, FloatArray]] = {}
     resampled: dict[str, FloatArray] = {}  # (D, T, 10) each demonstration on the mean's grid
     for name, demos in groups.items():
@@ -142,9 +175,30 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
             joints,
             shrunk_spread(amps, float(pooled[0])),
             shrunk_spread(np.log(speeds), float(pooled[1])),
+            float(np.median(heights[name])),
+            float(np.nanmedian(slopes[name])) if np.isfinite(slopes[name]).any() else np.nan,
         )
         for name, (tau, joints, m, amps, speeds) in aligned.items()
     }
+
+
+#: The lift is read between these shares of the pen's height at the skill's start [-].
+LIFT_SHARES = (0.1, 0.9)
+
+
+def lift_slope(height: FloatArray, flexion: FloatArray) -> float:
+    """The least-squares slope [m/rad] of the pen's ``height`` on the wrist ``flexion``
+    over a demonstration's lift (its samples before the skill's start): those where the pen
+    is between :data:`LIFT_SHARES` of its height at the start, rising; NaN if there are
+    fewer than three."""
+    h, f = np.asarray(height, dtype=np.float64), np.asarray(flexion, dtype=np.float64)
+    if len(h) < 3:
+        return float("nan")
+    low, high = (share * float(h[-1]) for share in LIFT_SHARES)
+    rising = (h > low) & (h < high)
+    if rising.sum() < 3 or np.ptp(f[rising]) <= 0:
+        return float("nan")
+    return float(np.polyfit(f[rising], h[rising], 1)[0])
 
 
 def shrunk_spread(values: FloatArray, pooled: float) -> float:

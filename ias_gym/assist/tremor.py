@@ -16,7 +16,7 @@ which joints shake or whether the operator has a tremor at all:
    (scipy's ``iirnotch``) at the line's frequency on every joint, started at rest on the
    current targets and retuned every ``window_s`` (its state kept); the canceller's offset
    is the notched targets less the targets. ``window_s`` is fitted by
-   ``train/fit_tremor.py`` (:class:`~ias_gym.assist.motion_completion.AssistParams`).
+   ``train/fit_assist_field.py`` (:class:`~ias_gym.assist.motion_completion.AssistParams`).
 
 There is no detection: an operator without a tremor gets the notch too, at whatever line
 their targets have. What that costs is the notch's phase lag on their voluntary motion,

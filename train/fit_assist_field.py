@@ -1,25 +1,32 @@
-"""Fit the observation assistant's tremor window on development persons, by what it is for.
+"""Fit one of the observation assistant's fields on development persons, by what it is for.
 
-The tremor canceller (:class:`~ias_gym.assist.tremor.TremorCanceller`) notches the tremor
-band's strongest line out of the operator's targets from its first window on, retuned every
-window (``tremor_window_s`` of :class:`~ias_gym.assist.motion_completion.AssistParams`). A short
-window starts early, before the pinch closes, but on less of the line; a long one the other
-way. Its value is judged by the sessions it produces: persons drawn from the population
-with ``--seed`` (development persons) perform every skill once unimpaired and once with a
-tremor drawn from the family's sample ranges (``hz`` 4-12 Hz, ``amplitude_rad`` 0.02-0.1
-rad, per person and skill), each assisted (phase recogniser) at every window of
-``--windows`` and judged against the person's unimpaired, unassisted reference
-((person, skill) pairs without one are left out and counted). A window is chosen by the
-mean of the unimpaired and the tremor success (``--objective balanced``; ``no-loss``: the
-unimpaired success first, then the tremor one, so that a single unimpaired session may
-decide). Folds are groups of persons, each fold's window chosen on the others and its
-success on the fold's own persons reported with 95 % intervals. The window chosen on
-all persons replaces ``tremor_window_s`` in ``ias_gym/assets/assistant_params.json``
+Two fields of :class:`~ias_gym.assist.motion_completion.AssistParams` are fitted this way,
+each against the impairment family it is for (``--field``):
+
+- ``tremor_window_s``: the tremor canceller (:class:`~ias_gym.assist.tremor.TremorCanceller`)
+  notches the tremor band's strongest line out of the operator's targets from its first
+  window on, retuned every window. A short window starts early, before the pinch closes,
+  but on less of the line; a long one the other way. Judged with a tremor drawn from the
+  family's sample ranges (``hz`` 4-12 Hz, ``amplitude_rad`` 0.02-0.1 rad).
+- ``sight_gain``: once a completed motion is done, the rate at which the assistant brings
+  the pen's height to where the skill's demonstrations leave it. A slow hold leaves the
+  pen where the stopped operator left it, a fast one overshoots. Judged with
+  ``stops:at=F``, F drawn from the family's sample range.
+
+Persons drawn from the population with ``--seed`` (development persons) perform every skill
+once unimpaired and once with the drawn impairment (per person and skill), each assisted
+(phase recogniser) at every value of ``--grid`` and judged against the person's unimpaired,
+unassisted reference ((person, skill) pairs without one are left out and counted). A value
+is chosen by the mean of the unimpaired and the impaired success (``--objective balanced``;
+``no-loss``: the unimpaired success first, then the impaired one, so that a single
+unimpaired session may decide). Folds are groups of persons, each fold's value chosen on
+the others and its success on the fold's own persons reported with 95 % intervals. The
+value chosen on all persons replaces the field in ``ias_gym/assets/assistant_params.json``
 (``--out``, the other fields kept; ``--overwrite`` is needed, as the file exists).
 
     ias-gym assist library --db out/library.db --population 8 --population-seed 61
-    python train/fit_tremor.py --db out/library.db --persons 16 --seed 7001 --folds 4 \
-        --workers 2 --report out/fit_tremor.json --overwrite
+    python train/fit_assist_field.py --field tremor_window_s --db out/library.db \
+        --persons 16 --seed 7001 --folds 4 --workers 2 --report out/fit.json --overwrite
 """
 
 from __future__ import annotations
@@ -29,8 +36,10 @@ import dataclasses
 import json
 import os
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -49,11 +58,8 @@ from ias_gym.outputs import atomic_output, check_output_file
 from ias_gym.rates import rate_json
 from ias_gym.runtime.jobs import Backend, run_jobs
 
-#: The windows searched [s] (``--windows``): from under one period of the slowest tremor
-#: to two.
-WINDOWS = (0.2, 0.3, 0.4, 0.5)
 #: The two kinds of session.
-UNIMPAIRED, TREMOR = 0, 1
+UNIMPAIRED, IMPAIRED = 0, 1
 
 
 def drawn_tremor(person: str, skill: str) -> str:
@@ -67,12 +73,38 @@ def drawn_tremor(person: str, skill: str) -> str:
     return f"tremor:hz={hz:.3f},amplitude_rad={amp:.4f}"
 
 
+def drawn_stop(person: str, skill: str) -> str:
+    """The stop spec of ``person``'s ``skill`` session: ``at`` drawn uniformly from the
+    family's sample range, reproducibly per person and skill."""
+    lo, hi = (float(v) for v in FAMILIES["stops"]["at"].sample)
+    return f"stops:at={float(session_rng('fit-stops', person, skill).uniform(lo, hi)):.3f}"
+
+
+@dataclass(frozen=True)
+class Field:
+    """A fitted field: the family it is judged with, how a session's spec is drawn, and the
+    grid searched."""
+
+    family: str
+    draw: Callable[[str, str], str]
+    grid: tuple[float, ...]
+
+
+FIELDS = {
+    # from under one period of the slowest tremor to two [s]
+    "tremor_window_s": Field("tremor", drawn_tremor, (0.2, 0.3, 0.4, 0.5)),
+    # time constants from 0.67 s down to 0.08 s, about a person's visual delay [1/s]
+    "sight_gain": Field("stops", drawn_stop, (1.5, 3.0, 6.0, 12.0)),
+}
+
+
 @dataclass(frozen=True)
 class PersonJob:
-    """A picklable job: one person's sessions. Rows ``(skill, kind, window, success)``;
-    ``window`` None for the operator alone, ``kind`` -1 for a pair without a reference."""
+    """A picklable job: one person's sessions. Rows ``(skill, kind, value, success)``;
+    ``value`` None for the operator alone, ``kind`` -1 for a pair without a reference."""
 
-    windows: tuple[float, ...]
+    field: str
+    grid: tuple[float, ...]
     base: AssistParams
     db: str | None
 
@@ -83,17 +115,19 @@ class PersonJob:
             if reference is None:
                 rows.append((skill, -1, None, False))
                 continue
-            for kind, spec in ((UNIMPAIRED, "none"), (TREMOR, drawn_tremor(person, skill))):
+            drawn = FIELDS[self.field].draw(person, skill)
+            for kind, spec in ((UNIMPAIRED, "none"), (IMPAIRED, drawn)):
                 env = gym.make("IAS-GloveAssist-v0", person_id=person, skill=skill, impairment=spec)
                 layout = env.unwrapped.observation_layout  # type: ignore[attr-defined]
-                if kind == TREMOR:
+                if kind == IMPAIRED:
                     alone = run_session(env, None, 0)
                     rows.append((skill, kind, None, session_success(alone, reference)))
-                for window in self.windows:
-                    params = dataclasses.replace(self.base, tremor_window_s=window)
+                for value in self.grid:
+                    changes: dict[str, Any] = {self.field: value}
+                    params = dataclasses.replace(self.base, **changes)
                     assistant = make_assistant(self.db, "phase", params=params, layout=layout)
                     result = run_session(env, assistant, 0)
-                    rows.append((skill, kind, window, session_success(result, reference)))
+                    rows.append((skill, kind, value, session_success(result, reference)))
                 env.close()
         return rows
 
@@ -101,17 +135,26 @@ class PersonJob:
 def choose(
     outcomes: dict[float, list[tuple[int, bool, int]]], persons: set[int], objective: str
 ) -> float:
-    """The window with the best score on ``persons`` (indices): ``"balanced"``, the mean of
-    the unimpaired and the tremor success; ``"no-loss"``, the unimpaired success, then the
-    tremor one. Ties: the first in the grid's order."""
+    """The value with the best score on ``persons`` (indices): ``"balanced"``, the mean of
+    the unimpaired and the impaired success; ``"no-loss"``, the unimpaired success, then the
+    impaired one. Ties: the first in the grid's order."""
 
     def score(rows: list[tuple[int, bool, int]]) -> tuple[float, ...]:
         mine = [(k, float(s)) for k, s, p in rows if p in persons]
-        unimpaired, tremor = ([s for k, s in mine if k == kind] for kind in (UNIMPAIRED, TREMOR))
-        rates = float(np.mean(unimpaired or [0.0])), float(np.mean(tremor or [0.0]))
+        unimpaired, impaired = (
+            [s for k, s in mine if k == kind] for kind in (UNIMPAIRED, IMPAIRED)
+        )
+        rates = float(np.mean(unimpaired or [0.0])), float(np.mean(impaired or [0.0]))
         return rates if objective == "no-loss" else (sum(rates) / 2,)
 
     return max(outcomes, key=lambda w: score(outcomes[w]))
+
+
+def fitted_on(record: str, field: str, what: str) -> str:
+    """``record`` (an :class:`AssistParams`' ``fitted_on``: ``"stop test; field: what; ..."``)
+    with ``field``'s part replaced by ``what``."""
+    parts = [p for p in record.split("; ") if not p.startswith(f"{field}:")]
+    return "; ".join([*parts, f"{field}: {what}"])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -119,11 +162,12 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__.split("\n\n")[0],
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
+    ap.add_argument("--field", choices=tuple(FIELDS), required=True, help="the field fitted")
     ap.add_argument("--db", help="skill library of development persons (default: the shipped one)")
     ap.add_argument("--persons", type=int, default=16, help="development persons")
     ap.add_argument("--seed", type=int, required=True, help="their population seed")
     ap.add_argument("--folds", type=int, default=4, help="cross-validation groups of persons")
-    ap.add_argument("--windows", default=",".join(map(str, WINDOWS)), help="windows [s]")
+    ap.add_argument("--grid", help="values searched, comma-separated (default: the field's)")
     ap.add_argument(
         "--objective", choices=("balanced", "no-loss"), default="balanced", help="what is chosen"
     )
@@ -133,8 +177,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--overwrite", action="store_true", help="replace --out and --report")
     args = ap.parse_args(argv)
     try:
-        windows = tuple(float(w) for w in args.windows.split(","))
-        if not all(w > 0 for w in windows):
+        field = FIELDS[args.field]
+        grid = tuple(float(w) for w in args.grid.split(",")) if args.grid else field.grid
+        if not all(w > 0 for w in grid):
             raise ValueError
         if args.db is not None and not Path(args.db).is_file():
             raise InputError(f"--db {args.db} does not exist (build one: ias-gym assist library)")
@@ -144,60 +189,61 @@ def main(argv: list[str] | None = None) -> int:
         out = check_output_file(args.out, overwrite=args.overwrite, what="--out")
         base = AssistParams.load(out)
     except ValueError:
-        print("--windows are comma-separated numbers > 0 [s]", file=sys.stderr)
+        print("--grid is comma-separated numbers > 0", file=sys.stderr)
         return 2
     except InputError as exc:
         print(str(exc), file=sys.stderr)
         return 2
     persons = population_ids(args.persons, args.seed)
     per_person = run_jobs(
-        PersonJob(windows, base, args.db),
+        PersonJob(args.field, grid, base, args.db),
         persons,
         Backend.from_options(args.workers),
         desc="persons",
         progress=True,
     )
-    outcomes: dict[float, list[tuple[int, bool, int]]] = {w: [] for w in windows}
+    outcomes: dict[float, list[tuple[int, bool, int]]] = {w: [] for w in grid}
     alone: list[bool] = []
     excluded = 0
     for index, rows in enumerate(per_person):
-        for _skill, kind, window, success in rows:
+        for _skill, kind, value, success in rows:
             if kind < 0:
                 excluded += 1
-            elif window is None:
+            elif value is None:
                 alone.append(success)
             else:
-                outcomes[window].append((kind, success, index))
+                outcomes[value].append((kind, success, index))
     folds = np.arange(len(persons)) % args.folds
-    held: dict[int, list[bool]] = {UNIMPAIRED: [], TREMOR: []}
+    held: dict[int, list[bool]] = {UNIMPAIRED: [], IMPAIRED: []}
     for fold in range(args.folds):
-        window = choose(outcomes, {int(i) for i in np.flatnonzero(folds != fold)}, args.objective)
-        for kind, success, index in outcomes[window]:
+        value = choose(outcomes, {int(i) for i in np.flatnonzero(folds != fold)}, args.objective)
+        for kind, success, index in outcomes[value]:
             if folds[index] == fold:
                 held[kind].append(success)
     chosen = choose(outcomes, set(range(len(persons))), args.objective)
     fitted = dataclasses.replace(
         base,
-        tremor_window_s=chosen,
-        fitted_on=f"{base.fitted_on.split('; tremor:')[0]}; tremor: {args.persons} persons, "
-        f"seed {args.seed}",
+        **{args.field: chosen},
+        fitted_on=fitted_on(
+            base.fitted_on, args.field, f"{args.persons} persons, seed {args.seed}"
+        ),
     )
     summary = {
         "set": "development",
         "persons": args.persons,
         "population_seed": args.seed,
         "objective": args.objective,
-        "tremor_window_s": chosen,
+        args.field: chosen,
         "left_out": excluded,
-        "alone_tremor": rate_json(alone),
+        f"alone_{field.family}": rate_json(alone),
         "cross_validated": {
             "unimpaired": rate_json(held[UNIMPAIRED]),
-            "tremor": rate_json(held[TREMOR]),
+            field.family: rate_json(held[IMPAIRED]),
         },
         "grid": {
             str(w): {
                 name: rate_json([s for k, s, _ in rows if k == kind])
-                for name, kind in (("unimpaired", UNIMPAIRED), ("tremor", TREMOR))
+                for name, kind in (("unimpaired", UNIMPAIRED), (field.family, IMPAIRED))
             }
             for w, rows in outcomes.items()
         },

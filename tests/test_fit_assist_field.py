@@ -1,0 +1,74 @@
+"""train/fit_assist_field.py: one field of the assistant, chosen by the sessions it produces
+against the impairment it is for; the other fields and their records are kept."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+from ias_gym.assist.motion_completion import AssistParams
+from ias_gym.glove.impairment_spec import parse_impairment
+from tests.train_scripts import load_train_script
+
+
+@pytest.fixture(scope="module")
+def fit() -> ModuleType:
+    return load_train_script("fit_assist_field")
+
+
+def test_every_field_is_one_of_the_assistants_and_draws_valid_specs(fit: ModuleType) -> None:
+    fields = set(AssistParams.__dataclass_fields__)
+    for name, field in fit.FIELDS.items():
+        assert name in fields
+        spec = field.draw("somebody", "tilt_left")
+        assert spec.startswith(field.family)
+        parse_impairment(spec)  # within the family's ranges
+        assert spec == field.draw("somebody", "tilt_left")  # reproducible per person and skill
+
+
+def test_a_balanced_choice_weighs_both_kinds_and_reads_only_the_given_persons(
+    fit: ModuleType,
+) -> None:
+    # rows (kind, success, person): kind 0 unimpaired, 1 impaired
+    safe = [(0, True, 0), (0, True, 1), (1, False, 0), (1, False, 1)]
+    bold = [(0, True, 0), (0, False, 1), (1, True, 0), (1, True, 1)]
+    outcomes = {1.0: safe, 2.0: bold}
+    assert fit.choose(outcomes, {0, 1}, "no-loss") == 1.0
+    assert fit.choose(outcomes, {0, 1}, "balanced") == 2.0
+    assert fit.choose(outcomes, {0}, "no-loss") == 2.0  # person 0 loses nothing either way
+
+
+def test_a_fit_replaces_only_its_own_record(fit: ModuleType) -> None:
+    record = "16 persons, seed 1; tremor_window_s: 8 persons, seed 2"
+    assert fit.fitted_on(record, "sight_gain", "4 persons, seed 3") == (
+        "16 persons, seed 1; tremor_window_s: 8 persons, seed 2; sight_gain: 4 persons, seed 3"
+    )
+    assert fit.fitted_on(record, "tremor_window_s", "4 persons, seed 3") == (
+        "16 persons, seed 1; tremor_window_s: 4 persons, seed 3"
+    )
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["--field", "sight_gain", "--grid", "1,x"],
+        ["--field", "sight_gain", "--grid", "0"],
+        ["--field", "sight_gain", "--persons", "2"],
+        ["--field", "tremor_window_s", "--db", "no-such-library.db"],
+    ],
+)
+def test_bad_input_is_refused_before_any_session(
+    fit: ModuleType, args: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "params.json"
+    AssistParams().save(out)
+    before = out.read_text()
+    report = tmp_path / "report.json"
+    code = fit.main(
+        [*args, "--seed", "1", "--out", str(out), "--report", str(report), "--overwrite"]
+    )
+    assert code == 2
+    assert capsys.readouterr().err.strip()
+    assert out.read_text() == before and not report.exists()
