@@ -108,8 +108,8 @@ def test_a_stopped_tilt_is_completed_with_skill_knowledge_and_not_without() -> N
         turned_cmd = cmd[0, PRON] - cmd[-1, PRON]
         # the hand is turned on, the way the skill turns, well beyond the operator's stop
         assert turned_cmd > turned_op + 0.04
-        # the height hold starts once the motion is done and brings the pen nearer the
-        # height where the demonstrations leave it
+        # the hold starts once the motion is done and brings the pen nearer the height
+        # where the demonstrations leave it
         goal = assistant.motions["tilt_left"].goal_height
         held = np.flatnonzero(np.abs(cmd[:, FLEX] - op[:, FLEX]) > 1e-9)
         assert held.size and held[0] > len(cmd) // 2
@@ -124,18 +124,29 @@ def test_an_unimpaired_hold_is_left_alone() -> None:
         np.testing.assert_allclose(cmd, op, atol=1e-9)
 
 
-def test_the_height_hold_raises_a_low_pen_by_extension_within_the_authority() -> None:
+def test_the_hold_raises_a_low_pen_and_turns_it_to_the_operators_tilt_within_bounds() -> None:
     assistant = make_assistant(recogniser="phase", params=LATCHING, tremor=False)
-    motion = assistant.motions["tilt_left"]
+    fit = assistant._fits["tilt_left"]
+    motion = fit.motion
     assert 0.02 < motion.goal_height < 0.06 and motion.rise_per_flexion < 0
-    low = motion.goal_height - 0.005
-    assistant._hold_height(motion, low)
-    assert assistant._sight < 0  # extension raises the pen
-    for _ in range(10_000):
-        assistant._hold_height(motion, low)
-    assert assistant._sight == pytest.approx(-assistant.scale)  # no more than an action's
+    # tilt_left raises the pen's +x end, by supination (negative pronation)
+    assert motion.tilt_per_amplitude > 0.05 and motion.tilt_per_pronation < 0
+    fit.fit = (1.2, 1.0, 2.0)  # an operator who means 1.2 times the typical tilt, from 2 s
+    assistant._times, assistant._tilts = [1.9, 2.1, 2.5], [0.01, 0.01, 0.01]
+    assistant._hold_pen(fit, motion.goal_height - 0.005)  # low, and not tilted yet
+    assert assistant._hold[FLEX] < 0  # extension raises the pen
+    assert assistant._hold[PRON] < 0  # supination tilts it on
+    # at the operator's tilt and height there is nothing to hold
     assistant.reset()
-    assert assistant._sight == 0.0
+    assistant._times, assistant._tilts = [1.9, 2.1, 2.5], [0.01, 0.01, 0.01]
+    assistant._tilts[-1] = 0.01 + 1.2 * motion.tilt_per_amplitude
+    assistant._hold_pen(fit, motion.goal_height)
+    np.testing.assert_allclose(assistant._hold, 0.0, atol=1e-12)
+    for _ in range(10_000):
+        assistant._hold_pen(fit, motion.goal_height - 0.005)
+    assert assistant._hold[FLEX] == pytest.approx(-assistant.scale)  # no more than an action's
+    assistant.reset()
+    assert not assistant._hold.any() and not assistant._tilts
 
 
 def test_it_runs_on_an_observation_without_upcoming_targets() -> None:

@@ -9,7 +9,13 @@ import math
 import numpy as np
 import pytest
 
-from ias_gym.assist.skill_motions import SkillMotion, align_demonstrations, lift_slope, load_motions
+from ias_gym.assist.skill_motions import (
+    SkillMotion,
+    align_demonstrations,
+    lift_slope,
+    load_motions,
+    pen_elevation,
+)
 
 TAU = np.arange(0.0, 3.0, 0.01)
 
@@ -73,3 +79,22 @@ def test_the_shipped_skills_leave_the_pen_where_they_should() -> None:
     # extension raises the pen, by about a tenth of a metre per radian (a hand's length)
     for motion in motions.values():
         assert -0.3 < motion.rise_per_flexion < -0.03
+
+
+def test_the_elevation_is_the_pen_axis_angle_above_the_horizontal() -> None:
+    beta = np.array([-0.2, 0.0, 0.3])  # turns about the world's y axis
+    quat = np.stack([np.cos(beta / 2), 0 * beta, np.sin(beta / 2), 0 * beta], axis=1)
+    np.testing.assert_allclose(pen_elevation(quat), -beta, atol=1e-12)
+    yaw = np.array([[np.cos(0.4), 0.0, 0.0, np.sin(0.4)]])  # turned in the horizontal plane
+    np.testing.assert_allclose(pen_elevation(yaw), 0.0, atol=1e-12)
+
+
+def test_the_shipped_skills_tilt_the_pen_their_own_way() -> None:
+    motions = load_motions()
+    assert motions["tilt_left"].tilt_per_amplitude > 0.05
+    assert motions["tilt_right"].tilt_per_amplitude < -0.05
+    for name in ("seesaw_slow", "seesaw_fast"):  # back near where they started (3 deg)
+        assert abs(motions[name].tilt_per_amplitude) < 0.05
+    for name in ("tilt_left", "tilt_right", "seesaw_slow", "seesaw_fast"):
+        # supination (negative pronation) raises the +x end, by about as much as it turns
+        assert -1.5 < motions[name].tilt_per_pronation < -0.3

@@ -43,8 +43,10 @@ Every step:
    demonstrations leave it, as the person in the loop would by sight and the stopped
    operator no longer does: the pen's height error against the skill's
    :attr:`~ias_gym.assist.skill_motions.SkillMotion.goal_height` is integrated into the
-   wrist's flexion at ``sight_gain``, through the lifts' ``rise_per_flexion`` (both from
-   the demonstrations), weighted by ``p_k`` as well.
+   wrist's flexion through the lifts' ``rise_per_flexion``, and its axis' elevation error
+   against the operator's tilt (``a`` times the skill's ``tilt_per_amplitude`` from the
+   elevation at ``t0``) into the pronation through ``tilt_per_pronation`` (all from the
+   demonstrations), at ``sight_gain``, weighted by ``p_k`` as well.
 
 3. **Acquisition** (between sessions): :meth:`ObservationAssistant.learn` stores a recorded
    demonstration the recogniser calls unknown as a new skill of the assistant's library,
@@ -64,11 +66,22 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.assist.motion_completion import PARAMS_PATH, REFIT_EVERY, AssistParams, Completion
+from ias_gym.assist.motion_completion import (
+    PARAMS_PATH,
+    REFIT_EVERY,
+    AssistParams,
+    Completion,
+)
 from ias_gym.assist.recogniser_registry import METHODS, make_recogniser
 from ias_gym.assist.recognition import Acquisition, learn_demonstration
 from ias_gym.assist.sessions import LIFT_END
-from ias_gym.assist.skill_motions import WRIST_FLEXION, SkillMotion, load_motions
+from ias_gym.assist.skill_motions import (
+    WRIST_FLEXION,
+    WRIST_PRONATION,
+    SkillMotion,
+    load_motions,
+    pen_elevation,
+)
 from ias_gym.assist.stream import SessionFrame
 from ias_gym.assist.tremor import TremorCanceller
 from ias_gym.errors import InputError
@@ -173,7 +186,10 @@ class ObservationAssistant:
         #: put it first.
         self._active: str | None = None
         self._authority = 0.0  # its weight: its posterior when the operator slowed down
-        self._sight = 0.0  # the wrist flexion that holds the pen at the skill's goal [rad]
+        #: the wrist flexion and pronation that hold the pen at the skill's goal [rad]
+        self._hold = np.zeros(N_JOINTS)
+        self._times: list[float] = []  # the session's step times [s] ...
+        self._tilts: list[float] = []  # ... and the pen's axis elevation then [rad]
         self._posts: list[dict[str, float]] = []
         self._steps = 0
 
@@ -216,15 +232,23 @@ class ObservationAssistant:
         """Each skill's episode time [s] of the stop latched in this session."""
         return {k: c.stopped_at for k, c in self._fits.items() if c.stopped_at is not None}
 
-    def _hold_height(self, motion: SkillMotion, height: float) -> None:
-        """One step of the height hold (step 2's end): integrate the pen's height error
-        against the skill's :attr:`~SkillMotion.goal_height` into the wrist flexion."""
-        if not (np.isfinite(motion.goal_height) and motion.rise_per_flexion < 0):
-            return
-        step = self.params.sight_gain * self.dt * (motion.goal_height - height)
-        self._sight = float(
-            np.clip(self._sight + step / motion.rise_per_flexion, -self.scale, self.scale)
-        )
+    def _hold_pen(self, fit: Completion, height: float) -> None:
+        """One step of the pen's hold (step 2's end): integrate the pen's height error
+        against the skill's :attr:`~SkillMotion.goal_height` into the wrist flexion, and its
+        axis' elevation error against the operator's tilt (the elevation when their motion
+        started plus their fitted amplitude times the skill's
+        :attr:`~SkillMotion.tilt_per_amplitude`) into the pronation."""
+        motion, gain = fit.motion, self.params.sight_gain * self.dt
+        errors = [(WRIST_FLEXION, motion.goal_height - height, motion.rise_per_flexion)]
+        if fit.fit is not None and self._times:
+            a, _, t0 = fit.fit
+            start = float(np.interp(t0, self._times, self._tilts))
+            goal = start + a * motion.tilt_per_amplitude
+            errors.append((WRIST_PRONATION, goal - self._tilts[-1], motion.tilt_per_pronation))
+        for joint, error, per_rad in errors:
+            if np.isfinite(error) and np.isfinite(per_rad) and per_rad != 0:
+                step = gain * error / per_rad
+                self._hold[joint] = np.clip(self._hold[joint] + step, -self.scale, self.scale)
 
     def _operator_theta(self, obs: FloatArray, layout: Mapping[str, slice]) -> FloatArray:
         if "upcoming_theta" in layout:
@@ -250,6 +274,8 @@ class ObservationAssistant:
         # the recogniser sees what the hand is commanded: the operator's targets with the
         # assistant's last offset (a completed skill looks like the skill)
         frame = frame_from_observation(obs, layout, operator + self._last_offset)
+        self._times.append(t - self.dt)
+        self._tilts.append(float(pen_elevation(obs[layout["pen_quat"]][None])[0]))
         post = dict(self.recogniser.update(frame))
         self._post = post
         self._posts.append(post)
@@ -271,8 +297,8 @@ class ObservationAssistant:
                 if name == self._active:
                     offset[fit.motion.joints] += self._authority * part
                     if fit.motion_done:
-                        self._hold_height(fit.motion, float(obs[layout["pen_position"]][2]))
-            offset[WRIST_FLEXION] += self._authority * self._sight
+                        self._hold_pen(fit, float(obs[layout["pen_position"]][2]))
+            offset += self._authority * self._hold
         self._steps += 1
         out: FloatArray = np.clip(offset / self.scale, -1.0, 1.0)
         self._last_offset = out * self.scale

@@ -31,8 +31,45 @@ from ias_gym.skills.transfer import shipped_skill_db, skill_start_index
 
 FloatArray = NDArray[np.float64]
 
-#: The joint that raises and lowers the pen in the hand (the lift's).
+#: The joint that raises and lowers the pen in the hand (the lift's) ...
 WRIST_FLEXION = JOINT_NAMES.index("wrist_flexion")
+#: ... and the one that tilts it (the tilts' and see-saws').
+WRIST_PRONATION = JOINT_NAMES.index("wrist_pronation")
+
+
+def pen_elevation(quat: FloatArray) -> FloatArray:
+    """``(T,)`` the angle of the pen's axis (its body x) above the horizontal [rad], from
+    ``(T, 4)`` world quaternions (w, x, y, z): positive when its +x end is up."""
+    w, x, y, z = np.asarray(quat, dtype=np.float64).T
+    return np.asarray(np.arcsin(np.clip(2 * (x * z - w * y), -1.0, 1.0)), dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class ObjectMeasures:
+    """What one demonstration does to the pen (:func:`object_measures`)."""
+
+    height_end: float  # [m] above its start, at the end
+    rise_per_flexion: float  # [m/rad] in the lift
+    tilt_change: float  # [rad] of the axis from the skill's start to the end
+    tilt_per_pronation: float  # [rad/rad] over the skill's motion
+
+
+def object_measures(obs: FloatArray, theta: FloatArray, k: int) -> ObjectMeasures:
+    """A demonstration's :class:`ObjectMeasures` from its observations ``(T, ...)``, the
+    operator's targets ``(T, 10)`` and its skill start's index ``k``."""
+    z = obs[:, OBSERVATION["pen_position"]][:, 2]
+    tilt = pen_elevation(obs[:, OBSERVATION["pen_quat"]])
+    turn = theta[k:, WRIST_PRONATION] - theta[k, WRIST_PRONATION]
+    slope = float("nan")
+    if np.ptp(turn) > MOVING_JOINT:
+        slope = float(np.polyfit(turn, tilt[k:] - tilt[k], 1)[0])
+    return ObjectMeasures(
+        float(z[-END_SAMPLES:].mean()),
+        lift_slope(z[:k], theta[:k, WRIST_FLEXION]),
+        float(tilt[-END_SAMPLES:].mean() - tilt[k]),
+        slope,
+    )
+
 
 #: A skill's template moves a joint if its range over the motion, beyond the holding
 #: skill's, exceeds this [rad] (under a third of the smallest, the fast see-saw's 0.1 rad).
@@ -66,6 +103,13 @@ class SkillMotion:
         rise_per_flexion: how much the pen rises per radian of wrist flexion in the
             demonstrations' lifts [m/rad] (negative: extension raises it; the median over
             them of the least-squares slope, :func:`lift_slope`).
+        tilt_per_amplitude: how far the demonstrations turn the pen's axis up from the
+            skill's start to their end [rad] (:func:`pen_elevation`), per unit of their
+            fitted amplitude: the median over them; an operator of amplitude ``a`` means
+            ``a`` times it.
+        tilt_per_pronation: how much the pen's axis rises per radian of wrist pronation over
+            the demonstrations' motions [rad/rad] (the median least-squares slope; NaN where
+            the skill turns the wrist less than :data:`MOVING_JOINT`).
     """
 
     name: str
@@ -76,6 +120,8 @@ class SkillMotion:
     speed_sd: float
     goal_height: float = float("nan")
     rise_per_flexion: float = float("nan")
+    tilt_per_amplitude: float = float("nan")
+    tilt_per_pronation: float = float("nan")
 
     @property
     def principal(self) -> int:
@@ -112,8 +158,7 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
     if not path.is_file():
         raise InputError(f"skill library {path} does not exist (give an existing --db)")
     groups: dict[str, list[tuple[FloatArray, FloatArray]]] = {}
-    heights: dict[str, list[float]] = {}  # where each demonstration leaves the pen [m]
-    slopes: dict[str, list[float]] = {}  # its lift's rise per wrist flexion [m/rad]
+    measures: dict[str, list[ObjectMeasures]] = {}  # what each demonstration does to the pen
     with SkillDB(path, readonly=True) as db:
         for skill_id in db.ids():
             skill = db.get(skill_id)
@@ -131,10 +176,8 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
                 obs = np.asarray(demo.observations, dtype=np.float64)
                 theta = obs[: len(time), OBSERVATION["joint_angles"]]
             groups.setdefault(skill.name, []).append((time[k:] - time[k], theta[k:] - theta[k]))
-            z = np.asarray(demo.observations, dtype=np.float64)[: len(time)]
-            z = z[:, OBSERVATION["pen_position"]][:, 2]
-            heights.setdefault(skill.name, []).append(float(z[-END_SAMPLES:].mean()))
-            slopes.setdefault(skill.name, []).append(lift_slope(z[:k], theta[:k, WRIST_FLEXION]))
+            obs = np.asarray(demo.observations, dtype=np.float64)[: len(time)]
+            measures.setdefault(skill.name, []).append(object_measures(obs, theta, k))
     means: dict[str, tuple[FloatArray, FloatArray]] = {}
     resampled: dict[str, FloatArray] = {}  # (D, T, 10) each demonstration on the mean's grid
     for name, demos in groups.items():
@@ -175,11 +218,29 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
             joints,
             shrunk_spread(amps, float(pooled[0])),
             shrunk_spread(np.log(speeds), float(pooled[1])),
-            float(np.median(heights[name])),
-            float(np.nanmedian(slopes[name])) if np.isfinite(slopes[name]).any() else np.nan,
+            *_object_goals(measures[name], amps),
         )
         for name, (tau, joints, m, amps, speeds) in aligned.items()
     }
+
+
+def _median(values: list[float]) -> float:
+    """The median of the finite ``values``; NaN if there are none."""
+    finite = [v for v in values if np.isfinite(v)]
+    return float(np.median(finite)) if finite else float("nan")
+
+
+def _object_goals(
+    measures: list[ObjectMeasures], amplitudes: FloatArray
+) -> tuple[float, float, float, float]:
+    """A skill's ``(goal_height, rise_per_flexion, tilt_per_amplitude, tilt_per_pronation)``
+    from its demonstrations' measures and fitted amplitudes (in the same order)."""
+    return (
+        _median([m.height_end for m in measures]),
+        _median([m.rise_per_flexion for m in measures]),
+        _median([m.tilt_change / a for m, a in zip(measures, amplitudes, strict=True)]),
+        _median([m.tilt_per_pronation for m in measures]),
+    )
 
 
 #: The lift is read between these shares of the pen's height at the skill's start [-].
