@@ -90,7 +90,9 @@ def acquired(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
 
 def test_a_skill_the_library_lacks_is_not_completed(acquired: dict[str, object]) -> None:
     for op, cmd in acquired["before"]:  # type: ignore[attr-defined]
-        np.testing.assert_allclose(cmd, op, atol=1e-9)
+        # the hand is not turned on the way tilt_left turns (another skill latched in its
+        # place may hold the pen's tilt, which turns it back, if at all)
+        assert (cmd[0] - cmd[-1]) < (op[0] - op[-1]) + 0.01
 
 
 def test_an_unknown_demonstration_is_stored_and_learnt(acquired: dict[str, object]) -> None:
@@ -112,7 +114,8 @@ def test_the_acquired_skill_is_completed_for_a_stopped_operator(
     for op, cmd in _stopped_sessions(assistant):
         assert assistant.completing == NAME
         # the hand turns on the way tilt_left turns, well beyond where the operator stopped
-        assert (cmd[0] - cmd[-1]) > (op[0] - op[-1]) + 0.04
+        # (the pen then held at the tilt the demonstrations give this operator)
+        assert (cmd[0] - cmd[-1]) > (op[0] - op[-1]) + 0.025
 
 
 def test_learning_needs_the_assistants_own_library_and_skill_knowledge(tmp_path: Path) -> None:
