@@ -67,10 +67,12 @@ class AssistParams:
             retuned [s] (:class:`~ias_gym.assist.tremor.TremorCanceller`;
             ``train/fit_assist_field.py``).
         sight_gain: once a completed motion is done, the rate [1/s] at which the assistant
-            brings the pen's height to where the skill's demonstrations leave it
-            (:attr:`~ias_gym.assist.skill_motions.SkillMotion.goal_height`), as the person
-            would by sight: the wrist flexion moves by ``sight_gain x`` the height error
-            per second, in radians through the lift's ``rise_per_flexion``
+            brings the pen to where the operator's version of the skill leaves it, as the
+            person would by sight: its height to the demonstrations'
+            (:attr:`~ias_gym.assist.skill_motions.SkillMotion.goal_height`) through the
+            wrist flexion, its axis to the operator's tilt through the pronation; each joint
+            moves by ``sight_gain x`` its error per second, in radians through the
+            demonstrations' ``rise_per_flexion`` and ``tilt_per_pronation``
             (``train/fit_assist_field.py``).
         fitted_on: what the values were fitted on (persons' seed and count), for the record.
     """

@@ -238,13 +238,14 @@ class ObservationAssistant:
         axis' elevation error against the operator's tilt (the elevation when their motion
         started plus their fitted amplitude times the skill's
         :attr:`~SkillMotion.tilt_per_amplitude`) into the pronation."""
+        assert fit.fit is not None  # a motion is done only once it is fitted
         motion, gain = fit.motion, self.params.sight_gain * self.dt
-        errors = [(WRIST_FLEXION, motion.goal_height - height, motion.rise_per_flexion)]
-        if fit.fit is not None and self._times:
-            a, _, t0 = fit.fit
-            start = float(np.interp(t0, self._times, self._tilts))
-            goal = start + a * motion.tilt_per_amplitude
-            errors.append((WRIST_PRONATION, goal - self._tilts[-1], motion.tilt_per_pronation))
+        a, _, t0 = fit.fit
+        tilt_goal = float(np.interp(t0, self._times, self._tilts)) + a * motion.tilt_per_amplitude
+        errors = [
+            (WRIST_FLEXION, motion.goal_height - height, motion.rise_per_flexion),
+            (WRIST_PRONATION, tilt_goal - self._tilts[-1], motion.tilt_per_pronation),
+        ]
         for joint, error, per_rad in errors:
             if np.isfinite(error) and np.isfinite(per_rad) and per_rad != 0:
                 step = gain * error / per_rad

@@ -3,8 +3,9 @@
 from its demonstrations' skill start (aligned in amplitude and speed before they are
 averaged, :func:`align_demonstrations`), less the holding skill's (:data:`HOLD_SKILL`), on
 the joints it moves, with how much persons differ in amplitude and speed, and where the
-demonstrations leave the pen (:attr:`SkillMotion.goal_height`; what a person in the loop
-holds by sight once the motion is done).
+demonstrations leave the pen (:attr:`SkillMotion.goal_height`,
+:attr:`SkillMotion.tilt_per_amplitude`: what a person in the loop holds by sight once the
+motion is done).
 
 A skill acquired on line (:func:`~ias_gym.assist.recognition.acquire_skill`, stored under a
 name of its own) is a skill like the shipped ones here: every glove session that records
@@ -20,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from ias_gym.assist.sessions import pen_axis
 from ias_gym.assist.stream import THETA_INFO
 from ias_gym.envs.glove_world import OBSERVATION
 from ias_gym.errors import InputError
@@ -38,10 +40,10 @@ WRIST_PRONATION = JOINT_NAMES.index("wrist_pronation")
 
 
 def pen_elevation(quat: FloatArray) -> FloatArray:
-    """``(T,)`` the angle of the pen's axis (its body x) above the horizontal [rad], from
-    ``(T, 4)`` world quaternions (w, x, y, z): positive when its +x end is up."""
-    w, x, y, z = np.asarray(quat, dtype=np.float64).T
-    return np.asarray(np.arcsin(np.clip(2 * (x * z - w * y), -1.0, 1.0)), dtype=np.float64)
+    """``(T,)`` the angle of the pen's axis (its body x, :func:`pen_axis`) above the
+    horizontal [rad], from ``(T, 4)`` world quaternions (w, x, y, z): positive when its +x
+    end is up."""
+    return np.asarray(np.arcsin(np.clip(pen_axis(quat)[:, 2], -1.0, 1.0)), dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -76,8 +78,8 @@ def object_measures(obs: FloatArray, theta: FloatArray, k: int) -> ObjectMeasure
 MOVING_JOINT = 0.03
 #: The skill that holds the pen still after the lift: what the others share.
 HOLD_SKILL = "lift_hold"
-#: A template's motion is done once every joint stays within this share of its range of
-#: where it ends [-].
+#: A template's motion is done once its principal joint stays within this share of its
+#: range of where it ends [-].
 SETTLED = 0.05
 #: The pen's height [m] at a demonstration's end is read as the mean over its last this many
 #: samples.
@@ -169,14 +171,13 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
             k = skill_start_index(skill)
             time = np.asarray(skill.model.time, dtype=np.float64)
             demo = skill.demonstration
+            obs = np.asarray(demo.observations, dtype=np.float64)[: len(time)]
             targets = demo.infos.get(THETA_INFO) if demo.infos else None
             if targets is not None:  # the operator's targets, what the assistant reads
                 theta = np.asarray(targets, dtype=np.float64)[: len(time)]
             else:  # a recording without them: the hand's angles
-                obs = np.asarray(demo.observations, dtype=np.float64)
-                theta = obs[: len(time), OBSERVATION["joint_angles"]]
+                theta = obs[:, OBSERVATION["joint_angles"]]
             groups.setdefault(skill.name, []).append((time[k:] - time[k], theta[k:] - theta[k]))
-            obs = np.asarray(demo.observations, dtype=np.float64)[: len(time)]
             measures.setdefault(skill.name, []).append(object_measures(obs, theta, k))
     means: dict[str, tuple[FloatArray, FloatArray]] = {}
     resampled: dict[str, FloatArray] = {}  # (D, T, 10) each demonstration on the mean's grid
