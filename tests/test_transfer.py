@@ -8,6 +8,7 @@ trajectory and margin are known) is transferred and executed in closed loop.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -45,7 +46,7 @@ from ias_gym.skills.transfer import (
     implied_wrench,
     transfer_reference,
 )
-from ias_gym.skills.transfer_run import run_transfer
+from ias_gym.skills.transfer_run import run_transfer, transfer_gains
 from ias_gym.skills.workspace import HandWorkspace
 
 
@@ -229,10 +230,11 @@ def test_the_expert_tracks_a_transferred_skill_from_perturbed_starts() -> None:
         assert 0 <= env.margin_error() < 0.2 and info["margin_error"] == env.margin_error()
 
 
-def mean_margin(margin: float) -> float:
+def mean_margin(margin: float, floor: float = 1.0) -> float:
     ref = reference_for_test()
     ref = SkillReference(**{**ref.__dict__, "margin": np.full(ref.length, margin)})
-    run, _ = run_transfer(ref, method="gt", duration=1.0)
+    gains = dataclasses.replace(transfer_gains("ias4f"), margin_floor=floor)
+    run, _ = run_transfer(ref, method="gt", duration=1.0, gains=gains)
     held = run.time > 0.2
     return float(np.nanmean(run.margin[held]))
 
@@ -243,6 +245,14 @@ def test_the_expert_squeezes_to_the_skills_margin() -> None:
     low, high = mean_margin(2.0), mean_margin(4.0)
     assert low == pytest.approx(2.0, rel=0.2)
     assert high / low == pytest.approx(2.0, rel=0.15)
+
+
+def test_the_margin_floor_lifts_a_smaller_margin_to_it_and_leaves_a_larger_one() -> None:
+    # The robot's own safety margin (ControllerGains.margin_floor): a demonstrated margin
+    # below it is held at the floor, one above it as demonstrated.
+    floored, kept = mean_margin(1.2, floor=2.0), mean_margin(3.0, floor=2.0)
+    assert floored == pytest.approx(2.0, rel=0.2)
+    assert kept == pytest.approx(3.0, rel=0.2)
 
 
 @pytest.mark.parametrize("hand", ["ias4f", "ias3f"])
@@ -478,7 +488,8 @@ def test_the_leap_thumb_on_top_holds_a_squeeze_its_sticking_joints_can_set() -> 
     friction floor alone (its squeeze one its sticking joints can set) and with the approach
     alone (it opens and closes on the pen again); without either (the weaker method) the
     thumb's few hundredths of a newton are below what its joints can set, it opens, and the
-    pen is lost."""
+    pen is lost. The squeeze is the demonstrated one (no margin floor of the robot's own,
+    which would hold the pen by itself)."""
     import dataclasses
 
     from ias_gym.baselines.gains import ControllerGains
@@ -496,7 +507,7 @@ def test_the_leap_thumb_on_top_holds_a_squeeze_its_sticking_joints_can_set() -> 
     env = PenSkillEnv(references=[ref], hand="leap")
     starts = list(perturbed_starts(env, seed=0, n=2))
     env.close()
-    both = ControllerGains()
+    both = dataclasses.replace(ControllerGains(), margin_floor=1.0)
     assert both.friction_floor > 0 and both.approach_speed > 0
     floor = dataclasses.replace(both, approach_speed=0.0)
     approach = dataclasses.replace(both, friction_floor=0.0)

@@ -14,8 +14,9 @@ hand with ``--per-hand``).
 
 The gains fitted so (docs/controller.md): ``friction_floor`` (the squeeze a finger with
 sticking joints can set), ``ki`` (the integral of the pen's position error),
-``slip_speed`` (the tips' slide that shows the pen's friction; 1 m/s: never) and
-``approach_speed`` (how fast a tip off the pen closes on it again)::
+``slip_speed`` (the tips' slide that shows the pen's friction; 1 m/s: never),
+``approach_speed`` (how fast a tip off the pen closes on it again) and ``margin_floor`` (the
+least margin a skill's squeeze is held at; 1.0: the demonstration's alone)::
 
     python train/transfer_table.py --build-db dev858.db --population 30 \\
         --population-seed 858556502
@@ -32,6 +33,9 @@ sticking joints can set), ``ki`` (the integral of the pen's position error),
     python train/fit_gain.py --gain approach_speed --grid 0,0.01,0.03 --db dev858.db \
         --per-hand --hands ias4f,ias3f,shadow,leap \
         --disturbances nominal,friction_x0.7,mass_x1.3,observation_noise --out approach.json
+    python train/fit_gain.py --gain margin_floor --grid 1.0,1.1,1.2,1.3 --db dev1268.db \
+        --per-hand --hands ias4f,ias3f,shadow,leap \
+        --disturbances nominal,friction_x0.7,mass_x1.3 --out margin_floor.json
 """
 
 from __future__ import annotations

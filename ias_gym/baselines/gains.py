@@ -55,6 +55,11 @@ class ControllerGains:
     # the nominal mu until one has. inf: always mu. Fitted by train/fit_gain.py.
     slip_speed: float = 0.005
     slip_time: float = 0.03
+    # A skill's margin is held at least at this [-]: the robot's own safety margin, for
+    # what its model of the grasp does not know (friction, contact places, lag); the
+    # demonstrated margin where it is larger. 1.0: the demonstration's alone. Fitted by
+    # train/fit_gain.py (docs/controller.md).
+    margin_floor: float = 1.1
     # A fingertip off the pen closes on it again at this speed [m/s] relative to the pen's
     # measured motion at the tip: its joints' damping and dry friction paid along that
     # motion (grip_transform_terms.approach_torques); 0: an off finger gets only its force.

@@ -405,7 +405,8 @@ def _control_step(
             ctrl._friction.update(x.c_measured[i], slipping[i], ctrl.f0, float(x.dt[i, 0]))
         if margin is not None:
             # The hand's own internal forces, scaled so that c_p + c_h^d has the margin.
-            c_h_d[i] = scale_to_margin(c_p[i], c_h_d[i], margin, ctrl.friction)
+            held = max(margin, g.margin_floor)
+            c_h_d[i] = scale_to_margin(c_p[i], c_h_d[i], held, ctrl.friction)
             c_h_d[i] = resolvable_squeeze(
                 c_p[i], c_h_d[i], g.friction_floor, J[i], x.frames[i], x.damping[i, 1], active[i]
             )

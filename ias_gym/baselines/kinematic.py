@@ -26,11 +26,12 @@ import numpy as np
 from ias_gym.baselines.torque_policy import TorquePolicy, rotation_between, side_shares
 from ias_gym.envs.pen_hand_env import FloatArray
 
-#: The squeeze per tip of each hand [N]: of 0.2-2.5 N, the one with the most successes of the
-#: transfer test (held, tracked, margin kept), ties broken by the most terms passed, over 46
-#: glove skills of 8 development persons (``train/tune_kinematic.py``; the table is in the
-#: CHANGELOG). A hand not listed gets :data:`DEFAULT_SQUEEZE`, the middle of the three.
-SQUEEZE_BY_HAND: dict[str, float] = {"ias4f": 0.3, "ias3f": 0.75, "shadow": 0.5}
+#: The squeeze per tip of each hand [N]: of 0.15-2.5 N (ias3f: 0.3-2.5 N), the one with the
+#: most successes of the transfer test (held, tracked, margin kept) over 58 glove skills of
+#: 10 development persons, each scaled into the hand's measured workspace
+#: (``train/tune_kinematic.py``; the table is in the CHANGELOG). A hand not listed gets
+#: :data:`DEFAULT_SQUEEZE`.
+SQUEEZE_BY_HAND: dict[str, float] = {"ias4f": 0.4, "ias3f": 0.75, "shadow": 0.4, "leap": 0.3}
 DEFAULT_SQUEEZE = 0.5
 
 
