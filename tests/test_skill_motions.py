@@ -12,8 +12,10 @@ import pytest
 from ias_gym.assist.skill_motions import (
     SkillMotion,
     align_demonstrations,
+    chance_ranges,
     lift_slope,
     load_motions,
+    moving_joints,
     pen_elevation,
 )
 
@@ -48,6 +50,29 @@ def test_identical_demonstrations_are_their_own_template() -> None:
     np.testing.assert_allclose(mean, demos[0], atol=1e-12)
     np.testing.assert_allclose(a_fit, 1.0, atol=1e-12)
     np.testing.assert_allclose(v_fit, 1.0, atol=1e-12)
+
+
+def test_chance_ranges_are_the_largest_range_of_one_hold_about_the_mean() -> None:
+    # three holds of two joints: the first joint corrected by one person (a step of 0.06),
+    # the second never moved; the mean of the three carries a third of the step, so the one
+    # who corrected is 0.04 from it, the others 0.02
+    hold = np.zeros((3, len(TAU), 2))
+    hold[0, TAU > 1.0, 0] = 0.06
+    np.testing.assert_allclose(chance_ranges(hold), [0.04, 0.0], atol=1e-12)
+    # one demonstration says nothing about chance
+    np.testing.assert_array_equal(chance_ranges(hold[:1]), [0.0, 0.0])
+
+
+def test_one_demonstration_moves_only_the_joints_beyond_a_persons_corrections() -> None:
+    # a tilt's pronation (0.19 rad) and one person's corrections of the wrist's flexion and
+    # the index (0.05 rad), against what single holds move those joints by (0.03-0.11):
+    ranges, chance = np.array([0.19, 0.049, 0.047]), np.array([0.027, 0.053, 0.106])
+    np.testing.assert_array_equal(moving_joints(ranges, chance, 1), [0])
+    # the mean of eight persons moves a joint by chance a third as far: the same ranges
+    # there are the skill's
+    np.testing.assert_array_equal(moving_joints(ranges, chance, 8), [0, 1, 2])
+    # and never below the floor, whatever the holds
+    np.testing.assert_array_equal(moving_joints(np.array([0.02]), np.zeros(1), 1), [])
 
 
 def test_a_lift_slope_is_the_line_through_the_rise() -> None:

@@ -74,7 +74,8 @@ def object_measures(obs: FloatArray, theta: FloatArray, k: int) -> ObjectMeasure
 
 
 #: A skill's template moves a joint if its range over the motion, beyond the holding
-#: skill's, exceeds this [rad] (under a third of the smallest, the fast see-saw's 0.1 rad).
+#: skill's, exceeds this [rad] (under a third of the smallest, the fast see-saw's 0.1 rad)
+#: and what a mean of as many demonstrations moves it by chance (:func:`chance_ranges`).
 MOVING_JOINT = 0.03
 #: The skill that holds the pen still after the lift: what the others share.
 HOLD_SKILL = "lift_hold"
@@ -191,6 +192,9 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
     # What every skill shares after its start (the grip settling, the lift's end) is the
     # holding skill's motion; each skill's own motion is what it does beyond that.
     shared = means.get(HOLD_SKILL)
+    chance = np.zeros(N_JOINTS)
+    if shared is not None:
+        chance = chance_ranges(resampled[HOLD_SKILL])
     aligned = {}
     for name, (tau, mean) in means.items():
         base = np.zeros_like(mean)
@@ -198,7 +202,7 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
             base = np.stack(
                 [np.interp(tau, shared[0], shared[1][:, j]) for j in range(N_JOINTS)], 1
             )
-        joints = np.flatnonzero(np.ptp(mean - base, axis=0) > MOVING_JOINT)
+        joints = moving_joints(np.ptp(mean - base, axis=0), chance, len(resampled[name]))
         if not joints.size:
             continue
         own = np.array([(d - base)[:, joints] for d in resampled[name]])
@@ -223,6 +227,29 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
         )
         for name, (tau, joints, m, amps, speeds) in aligned.items()
     }
+
+
+def chance_ranges(hold: FloatArray) -> FloatArray:
+    """``(J,)`` how far one person's template moves each joint in no skill [rad]: the largest
+    range, over the holding skill's demonstrations ``hold`` ``(D, T, J)``, of one of them
+    about their mean (the grip's and the wrist's corrections by sight that every session
+    has). A mean of ``n`` demonstrations moves a joint by chance about ``1 / sqrt(n)`` of it.
+
+    With one demonstration of a tilt, its person's corrections of the wrist's flexion and of
+    the index (0.03-0.05 rad) would otherwise count as the skill's motion, and an operator's
+    fit, made to explain joints they move otherwise, shrinks its amplitude to a third."""
+    h = np.asarray(hold, dtype=np.float64)
+    if len(h) < 2:
+        return np.zeros(h.shape[-1])
+    return np.ptp(h - h.mean(axis=0), axis=1).max(axis=0)
+
+
+def moving_joints(ranges: FloatArray, chance: FloatArray, n: int) -> NDArray[np.int64]:
+    """The joints a template of ``n`` demonstrations moves: its ``ranges`` beyond the holding
+    skill's [rad] above :data:`MOVING_JOINT` and above ``chance / sqrt(n)``
+    (:func:`chance_ranges`)."""
+    threshold = np.maximum(MOVING_JOINT, np.asarray(chance, dtype=np.float64) / np.sqrt(n))
+    return np.flatnonzero(np.asarray(ranges, dtype=np.float64) > threshold)
 
 
 def _median(values: list[float]) -> float:
