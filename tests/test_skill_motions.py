@@ -67,12 +67,25 @@ def test_one_demonstration_moves_only_the_joints_beyond_a_persons_corrections() 
     # a tilt's pronation (0.19 rad) and one person's corrections of the wrist's flexion and
     # the index (0.05 rad), against what single holds move those joints by (0.03-0.11):
     ranges, chance = np.array([0.19, 0.049, 0.047]), np.array([0.027, 0.053, 0.106])
-    np.testing.assert_array_equal(moving_joints(ranges, chance, 1), [0])
-    # the mean of eight persons moves a joint by chance a third as far: the same ranges
-    # there are the skill's
-    np.testing.assert_array_equal(moving_joints(ranges, chance, 8), [0, 1, 2])
-    # and never below the floor, whatever the holds
-    np.testing.assert_array_equal(moving_joints(np.array([0.02]), np.zeros(1), 1), [])
+    np.testing.assert_array_equal(moving_joints(ranges, ranges[None], chance), [0])
+    # eight persons who all make those motions: their mean moves a joint by chance a third
+    # as far, and the same ranges there are the skill's
+    each = np.tile(ranges, (8, 1)) * 2.5
+    np.testing.assert_array_equal(moving_joints(ranges, each, chance), [0, 1, 2])
+    # never below the floor, whatever the holds
+    small = moving_joints(np.array([0.02]), np.array([[0.02]]), np.zeros(1))
+    assert small.size == 0
+
+
+def test_one_persons_grip_in_a_mean_of_four_is_no_motion_of_the_skill() -> None:
+    # four demonstrations: the pronation moved by all, the index MCP by one person (0.14
+    # rad), whose mean of 0.035 passes the floor and the chance range of a mean of four
+    ranges, chance = np.array([0.17, 0.035]), np.array([0.027, 0.043])
+    each = np.array([[0.17, 0.14], [0.16, 0.0], [0.18, 0.01], [0.17, 0.0]])
+    np.testing.assert_array_equal(moving_joints(ranges, each, chance), [0])
+    # three of the four moving it: the skill's
+    each[1:3, 1] = 0.06
+    np.testing.assert_array_equal(moving_joints(ranges, each, chance), [0, 1])
 
 
 def test_a_lift_slope_is_the_line_through_the_rise() -> None:

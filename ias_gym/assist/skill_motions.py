@@ -75,7 +75,7 @@ def object_measures(obs: FloatArray, theta: FloatArray, k: int) -> ObjectMeasure
 
 #: A skill's template moves a joint if its range over the motion, beyond the holding
 #: skill's, exceeds this [rad] (under a third of the smallest, the fast see-saw's 0.1 rad)
-#: and what a mean of as many demonstrations moves it by chance (:func:`chance_ranges`).
+#: and what its demonstrations move it by chance (:func:`moving_joints`).
 MOVING_JOINT = 0.03
 #: The skill that holds the pen still after the lift: what the others share.
 HOLD_SKILL = "lift_hold"
@@ -202,7 +202,8 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
             base = np.stack(
                 [np.interp(tau, shared[0], shared[1][:, j]) for j in range(N_JOINTS)], 1
             )
-        joints = moving_joints(np.ptp(mean - base, axis=0), chance, len(resampled[name]))
+        each = np.ptp(resampled[name] - base[None], axis=1)  # (D, J) every demonstration's
+        joints = moving_joints(np.ptp(mean - base, axis=0), each, chance)
         if not joints.size:
             continue
         own = np.array([(d - base)[:, joints] for d in resampled[name]])
@@ -244,12 +245,19 @@ def chance_ranges(hold: FloatArray) -> FloatArray:
     return np.ptp(h - h.mean(axis=0), axis=1).max(axis=0)
 
 
-def moving_joints(ranges: FloatArray, chance: FloatArray, n: int) -> NDArray[np.int64]:
-    """The joints a template of ``n`` demonstrations moves: its ``ranges`` beyond the holding
-    skill's [rad] above :data:`MOVING_JOINT` and above ``chance / sqrt(n)``
-    (:func:`chance_ranges`)."""
-    threshold = np.maximum(MOVING_JOINT, np.asarray(chance, dtype=np.float64) / np.sqrt(n))
-    return np.flatnonzero(np.asarray(ranges, dtype=np.float64) > threshold)
+def moving_joints(ranges: FloatArray, each: FloatArray, chance: FloatArray) -> NDArray[np.int64]:
+    """The joints a template moves: the mean's ``ranges`` ``(J,)`` beyond the holding skill's
+    [rad] above :data:`MOVING_JOINT` and above ``chance / sqrt(n)`` (:func:`chance_ranges`),
+    and the ranges ``each`` ``(n, J)`` of more than half of its ``n`` demonstrations above
+    :data:`MOVING_JOINT` and ``chance``: one person's grip or correction, diluted in a mean as
+    ``1 / n`` only, is no motion of the skill."""
+    floor = np.maximum(MOVING_JOINT, np.asarray(chance, dtype=np.float64))
+    every = np.atleast_2d(np.asarray(each, dtype=np.float64))
+    mean_moves = np.asarray(ranges, dtype=np.float64) > np.maximum(
+        MOVING_JOINT, floor / np.sqrt(len(every))
+    )
+    most_move = (every > floor).mean(axis=0) > 0.5
+    return np.flatnonzero(mean_moves & most_move)
 
 
 def _median(values: list[float]) -> float:
