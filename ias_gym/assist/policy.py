@@ -66,12 +66,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from ias_gym.assist.motion_completion import (
-    PARAMS_PATH,
-    REFIT_EVERY,
-    AssistParams,
-    Completion,
-)
+from ias_gym.assist.motion_completion import PARAMS_PATH, REFIT_EVERY, AssistParams, Completion
 from ias_gym.assist.recogniser_registry import METHODS, make_recogniser
 from ias_gym.assist.recognition import Acquisition, learn_demonstration
 from ias_gym.assist.sessions import LIFT_END
