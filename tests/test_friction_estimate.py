@@ -88,6 +88,32 @@ def test_the_estimate_takes_a_slide_of_its_duration_and_no_shorter_one() -> None
     assert light.update(c * 0.05, np.ones(3, dtype=bool), 0.1, 0.01) == 0.0
 
 
+def test_a_ratio_pinned_at_its_ceiling_reads_and_a_rising_one_does_not() -> None:
+    """The ceiling reading: a tip whose ratio comes back to its highest value (on its cone)
+    on five steps, between lower readings, reads that value once its steps add up to the
+    plateau, with no slide at all; a sticking tip whose ratio rises with its load every
+    step never reads; a tip pressed with less than ``n_min`` never counts; plateau 0 is
+    off."""
+    still = np.zeros(2, dtype=bool)
+    estimate = FrictionEstimate(duration=0.03, plateau=0.05)
+    pinned = [1.0, 0.4, 1.0, 1.0, 0.7, 1.0, 0.2, 1.0]  # shares of the cone, tip 1
+    values = []
+    for k, share in enumerate(pinned):
+        rising = _contact(1.0, 0.0, 0.1 * (k + 1))  # tip 2: its load grows every step
+        values.append(
+            estimate.update(np.array(_contact(1.0, 0.3, share) + rising), still, 0.1, 0.01)
+        )
+    assert values[:-1] == [0.0] * (len(pinned) - 1)  # four steps at the ceiling so far
+    assert values[-1] == pytest.approx(MU)  # the fifth
+    assert estimate.level is not None and estimate.level[1] == pytest.approx(0.8 * MU)
+    light = FrictionEstimate(duration=0.03, plateau=0.05)
+    off = FrictionEstimate(duration=0.03)
+    c = np.array(_contact(1.0, 0.0, 1.0) + _contact(1.0, 0.0, 1.0))
+    for _ in range(10):
+        assert light.update(c * 0.05, still, 0.1, 0.01) == 0.0
+        assert off.update(c, still, 0.1, 0.01) == 0.0
+
+
 def _rotation(rng: np.random.Generator) -> np.ndarray:
     q, r = np.linalg.qr(rng.normal(size=(3, 3)))
     return q * np.sign(np.diag(r))
@@ -128,6 +154,15 @@ def _shipped(name: str, person: str) -> Any:
         )
 
 
+def _starts(reference: Any) -> list[Any]:
+    """Two nearby starts of the LEAP hand holding the pen for ``reference``."""
+    env = PenSkillEnv(references=[reference], hand="leap")
+    try:
+        return list(perturbed_starts(env, seed=0, n=2))
+    finally:
+        env.close()
+
+
 def _run(reference: Any, gains: Any, options: Any) -> tuple[float, float]:
     """(the friction the controller plans with at the end, the mean measured margin over
     the reference's after the settling time) of one run on the LEAP hand, friction x0.7."""
@@ -150,8 +185,7 @@ def _run(reference: Any, gains: Any, options: Any) -> tuple[float, float]:
 @pytest.mark.closed_loop
 def test_on_a_slipperier_pen_the_leap_hand_plans_with_the_friction_its_tips_show() -> None:
     """A shipped fast see-saw on the LEAP hand, the pen's friction 0.7 x its nominal 0.25 (a
-    skill whose tips slide; in one that never slides, e.g. p2's lift_place, the controller
-    keeps the nominal coefficient): from every nearby start the controller comes to within
+    skill whose tips slide): from every nearby start the controller comes to within
     3 % of the pen's 0.175 and never above it (Coulomb), and the skill's margin is kept
     better than by the weaker method that plans with the nominal coefficient (its squeeze is
     about a third too small for this pen)."""
@@ -160,12 +194,10 @@ def test_on_a_slipperier_pen_the_leap_hand_plans_with_the_friction_its_tips_show
     # fingers' speed so that the tips no longer slide
     workspace = HandWorkspace(0.006, 0.075, axes=((0.014,) * 3,), tilt_shares=(1.0,))
     reference = transfer_reference(_shipped("seesaw_fast", "p1"), "leap", workspace=workspace)
-    env = PenSkillEnv(references=[reference], hand="leap")
-    starts = list(perturbed_starts(env, seed=0, n=2))
-    env.close()
+    starts = _starts(reference)
     gains = transfer_gains("leap")
     assert np.isfinite(gains.slip_speed)
-    nominal = dataclasses.replace(gains, slip_speed=float("inf"))
+    nominal = dataclasses.replace(gains, slip_speed=float("inf"), plateau_time=0.0)
     true_mu = 0.7 * gains.mu
     for options in starts:
         seen, kept = _run(reference, gains, options)
@@ -174,3 +206,25 @@ def test_on_a_slipperier_pen_the_leap_hand_plans_with_the_friction_its_tips_show
         assert planned == gains.mu
         assert abs(kept - 1.0) < abs(short - 1.0), (kept, short)
         assert short < 0.95, short
+
+
+@pytest.mark.closed_loop
+def test_where_no_tip_slides_the_ceiling_reads_the_friction() -> None:
+    """A shipped lift_hold on the LEAP hand, friction 0.7 x: no tip slides at the slide's
+    speed (with the slide reading alone the controller keeps the nominal coefficient), but
+    a tip pinned on its cone reads it: from every nearby start the controller comes to
+    within 3 % of 0.175, never above it, and keeps the margin closer than the controller
+    that plans with the nominal coefficient."""
+    reference = transfer_reference(_shipped("lift_hold", "p2"), "leap")
+    starts = _starts(reference)
+    gains = transfer_gains("leap")
+    assert gains.plateau_time > 0
+    slide_only = dataclasses.replace(gains, plateau_time=0.0)
+    nominal = dataclasses.replace(gains, slip_speed=float("inf"), plateau_time=0.0)
+    true_mu = 0.7 * gains.mu
+    for options in starts:
+        seen, kept = _run(reference, gains, options)
+        assert 0.97 * true_mu <= seen <= true_mu * (1 + 1e-9), seen
+        assert _run(reference, slide_only, options)[0] == gains.mu
+        short = _run(reference, nominal, options)[1]
+        assert abs(kept - 1.0) < abs(short - 1.0), (kept, short)

@@ -1,4 +1,5 @@
-"""train/transfer_table.py counts refusals as failures; train/hand_reach.py scans a hand's reach."""
+"""train/transfer_table.py counts refusals as failures; train/hand_reach.py scans a hand's reach;
+train/ceiling_readings.py replays tip forces through the ceiling reading."""
 
 from __future__ import annotations
 
@@ -199,3 +200,16 @@ def test_the_persons_rates_are_their_skills_peaks_in_mm_and_rad_per_s(tmp_path: 
     assert 0.1 < lift["turn_rate_rad_s_max"] < 2.0
     with pytest.raises(OutputExistsError):
         rates.main(["--db", str(db_path), "--out-json", str(out)])
+
+
+def test_the_ceiling_script_reads_a_pinned_tip_and_not_a_rising_one() -> None:
+    """The replay of ``train/ceiling_readings.py``: a tip that comes back to its cone (ratio
+    0.25) on six steps reads 0.25 at a plateau of five, not at one of eight; a tip whose
+    ratio rises every step reads nothing; forces below ``n_min`` read nothing."""
+    script = load_train_script("ceiling_readings")
+    shares = [1.0, 0.5, 1.0, 1.0, 0.3, 1.0, 1.0, 0.6]  # of the cone, tip 1
+    c = np.array([[1.0, 0.25 * a, 0.0, 1.0, 0.01 * (k + 1), 0.0] for k, a in enumerate(shares)])
+    assert script.reading(c, 0.002, 5, 0.2, 0.01) == pytest.approx(0.25)
+    assert script.reading(c, 0.002, 8, 0.2, 0.01) == 0.0
+    assert script.reading(c[:, 3:], 0.002, 2, 0.2, 0.01) == 0.0  # the rising tip alone
+    assert script.reading(c * 0.1, 0.002, 5, 0.2, 0.01) == 0.0

@@ -15,8 +15,10 @@ hand with ``--per-hand``).
 The gains fitted so (docs/controller.md): ``friction_floor`` (the squeeze a finger with
 sticking joints can set), ``ki`` (the integral of the pen's position error),
 ``slip_speed`` (the tips' slide that shows the pen's friction; 1 m/s: never),
-``approach_speed`` (how fast a tip off the pen closes on it again) and ``margin_floor`` (the
-least margin a skill's squeeze is held at; 1.0: the demonstration's alone)::
+``approach_speed`` (how fast a tip off the pen closes on it again), ``margin_floor`` (the
+least margin a skill's squeeze is held at; 1.0: the demonstration's alone) and
+``plateau_time`` (how long a tip's ratio sits at its ceiling before it reads the friction;
+0: never)::
 
     python train/transfer_table.py --build-db dev858.db --population 30 \\
         --population-seed 858556502
@@ -36,6 +38,9 @@ least margin a skill's squeeze is held at; 1.0: the demonstration's alone)::
     python train/fit_gain.py --gain margin_floor --grid 1.0,1.1,1.2,1.3 --db dev1268.db \
         --per-hand --hands ias4f,ias3f,shadow,leap \
         --disturbances nominal,friction_x0.7,mass_x1.3 --out margin_floor.json
+    python train/fit_gain.py --gain plateau_time --grid 0,0.05,0.08 --db dev1268.db \\
+        --per-hand --hands ias4f,ias3f,shadow,leap \\
+        --disturbances nominal,friction_x0.7,mass_x1.3,observation_noise --out plateau.json
 """
 
 from __future__ import annotations

@@ -55,6 +55,12 @@ class ControllerGains:
     # the nominal mu until one has. inf: always mu. Fitted by train/fit_gain.py.
     slip_speed: float = 0.005
     slip_time: float = 0.03
+    # ... or whose ratio comes back to its highest value so far (within plateau_tolerance
+    # of it, relative) on steps adding up to plateau_time [s]: a tip pinned on its cone
+    # that creeps too slowly for a slide. 0: no such reading; per hand for transferred
+    # skills (skills.transfer_run.TRANSFER_PLATEAU, fitted by train/fit_gain.py).
+    plateau_time: float = 0.0
+    plateau_tolerance: float = 0.002
     # A skill's margin is held at least at this [-]: the robot's own safety margin, for
     # what its model of the grasp does not know (friction, contact places, lag); the
     # demonstrated margin where it is larger. 1.0: the demonstration's alone. Fitted by

@@ -124,7 +124,8 @@ class GripTransformController:
         self._prev_J: FloatArray | None = None
         self._integral = np.zeros(3)  # integral of the position error [m s]
         self._mass: float | None = None  # the estimated pen mass [kg] (None: not yet)
-        self._friction = FrictionEstimate(self.gains.slip_time)  # what the tips show
+        g = self.gains  # what the tips show
+        self._friction = FrictionEstimate(g.slip_time, g.plateau_time, g.plateau_tolerance)
         self._estimates_friction = False  # set on binding to a skill's env
         self._N: FloatArray | None = None
         self._joint_damping: FloatArray | None = None
@@ -398,7 +399,8 @@ def _control_step(
     c_h_d = law.internal_part(c_ref, W, W_pinv)
     # (not x.sliding, the schedule's sliding fingers: tips measured to slip over the pen)
     slipping = None
-    if math.isfinite(g.slip_speed) and any(c._estimates_friction for c in controllers):
+    senses = math.isfinite(g.slip_speed) or g.plateau_time > 0
+    if senses and any(c._estimates_friction for c in controllers):
         slipping = slip_speeds(state, x) >= g.slip_speed
     for i, (ctrl, margin) in enumerate(zip(controllers, margins, strict=True)):
         if slipping is not None and ctrl._estimates_friction:

@@ -40,13 +40,23 @@ METHODS: tuple[str, ...] = ("gt", "kinematic", "retarget")
 #: keeps the default (0).
 TRANSFER_KI: dict[str, float] = {"ias4f": 500.0, "ias3f": 2000.0, "shadow": 0.0, "leap": 0.0}
 
+#: How long a tip's ratio sits at its ceiling before it reads the pen's friction [s]
+#: (:attr:`~ias_gym.baselines.gains.ControllerGains.plateau_time`), per hand; fitted on
+#: development persons by ``train/fit_gain.py --gain plateau_time --per-hand``
+#: (docs/controller.md). The IAS hands' tips stick and can hold one ratio for many steps, so
+#: they take no ceiling reading.
+TRANSFER_PLATEAU: dict[str, float] = {"ias4f": 0.0, "ias3f": 0.0, "shadow": 0.05, "leap": 0.05}
+
 
 def transfer_gains(hand: str) -> ControllerGains:
     """The expert's :class:`~ias_gym.baselines.gains.ControllerGains` for a
-    skill transferred to ``hand``: the defaults, with the hand's :data:`TRANSFER_KI`."""
+    skill transferred to ``hand``: the defaults, with the hand's :data:`TRANSFER_KI` and
+    :data:`TRANSFER_PLATEAU`."""
     from ias_gym.baselines.gains import ControllerGains
 
-    return ControllerGains(ki=TRANSFER_KI.get(hand, 0.0))
+    return ControllerGains(
+        ki=TRANSFER_KI.get(hand, 0.0), plateau_time=TRANSFER_PLATEAU.get(hand, 0.0)
+    )
 
 
 @dataclass
