@@ -3,7 +3,7 @@
 :func:`~ias_gym.grasp.grasp_margin.tangential_ratios` is checked against Coulomb's law (no
 contact in its cone reads more than the coefficient; one on the cone reads it), the slip
 speed of :func:`~ias_gym.baselines.grip_transform_terms.slip_speeds` against a rigid motion
-built here, :class:`~ias_gym.baselines.grip_transform_terms.FrictionEstimate` against slides
+built here, :class:`~ias_gym.baselines.friction_estimate.FrictionEstimate` against slides
 of known length, and then a shipped skill is transferred onto the LEAP hand with the pen's
 friction cut to 0.7 x: the controller must come to the pen's coefficient, never above it,
 and keep the skill's margin better than the controller that plans with the nominal one.
@@ -22,7 +22,8 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from ias_gym.baselines.expert import ExpertActionWrapper
-from ias_gym.baselines.grip_transform_terms import FrictionEstimate, slip_speeds
+from ias_gym.baselines.friction_estimate import FrictionEstimate
+from ias_gym.baselines.grip_transform_terms import slip_speeds
 from ias_gym.envs.pen_skill_env import PenSkillEnv
 from ias_gym.grasp.grasp_margin import tangential_ratios
 from ias_gym.skills.db import SkillDB

@@ -1,7 +1,7 @@
 """How well a tip's ratio ceiling reads the pen's friction, per hand and disturbance.
 
 The grip-transform expert reads the pen's friction from a tip pinned on its cone (the
-ceiling reading of :class:`~ias_gym.baselines.grip_transform_terms.FrictionEstimate`,
+ceiling reading of :class:`~ias_gym.baselines.friction_estimate.FrictionEstimate`,
 docs/controller.md). This script runs the first ``--sessions`` successful glove sessions of
 ``--db`` (development persons) on each of ``--hands`` under each of ``--disturbances``,
 with the controller planning with the nominal coefficient (no reading of either kind), and
@@ -28,7 +28,7 @@ from collections.abc import Sequence
 import numpy as np
 from tqdm import tqdm
 
-from ias_gym.baselines.grip_transform_terms import FrictionEstimate
+from ias_gym.baselines.friction_estimate import FrictionEstimate
 from ias_gym.envs.pen_skill_env import PenSkillConfig
 from ias_gym.robustness import DISTURBANCES, check_classes
 from ias_gym.skills import SkillDB

@@ -50,7 +50,7 @@ class ControllerGains:
     # joints' dry friction; fitted by train/fit_gain.py, docs/controller.md)
     friction_floor: float = 0.5
     # A skill's squeeze is scaled to its margin with the friction coefficient the tips have
-    # shown (grip_transform_terms.FrictionEstimate): the mean ratio of tangential to normal
+    # shown (friction_estimate.FrictionEstimate): the mean ratio of tangential to normal
     # force of a tip that slid over the pen faster than slip_speed [m/s] for slip_time [s];
     # the nominal mu until one has. inf: always mu. Fitted by train/fit_gain.py.
     slip_speed: float = 0.005

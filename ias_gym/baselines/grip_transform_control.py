@@ -62,10 +62,10 @@ from typing import Any
 import numpy as np
 
 from ias_gym.baselines import law
+from ias_gym.baselines.friction_estimate import FrictionEstimate
 from ias_gym.baselines.gains import ControllerGains
 from ias_gym.baselines.grip_transform_terms import (
     ControlStep,
-    FrictionEstimate,
     Gathered,
     MotionRows,
     ReferenceRows,
@@ -134,7 +134,7 @@ class GripTransformController:
     @property
     def friction(self) -> float:
         """The friction coefficient a skill's squeeze is planned with now [-]: what the tips
-        have shown (``gains.slip_speed``, :class:`~.grip_transform_terms.FrictionEstimate`),
+        have shown (``gains.slip_speed``, :class:`~.friction_estimate.FrictionEstimate`),
         else the nominal ``gains.mu``."""
         return self._friction.value or self.gains.mu
 
