@@ -26,7 +26,8 @@ class FrictionEstimate:
     force reads at most the coefficient, and a tip on its cone reads the coefficient itself
     (:func:`~ias_gym.grasp.grasp_margin.tangential_ratios`). Two readings of "on its cone":
 
-    - **a slide**: the tip's slip speed (:func:`slip_speeds`) stays above a threshold for
+    - **a slide**: the tip's slip speed
+      (:func:`~ias_gym.baselines.grip_transform_terms.slip_speeds`) stays above a threshold for
       ``duration`` seconds in a row (sensor noise fakes a slip for a step, rarely for
       several); the reading is the mean ratio over the slide;
     - **a ceiling** (``plateau`` > 0): the tip's ratio comes back to its highest value so far,
