@@ -6,11 +6,19 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import butter, sosfilt, sosfilt_zi, sosfiltfilt
 
 import ias_gym  # noqa: F401
 from ias_gym.assist.policy import make_assistant
-from ias_gym.assist.tremor import TREMOR_BAND, TremorCanceller, notch_phase_deg
+from ias_gym.assist.tremor import (
+    HIGHPASS_HZ,
+    HIGHPASS_ORDER,
+    TREMOR_BAND,
+    TremorCanceller,
+    notch_phase_deg,
+    sinusoid_line,
+    tremor_line,
+)
 from ias_gym.glove.device import min_jerk
 from ias_gym.perturbed_starts import perturbed_starts
 
@@ -50,6 +58,40 @@ def test_a_tremor_anywhere_in_the_band_is_found_and_notched_out(hz: float) -> No
     # the see-saw's joint, not shaking, is only delayed a little
     moved = out[late, 9] - VOLUNTARY[late, 9]
     assert np.sqrt(np.mean(moved**2)) < np.radians(-notch_phase_deg(1.5, c.frequency_hz)) * 0.3
+
+
+def _closing_with_tremor(hz: float, n: int) -> np.ndarray:
+    """``n`` steps of a fast close (0.3 rad in 0.5 s, minimum jerk) of one joint, with a
+    tremor of ``hz`` and 0.05 rad on four: the first window of a session."""
+    t = np.arange(n) * DT
+    x = np.zeros((n, 10))
+    x[:, 3] = 0.3 * np.array([min_jerk(ti / 0.5) for ti in t])
+    if hz > 0:
+        x[:, :4] += 0.05 * np.sin(2 * np.pi * hz * t[:, None] + np.linspace(0.0, 2.0, 4))
+    return x
+
+
+@pytest.mark.parametrize("hz", [4.0, 5.0])
+@pytest.mark.parametrize("steps", [20, 30])
+def test_a_slow_tremor_is_found_in_the_first_window(hz: float, steps: int) -> None:
+    """Under a cycle or two of a 4-5 Hz tremor during a fast close: the fitted sinusoid is
+    within 0.35 Hz of it, where the spectral peak of the high-passed targets (the estimate
+    it replaced) is 0.4 Hz off or more, and three times as far."""
+    x = _closing_with_tremor(hz, steps)
+    line = sinusoid_line(x, DT)
+    assert line is not None
+    assert abs(line[0] - hz) < 0.35
+    assert line[1] == pytest.approx(0.1, rel=0.15)  # the norm of four 0.05 rad sinusoids
+    hp = butter(HIGHPASS_ORDER, HIGHPASS_HZ, btype="highpass", fs=1.0 / DT, output="sos")
+    high_passed, _ = sosfilt(hp, x, axis=0, zi=sosfilt_zi(hp)[:, :, None] * x[0][None, None])
+    spectral = abs(tremor_line(high_passed, DT)[0] - hz)
+    assert spectral > max(0.4, 3.0 * abs(line[0] - hz))
+
+
+def test_a_window_without_a_line_is_left_to_the_spectrum() -> None:
+    """A close without a tremor is best fitted at the search's lowest frequency: no line
+    (the canceller then takes the high-passed spectrum's peak)."""
+    assert sinusoid_line(_closing_with_tremor(0.0, 30), DT) is None
 
 
 def test_without_a_tremor_the_notch_only_delays() -> None:
