@@ -49,7 +49,8 @@ TREMOR_BAND = (4.0, 12.0)
 #: down 48 dB and passes a 4 Hz tremor whole.
 HIGHPASS_HZ = 3.0
 HIGHPASS_ORDER = 8
-#: The frequency estimate's window [s]: its Hann main lobe +-2 Hz.
+#: The window the line is found in [s]: the sinusoid fit's, and the spectrum's (whose Hann
+#: main lobe is then +-2 Hz wide).
 FREQUENCY_WINDOW_S = 1.0
 #: The notch's -3 dB width [Hz]: lags a 1.5 Hz motion by 12 deg under a 4 Hz notch.
 NOTCH_WIDTH_HZ = 2.0
