@@ -24,19 +24,19 @@ import argparse
 import dataclasses
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
 from ias_gym.baselines.friction_estimate import FrictionEstimate
 from ias_gym.envs.pen_skill_env import PenSkillConfig
+from ias_gym.errors import InputError
 from ias_gym.robustness import DISTURBANCES, check_classes
 from ias_gym.skills import SkillDB
 from ias_gym.skills.transfer import transfer_reference
 from ias_gym.skills.transfer_run import run_transfer, transfer_gains
-
-#: The pen's friction relative to its nominal one under a disturbance class [-].
-FRICTION_SCALE = {"friction_x0.7": 0.7, "friction_x1.3": 1.3}
+from ias_gym.skills.workspace import hand_names
 
 
 def forces(db: str, skill_id: int, hand: str, disturbance: str) -> np.ndarray:
@@ -71,8 +71,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--tolerances", default="0.002,0.01", help="relative, comma-separated")
     ap.add_argument("--steps", default="3,5,8", help="plateau lengths [control steps]")
     args = ap.parse_args(argv)
-    classes = check_classes(args.disturbances.split(","))
-    hands = args.hands.split(",")
+    try:
+        classes = check_classes(args.disturbances.split(","))
+        hands = [h.strip() for h in args.hands.split(",")]
+        unknown = sorted(set(hands) - set(hand_names()))
+        if unknown:
+            raise InputError(f"--hands {','.join(unknown)}: choose from {', '.join(hand_names())}")
+        if not Path(args.db).is_file():
+            raise InputError(f"--db {args.db} does not exist")
+    except InputError as exc:
+        print(f"ceiling_readings.py: error: {exc}", file=sys.stderr)
+        return 2
     with SkillDB(args.db, readonly=True) as handle:
         ids = [s.id for s in handle.list_skills(success=True)][: args.sessions]
     runs: dict[tuple[str, str], list[np.ndarray]] = {}
@@ -87,7 +96,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for steps in (int(s) for s in args.steps.split(",")):
             print(f"tolerance {tolerance:g}, {steps} steps (read right / less / more of runs):")
             for (hand, disturbance), cs in runs.items():
-                true = mu * FRICTION_SCALE.get(disturbance, 1.0)
+                true = mu * DISTURBANCES[disturbance].get("friction_scale", 1.0)
                 values = [reading(c, tolerance, steps, n_min, dt) for c in cs]
                 read = np.array([v for v in values if v > 0])
                 right = int(np.sum(np.abs(read - true) <= 0.03 * true))
