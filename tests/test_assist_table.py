@@ -61,3 +61,22 @@ def test_a_score_gives_its_successes_with_intervals() -> None:
     assert row["success_unassisted"] == 0.5 and row["sessions"] == 30
     empty = ImpairmentScore(0, 0, float("nan"), 0).to_json()
     assert empty["assisted"] is None and empty["success_assisted"] is None
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["--db", "missing.db"], "--db missing.db does not exist"),
+        (["--residual", "missing.zip"], "--residual missing.zip does not exist"),
+    ],
+)
+def test_the_population_table_refuses_missing_inputs_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], expected: str
+) -> None:
+    table = load_train_script("assist_population")
+    out = tmp_path / "table.json"
+    argv = ["--seed", "1", "--set", "development", "--out", str(out), *args]
+    assert table.main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert expected in err and len(err.splitlines()) == 1
+    assert not out.exists()

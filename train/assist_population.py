@@ -1,6 +1,7 @@
 """Population table of the observation assistant: per impairment spec, success unassisted,
-assisted with the recogniser and assisted without skill knowledge, with 95 % intervals, on
-persons drawn by a seed (``--set held-out``: one the fitting never saw).
+assisted with the recogniser and assisted without skill knowledge (and, with
+``--residual``, assisted with a learned residual on top), with 95 % intervals, on persons
+drawn by a seed (``--set held-out``: one the fitting never saw).
 
     python train/assist_population.py --db out/library.db --persons 30 --seed S --set held-out \
         --impairment none --impairment stops:at=0.4 --out docs/assist_population.json
@@ -34,13 +35,18 @@ from ias_gym.rates import SET_KINDS, rate_json
 from ias_gym.runtime.jobs import Backend, run_jobs
 
 ARMS = ("unassisted", "assisted", "no_skill_knowledge")
+#: One session's ``(spec, skill, drawn family, arm, success)`` (:class:`PersonJob`).
+Row = tuple[str, str, str, str | None, bool | None]
+#: The arm of a learned residual on the assistant (``--residual``).
+RESIDUAL_ARM = "residual"
 
 
 @dataclass(frozen=True)
 class PersonJob:
     """A picklable job: one person's sessions, every spec, skill and arm.
 
-    Returns rows ``(spec, skill, arm, success)``; ``(spec, skill, None, None)`` for a
+    Returns rows ``(spec, skill, family, arm, success)`` with ``family`` the impairment the
+    session drew (``sampled``: one family); ``(spec, skill, family, None, None)`` for a
     session without a reference."""
 
     specs: tuple[str, ...]
@@ -48,15 +54,22 @@ class PersonJob:
     db: str | None
     reset_seed: int
     operator: str = "closed_loop"
+    residual: str | None = None
 
-    def __call__(self, person: str) -> list[tuple[str, str, str | None, bool | None]]:
+    def __call__(self, person: str) -> list[Row]:
         layout = observation_layout(OBSERVATION_PARTS)
-        assistants = {
+        assistants: dict[str, Any] = {
             "assisted": make_assistant(self.db, recogniser="phase", layout=layout),
             "no_skill_knowledge": make_assistant(self.db, recogniser="none", layout=layout),
         }
+        arms: tuple[str, ...] = ARMS
+        if self.residual is not None:
+            from ias_gym.learning.assist_residual import ObservationResidualAssistant
+
+            assistants[RESIDUAL_ARM] = ObservationResidualAssistant.load(self.residual, self.db)
+            arms = (*ARMS, RESIDUAL_ARM)
         references: dict[tuple[str, str], Any] = {}
-        rows: list[tuple[str, str, str | None, bool | None]] = []
+        rows: list[Row] = []
         for spec in self.specs:
             for skill in self.skills:
                 env = gym.make(
@@ -66,7 +79,8 @@ class PersonJob:
                     impairment=spec,
                     operator=self.operator,
                 )
-                same = reference_kwargs(env.unwrapped.impairment)  # type: ignore[attr-defined]
+                drawn = env.unwrapped.impairment  # type: ignore[attr-defined]
+                same = reference_kwargs(drawn)
                 key = (skill, repr(same))
                 if key not in references:
                     references[key] = reference_session(
@@ -74,10 +88,10 @@ class PersonJob:
                     )
                 ref = references[key]
                 if ref is None:
-                    rows.append((spec, skill, None, None))
-                for arm in ARMS if ref is not None else ():
+                    rows.append((spec, skill, drawn.name, None, None))
+                for arm in arms if ref is not None else ():
                     result = run_session(env, assistants.get(arm), self.reset_seed)
-                    rows.append((spec, skill, arm, session_success(result, ref)))
+                    rows.append((spec, skill, drawn.name, arm, session_success(result, ref)))
                 env.close()
         return rows
 
@@ -101,6 +115,10 @@ def main(argv: list[str] | None = None) -> int:
         default="closed_loop",
         help="the simulated person: in the loop, or the open script",
     )
+    ap.add_argument(
+        "--residual",
+        help="a residual trained on the assistant (train/assist_residual.py --base observation)",
+    )
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes")
     ap.add_argument("--out", required=True, help="JSON file written")
     ap.add_argument("--overwrite", action="store_true", help="replace an existing --out")
@@ -108,25 +126,35 @@ def main(argv: list[str] | None = None) -> int:
     if args.db is not None and not Path(args.db).is_file():
         print(f"--db {args.db} does not exist (build one: ias-gym assist library)", file=sys.stderr)
         return 2
+    if args.residual is not None and not Path(args.residual).is_file():
+        print(
+            f"--residual {args.residual} does not exist (train/assist_residual.py)", file=sys.stderr
+        )
+        return 2
     out = check_output_file(args.out, overwrite=args.overwrite, what="--out")
     specs = expand_specs(args.impairment or ["none", "stops:at=0.4"])
     persons = population_ids(args.persons, args.seed)
     skills = sorted(load_motions(args.db))  # the skills with a motion of their own
     rows = run_jobs(
-        PersonJob(tuple(specs), tuple(skills), args.db, args.reset_seed, args.operator),
+        PersonJob(
+            tuple(specs), tuple(skills), args.db, args.reset_seed, args.operator, args.residual
+        ),
         persons,
         Backend.from_options(args.workers),
         desc="persons",
         progress=True,
     )
-    outcomes: dict[str, dict[str, list[bool]]] = {s: {a: [] for a in ARMS} for s in specs}
+    arms: tuple[str, ...] = ARMS if args.residual is None else (*ARMS, RESIDUAL_ARM)
+    outcomes: dict[str, dict[str, list[bool]]] = {s: {a: [] for a in arms} for s in specs}
     by_skill: dict[str, dict[str, list[bool]]] = {s: {k: [] for k in skills} for s in specs}
+    by_family: dict[str, dict[str, dict[str, list[bool]]]] = {s: {} for s in specs}
     excluded = dict.fromkeys(specs, 0)
-    for spec, skill, arm, ok in (row for person_rows in rows for row in person_rows):
+    for spec, skill, family, arm, ok in (row for person_rows in rows for row in person_rows):
         if arm is None:
             excluded[spec] += 1
             continue
         outcomes[spec][arm].append(bool(ok))
+        by_family[spec].setdefault(family, {a: [] for a in arms})[arm].append(bool(ok))
         if arm == "assisted":
             by_skill[spec][skill].append(bool(ok))
     table = {
@@ -135,12 +163,23 @@ def main(argv: list[str] | None = None) -> int:
         "population_seed": args.seed,
         "library": Path(args.db).name if args.db else "shipped",
         "operator": args.operator,
+        "residual": Path(args.residual).name if args.residual else None,
         "skills": skills,
         "by_impairment": {
             spec: {
-                **{arm: rate_json(outcomes[spec][arm]) for arm in ARMS},
+                **{arm: rate_json(outcomes[spec][arm]) for arm in arms},
                 "excluded": excluded[spec],
                 "assisted_by_skill": {k: rate_json(v) for k, v in by_skill[spec].items()},
+                **(
+                    {
+                        "by_family": {
+                            f: {a: rate_json(v) for a, v in per_arm.items()}
+                            for f, per_arm in sorted(by_family[spec].items())
+                        }
+                    }
+                    if len(by_family[spec]) > 1
+                    else {}
+                ),
             }
             for spec in specs
         },

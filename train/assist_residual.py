@@ -1,17 +1,22 @@
-"""Train the residual assistant (PPO, SB3) on top of the analytic one, operator in the loop.
+"""Train a residual assistant (PPO, SB3) on top of an assistant, operator in the loop.
 
     PYTHONPATH=$PWD python train/assist_residual.py --timesteps 20000 --out out/assist_residual.zip
+    PYTHONPATH=$PWD python train/assist_residual.py --base observation --db out/library.db \
+        --impairment none --impairment sampled --impairment stops --out out/obs_residual.zip
 
 ``--persons`` development persons drawn from the population with ``--population-seed``
-(the table's persons are another draw), every impairment and skill drawn at random per
-episode (``ias_gym.learning.assist_residual``).
-Measure the result with ``train/assist_table.py --residual OUT``.
+(the table's persons are another draw), an impairment spec (``--impairment``, repeatable;
+default: every family at its default and none) and a skill drawn at random per episode
+(``ias_gym.learning.assist_residual``). ``--base analytic``: measure the result with
+``train/assist_table.py --residual OUT``; ``--base observation``: with
+``train/assist_population.py --residual OUT``.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
@@ -19,10 +24,11 @@ from tqdm import tqdm
 
 from ias_gym.assist.skill_templates import load_templates
 from ias_gym.errors import InputError
+from ias_gym.glove.impairment_spec import Impairment
 from ias_gym.glove.impairments import IMPAIRMENTS
 from ias_gym.glove.operator import OPERATORS
 from ias_gym.glove.population import population_ids
-from ias_gym.learning.assist_residual import ResidualAssistEnv
+from ias_gym.learning.assist_residual import BASES, ResidualAssistEnv
 from ias_gym.outputs import atomic_output, check_output_file
 
 
@@ -43,15 +49,31 @@ class Bar(BaseCallback):
 
 def main(argv: list[str] | None = None) -> int:
     """Train and save (arguments: ``--help``)."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--timesteps", type=int, default=20_000)
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    parser.add_argument("--timesteps", type=int, default=20_000, help="PPO env steps")
     parser.add_argument("--persons", type=int, default=8, help="development persons")
     parser.add_argument(
         "--population-seed", type=int, default=62, help="seed of the development persons' draw"
     )
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="PPO's and the episodes' draw")
     parser.add_argument(
-        "--db", default=None, help="skill library of the analytic assistant (default: shipped)"
+        "--db", default=None, help="skill library of the base assistant (None: the shipped one)"
+    )
+    parser.add_argument(
+        "--base",
+        choices=BASES,
+        default="analytic",
+        help="the assistant under the residual: the one on observations or the analytic one",
+    )
+    parser.add_argument(
+        "--impairment",
+        action="append",
+        default=None,
+        metavar="SPEC",
+        help=f"an impairment spec drawn per episode, repeatable (None: {' '.join(IMPAIRMENTS)})",
     )
     parser.add_argument(
         "--learning-rate",
@@ -66,17 +88,23 @@ def main(argv: list[str] | None = None) -> int:
         default="closed_loop",
         help="the simulated person: in the loop, or the open script",
     )
-    parser.add_argument("--out", default="out/assist_residual.zip")
-    parser.add_argument("--overwrite", action="store_true")
+    parser.add_argument("--out", default="out/assist_residual.zip", help="the model (SB3 zip)")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     args = parser.parse_args(argv)
     try:
         out = check_output_file(args.out, overwrite=args.overwrite, what="--out")
         persons = population_ids(args.persons, args.population_seed)
+        specs = args.impairment or list(IMPAIRMENTS)
+        for spec in specs:
+            Impairment.make(spec)
+        if args.db is not None and not Path(args.db).is_file():
+            raise InputError(f"--db {args.db}: no such skill library (ias-gym assist library)")
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    templates = load_templates(args.db) if args.base == "analytic" else {}
     env = ResidualAssistEnv(
-        load_templates(args.db), persons, list(IMPAIRMENTS), operator=args.operator
+        templates, persons, specs, operator=args.operator, base=args.base, db=args.db
     )
     model = PPO(
         "MlpPolicy",

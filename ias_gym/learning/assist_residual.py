@@ -1,18 +1,27 @@
-"""A learned residual on top of the analytic assistant, trained with SB3's PPO.
+"""A learned residual on top of an assistant, trained with SB3's PPO.
 
 :class:`ResidualAssistEnv` puts the impaired operator in the loop: every reset it builds an
-``IAS-GloveAssist-v0`` session of a random person, skill and impairment (from the lists it
-is given), runs the :class:`~ias_gym.assist.assistants.AnalyticAssistant` on it, and the
-agent's action is a residual added to the analytic offsets, ``a = clip(a_analytic +
-RESIDUAL_SCALE r)``. The observation is the env's (49) and the analytic action (10). The
-reward restores the operator's intent: at every reset the same person, skill and seed is run
-once unimpaired and unassisted (the simulator can; the reward is only needed in training),
-and each step earns ``exp(-(|dp| / 3 mm)^2) + exp(-(|da| / 5 deg)^2)`` for the pen's centre
-``p`` and axis ``a`` against that session's at the same step (the success test's tolerances,
-:mod:`ias_gym.assist.sessions`), minus ``RESIDUAL_COST |r|^2``: the residual has to earn
-its intervention. A dropped pen ends the episode, and with it the reward.
-:class:`ResidualAssistant` acts with a saved model (loaded without unpickling,
-:mod:`ias_gym.safe_sb3`) through the assistant protocol of :mod:`ias_gym.assist.sessions`.
+``IAS-GloveAssist-v0`` session of a random person, skill and impairment spec (from the lists
+it is given; ``sampled`` draws a family and its parameters from the env's random stream),
+runs the base assistant on it, and the agent's action is a residual added to the base's
+offsets, ``a = clip(a_base + RESIDUAL_SCALE r)``. Two bases (:data:`BASES`):
+
+- ``"observation"``: the assistant on observations (:func:`~ias_gym.assist.policy.make_assistant`,
+  the hardware path's): it and the residual read the observation alone;
+- ``"analytic"``: the :class:`~ias_gym.assist.assistants.AnalyticAssistant`, which reads
+  the env's state (a reference of what such help can do).
+
+The agent's observation is the env's (49) and the base's action (10). The reward restores
+the operator's intent: at every reset the same person, skill and seed is run once
+unimpaired and unassisted (the simulator can; the reward is only needed in training, the
+policy never reads it), and each step earns ``exp(-(|dp| / 3 mm)^2) + exp(-(|da| / 5
+deg)^2)`` for the pen's centre ``p`` and axis ``a`` against that session's at the same step
+(the success test's tolerances, :mod:`ias_gym.assist.sessions`), minus ``RESIDUAL_COST
+|r|^2``: the residual has to earn its intervention. A dropped pen ends the episode, and with
+it the reward. :class:`ResidualAssistant` (analytic base) and
+:class:`ObservationResidualAssistant` (observation base) act with a saved model (loaded
+without unpickling, :mod:`ias_gym.safe_sb3`) through the assistant protocols of
+:mod:`ias_gym.assist.sessions`.
 """
 
 from __future__ import annotations
@@ -27,6 +36,7 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from ias_gym.assist.assistants import AnalyticAssistant
+from ias_gym.assist.policy import ObservationAssistant, make_assistant
 from ias_gym.assist.sessions import (
     OBS_PEN,
     OBS_QUAT,
@@ -36,7 +46,9 @@ from ias_gym.assist.sessions import (
     run_session,
 )
 from ias_gym.assist.skill_templates import SkillTemplate
-from ias_gym.envs.glove_assist import OBS_SIZE
+from ias_gym.envs.glove_assist import OBS_SIZE, OBSERVATION_PARTS
+from ias_gym.envs.layout import observation_layout
+from ias_gym.errors import InputError
 from ias_gym.glove.hand import N_JOINTS
 from ias_gym.glove.impairments import Impairment, reference_kwargs
 from ias_gym.glove.skills import SKILLS
@@ -47,18 +59,51 @@ FloatArray = NDArray[np.float64]
 RESIDUAL_SCALE = 0.1
 #: Weight of the residual's squared size in the reward [-].
 RESIDUAL_COST = 0.2
+#: The assistants a residual can sit on (module docstring).
+BASES = ("observation", "analytic")
+
+
+class _ObservationBase:
+    """The assistant on observations as a residual's base."""
+
+    def __init__(self, db: str | Path | None) -> None:
+        self.assistant = make_assistant(db, layout=observation_layout(OBSERVATION_PARTS))
+
+    def reset(self, env: Any) -> None:
+        self.assistant.reset()
+
+    def act(self, env: Any, obs: FloatArray) -> FloatArray:
+        return self.assistant.act(obs)
+
+
+class _AnalyticBase:
+    """The analytic assistant (it reads the env's state) as a residual's base."""
+
+    def __init__(self, templates: dict[str, SkillTemplate]) -> None:
+        self.assistant = AnalyticAssistant(templates)
+
+    def reset(self, env: Any) -> None:
+        self.assistant.reset(env)
+
+    def act(self, env: Any, obs: FloatArray) -> FloatArray:
+        return self.assistant.act(env)
 
 
 class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
-    """Train a residual on the analytic assistant with the impaired operator in the loop.
+    """Train a residual on an assistant with the impaired operator in the loop.
 
     Args:
-        templates: the library's templates (the analytic assistant's).
+        templates: the library's templates (the analytic base's; unused by the other).
         persons: person ids drawn at every reset.
-        impairments: impairment names drawn at every reset.
+        impairments: impairment specs drawn at every reset (``sampled`` included).
         skills: skills drawn at every reset.
         max_steps: steps per episode (the env's 400 = 4 s by default).
         operator: the simulated person: ``"closed_loop"`` or the open ``"script"``.
+        base: the assistant under the residual, one of :data:`BASES`.
+        db: the skill library of the observation base (None: the shipped one).
+
+    Raises:
+        InputError: an unknown base or impairment spec, or no person.
     """
 
     def __init__(
@@ -69,7 +114,15 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         skills: tuple[str, ...] = SKILLS,
         max_steps: int = 400,
         operator: str = "closed_loop",
+        base: str = "analytic",
+        db: str | Path | None = None,
     ) -> None:
+        if base not in BASES:
+            raise InputError(f"residual base {base!r} is not known; choose one of {BASES}")
+        if not persons:
+            raise InputError("give at least one person to train the residual on")
+        for spec in impairments:
+            Impairment.make(spec)  # an unknown spec fails here, not at the first reset
         self.templates = templates
         self.operator = operator
         self.persons, self.impairments, self.skills = persons, impairments, skills
@@ -78,7 +131,10 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             -np.inf, np.inf, shape=(OBS_SIZE + N_JOINTS,), dtype=np.float64
         )
         self.action_space = spaces.Box(-1.0, 1.0, shape=(N_JOINTS,), dtype=np.float32)
-        self.analytic = AnalyticAssistant(templates)
+        self.base = base
+        self.assistant: _ObservationBase | _AnalyticBase = (
+            _ObservationBase(db) if base == "observation" else _AnalyticBase(templates)
+        )
         self.env: Any = None
         self._base = np.zeros(N_JOINTS)
         self._steps = 0
@@ -86,7 +142,7 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         self._ref_axis = np.zeros((1, 3))
 
     def _augment(self, obs: FloatArray) -> FloatArray:
-        self._base = self.analytic.act(self.env.unwrapped)
+        self._base = self.assistant.act(self.env.unwrapped, obs)
         return np.concatenate([obs, self._base])
 
     def reset(
@@ -98,12 +154,12 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         if self.env is not None:
             self.env.close()
         person, skill = str(rng.choice(self.persons)), str(rng.choice(list(self.skills)))
-        impairment = Impairment.make(str(rng.choice(self.impairments)))
+        impairment = Impairment.make(str(rng.choice(self.impairments))).draw(rng)
         self.env = gym.make(
             "IAS-GloveAssist-v0",
             person_id=person,
             skill=skill,
-            impairment=impairment.name,
+            impairment=impairment.spec,
             operator=self.operator,
         )
         seed = int(rng.integers(2**31))
@@ -118,12 +174,12 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
         reference.close()
         self._ref_pos, self._ref_axis = ref.pen_position, pen_axis(ref.pen_quat)
         obs, info = self.env.reset(seed=seed)
-        self.analytic.reset(self.env.unwrapped)
+        self.assistant.reset(self.env.unwrapped)
         self._steps = 0
         return self._augment(obs), info
 
     def step(self, action: NDArray[Any]) -> tuple[FloatArray, float, bool, bool, dict[str, Any]]:
-        """Apply the analytic offsets plus the residual."""
+        """Apply the base's offsets plus the residual."""
         r = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
         total = np.clip(self._base + RESIDUAL_SCALE * r, -1.0, 1.0)
         obs, _, terminated, truncated, info = self.env.step(total)
@@ -146,6 +202,13 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             self.env = None
 
 
+def _residual(policy: Any, obs: FloatArray, base: FloatArray) -> FloatArray:
+    """``clip(base + RESIDUAL_SCALE policy([obs, base]))``, the policy's output clipped."""
+    r = np.clip(np.asarray(policy(np.concatenate([obs, base])), dtype=np.float64), -1.0, 1.0)
+    out: FloatArray = np.clip(base + RESIDUAL_SCALE * r, -1.0, 1.0)
+    return out
+
+
 class ResidualAssistant:
     """The analytic assistant plus a trained residual, with the assistant protocol.
 
@@ -160,7 +223,8 @@ class ResidualAssistant:
 
     @classmethod
     def load(cls, path: str | Path, templates: dict[str, SkillTemplate]) -> ResidualAssistant:
-        """A saved residual (``train/assist_residual.py``), loaded without unpickling.
+        """A saved residual (``train/assist_residual.py --base analytic``), loaded without
+        unpickling.
 
         Raises:
             ~ias_gym.safe_sb3.PolicyFileError: not a residual assistant's model.
@@ -180,8 +244,60 @@ class ResidualAssistant:
 
     def act(self, env: Any) -> FloatArray:
         """The analytic offsets plus the residual, clipped to [-1, 1]."""
-        base = self.analytic.act(env)
-        obs = np.concatenate([env._observation(), base])
-        r = np.clip(np.asarray(self.policy(obs), dtype=np.float64), -1.0, 1.0)
-        out: FloatArray = np.clip(base + RESIDUAL_SCALE * r, -1.0, 1.0)
-        return out
+        return _residual(self.policy, env._observation(), self.analytic.act(env))
+
+
+class ObservationResidualAssistant:
+    """The assistant on observations plus a trained residual: it reads the observation
+    alone, like its base (:class:`~ias_gym.assist.policy.ObservationAssistant`).
+
+    Args:
+        policy: ``[obs (49,), base action (10,)] -> residual (10,)``.
+        assistant: the base, an :class:`~ias_gym.assist.policy.ObservationAssistant` on the
+            env's layout.
+    """
+
+    #: It acts on the observation (:class:`~ias_gym.assist.sessions.AssistantPolicy`).
+    reads_observations = True
+
+    def __init__(self, policy: Any, assistant: ObservationAssistant) -> None:
+        self.policy = policy
+        self.assistant = assistant
+
+    @classmethod
+    def load(cls, path: str | Path, db: str | Path | None = None) -> ObservationResidualAssistant:
+        """A saved residual (``train/assist_residual.py --base observation``) on the
+        assistant of library ``db`` (None: the shipped one), loaded without unpickling.
+
+        Raises:
+            ~ias_gym.safe_sb3.PolicyFileError: not a residual assistant's model.
+        """
+        from ias_gym.safe_sb3 import load_sb3_policy
+
+        env = ResidualAssistEnv({}, ["p1"], ["none"], base="observation", db=db)
+        base = env.assistant
+        assert isinstance(base, _ObservationBase)
+        return cls(load_sb3_policy(path, env), base.assistant)
+
+    def reset(self) -> None:
+        """Start a session."""
+        self.assistant.reset()
+
+    def posterior(self) -> dict[str, float]:
+        """The base's posterior."""
+        return self.assistant.posterior()
+
+    def act(self, obs: Any) -> FloatArray:
+        """The base's offsets plus the residual, clipped to [-1, 1].
+
+        Raises:
+            InputError: an observation of another env than ``IAS-GloveAssist-v0`` (the
+                residual was trained on its 49 values; the base alone runs on others).
+        """
+        obs = np.asarray(obs, dtype=np.float64)
+        if obs.shape != (OBS_SIZE,):
+            raise InputError(
+                f"the residual reads IAS-GloveAssist-v0's observation ({OBS_SIZE} values), not "
+                f"{obs.shape}; on another env use its base (make_assistant) alone"
+            )
+        return _residual(self.policy, obs, self.assistant.act(obs))
