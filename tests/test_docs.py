@@ -95,6 +95,7 @@ def test_every_results_table_is_made_from_its_json() -> None:
         "recognition.md",
         "assistance.md",
         "assist_population.md",
+        "assist_residual_population.md",
         "assist_acquisition.md",
         "pen_skill_bc.md",
         "pen_skill_bc_robustness.md",

@@ -14,6 +14,8 @@ JSON in ``docs/``                      written by                          table
 ``assist_table_phase.json``,           ``train/assist_table.py``           ``assistance.md``
 ``assist_table_residual.json``
 ``assist_population.json``             ``train/assist_population.py``      ``assist_population.md``
+``assist_residual_population.json``    ``train/assist_population.py``      ``assist_residual_``
+                                       ``--residual``                      ``population.md``
 ``assist_acquisition.json``            ``train/assist_acquisition.py``     ``assist_acquisition.md``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
@@ -277,12 +279,15 @@ OPERATOR_NAMES = {
 
 def assist_population(result: Mapping[str, Any]) -> str:
     """The observation assistant on population persons: success [95 % interval] per
-    impairment spec, unassisted, assisted and without skill knowledge."""
+    impairment spec, unassisted, assisted and without skill knowledge (and with a learned
+    residual on top, where the run has one)."""
     arms = {
         "unassisted": "unassisted",
         "assisted": "assisted (phase recogniser)",
         "no_skill_knowledge": "no skill knowledge",
     }
+    if result.get("residual"):
+        arms["residual"] = "assisted + learned residual"
     body = [
         [f"`{spec}`", *(interval(row[arm]) for arm in arms), str(row["excluded"])]
         for spec, row in result["by_impairment"].items()
@@ -309,6 +314,15 @@ def assist_population(result: Mapping[str, Any]) -> str:
         table += "\nAssisted (phase recogniser), by skill:\n\n" + rows(
             ["skill", *(f"`{s}`" for s in specs)], skill_rows
         )
+    for spec, row in result["by_impairment"].items():
+        if "by_family" in row:
+            family_rows = [
+                [f"`{family}`", *(interval(per_arm[arm]) for arm in arms)]
+                for family, per_arm in row["by_family"].items()
+            ]
+            table += f"\n`{spec}`, by the family each session drew:\n\n" + rows(
+                ["family", *arms.values()], family_rows
+            )
     return table
 
 
@@ -810,6 +824,7 @@ def tables(docs: Path) -> dict[str, str]:
             load("assist_table_phase.json"), load("assist_table_residual.json")
         ),
         "assist_population.md": assist_population(load("assist_population.json")),
+        "assist_residual_population.md": assist_population(load("assist_residual_population.json")),
         "assist_acquisition.md": assist_acquisition(load("assist_acquisition.json")),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "pen_skill_bc_robustness.md": pen_skill_bc_robustness(load("pen_skill_bc_results.json")),
