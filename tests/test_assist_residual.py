@@ -16,8 +16,10 @@ from ias_gym.errors import InputError
 from ias_gym.learning.assist_residual import (
     RESIDUAL_SCALE,
     ObservationResidualAssistant,
+    ResidualAssistant,
     ResidualAssistEnv,
 )
+from ias_gym.safe_sb3 import PolicyFileError
 from tests.train_scripts import load_train_script
 
 
@@ -140,3 +142,5 @@ def test_a_trained_residual_loads_without_unpickling_and_stays_near_its_base(
     actions = np.array([learned.act(obs) for obs in observations])
     assert np.all(np.abs(actions - base_actions) <= RESIDUAL_SCALE + 1e-9)
     assert np.any(actions != base_actions)
+    with pytest.raises(PolicyFileError, match="--base analytic"):
+        ResidualAssistant.load(out, {})  # trained on the other base

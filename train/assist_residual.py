@@ -28,7 +28,7 @@ from ias_gym.glove.impairment_spec import Impairment
 from ias_gym.glove.impairments import IMPAIRMENTS
 from ias_gym.glove.operator import OPERATORS
 from ias_gym.glove.population import population_ids
-from ias_gym.learning.assist_residual import BASES, ResidualAssistEnv
+from ias_gym.learning.assist_residual import BASE_ATTRIBUTE, BASES, ResidualAssistEnv
 from ias_gym.outputs import atomic_output, check_output_file
 
 
@@ -118,6 +118,7 @@ def main(argv: list[str] | None = None) -> int:
         seed=args.seed,
         verbose=0,
     )
+    setattr(model, BASE_ATTRIBUTE, args.base)  # saved in the model's JSON, checked on load
     model.learn(args.timesteps, callback=Bar(args.timesteps))
     with atomic_output(out, overwrite=args.overwrite) as tmp:
         model.save(tmp)

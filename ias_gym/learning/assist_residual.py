@@ -61,6 +61,26 @@ RESIDUAL_SCALE = 0.1
 RESIDUAL_COST = 0.2
 #: The assistants a residual can sit on (module docstring).
 BASES = ("observation", "analytic")
+#: The model attribute that names a residual's base: ``train/assist_residual.py`` sets it
+#: before saving, and SB3 stores it in the model's JSON ``data``.
+BASE_ATTRIBUTE = "residual_base"
+
+
+def check_base(path: str | Path, base: str) -> None:
+    """Refuse a saved residual trained on another base than ``base`` (a model without the
+    record is taken as the analytic base's, the older models').
+
+    Raises:
+        ~ias_gym.safe_sb3.PolicyFileError: trained on another base.
+    """
+    from ias_gym.safe_sb3 import PolicyFileError, read_model_json
+
+    saved = read_model_json(path).get(BASE_ATTRIBUTE, "analytic")
+    if saved != base:
+        raise PolicyFileError(
+            f"{path} is a residual on the {saved!r} assistant, not on the {base!r} one "
+            f"(train/assist_residual.py --base {base})"
+        )
 
 
 class _ObservationBase:
@@ -227,10 +247,12 @@ class ResidualAssistant:
         unpickling.
 
         Raises:
-            ~ias_gym.safe_sb3.PolicyFileError: not a residual assistant's model.
+            ~ias_gym.safe_sb3.PolicyFileError: not a residual assistant's model, or one on
+                the assistant on observations.
         """
         from ias_gym.safe_sb3 import load_sb3_policy
 
+        check_base(path, "analytic")
         env = ResidualAssistEnv(templates, ["p1"], ["none"])
         return cls(load_sb3_policy(path, env), templates)
 
@@ -270,10 +292,12 @@ class ObservationResidualAssistant:
         assistant of library ``db`` (None: the shipped one), loaded without unpickling.
 
         Raises:
-            ~ias_gym.safe_sb3.PolicyFileError: not a residual assistant's model.
+            ~ias_gym.safe_sb3.PolicyFileError: not a residual assistant's model, or one on
+                the analytic assistant.
         """
         from ias_gym.safe_sb3 import load_sb3_policy
 
+        check_base(path, "observation")
         env = ResidualAssistEnv({}, ["p1"], ["none"], base="observation", db=db)
         base = env.assistant
         assert isinstance(base, _ObservationBase)
