@@ -68,12 +68,15 @@ def test_a_score_gives_its_successes_with_intervals() -> None:
     [
         (["--db", "missing.db"], "--db missing.db does not exist"),
         (["--residual", "missing.zip"], "--residual missing.zip does not exist"),
+        (["--residual", "NOT_A_MODEL"], "not an SB3 model"),
     ],
 )
 def test_the_population_table_refuses_missing_inputs_and_writes_nothing(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], expected: str
 ) -> None:
     table = load_train_script("assist_population")
+    (tmp_path / "not_a_model.zip").write_text("no zip")
+    args = [str(tmp_path / "not_a_model.zip") if a == "NOT_A_MODEL" else a for a in args]
     out = tmp_path / "table.json"
     argv = ["--seed", "1", "--set", "development", "--out", str(out), *args]
     assert table.main(argv) == 2

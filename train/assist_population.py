@@ -126,11 +126,21 @@ def main(argv: list[str] | None = None) -> int:
     if args.db is not None and not Path(args.db).is_file():
         print(f"--db {args.db} does not exist (build one: ias-gym assist library)", file=sys.stderr)
         return 2
-    if args.residual is not None and not Path(args.residual).is_file():
-        print(
-            f"--residual {args.residual} does not exist (train/assist_residual.py)", file=sys.stderr
-        )
-        return 2
+    if args.residual is not None:
+        from ias_gym.learning.assist_residual import check_base
+        from ias_gym.safe_sb3 import PolicyFileError
+
+        if not Path(args.residual).is_file():
+            print(
+                f"--residual {args.residual} does not exist (train/assist_residual.py)",
+                file=sys.stderr,
+            )
+            return 2
+        try:
+            check_base(args.residual, "observation")
+        except PolicyFileError as exc:
+            print(f"--residual: {exc}", file=sys.stderr)
+            return 2
     out = check_output_file(args.out, overwrite=args.overwrite, what="--out")
     specs = expand_specs(args.impairment or ["none", "stops:at=0.4"])
     persons = population_ids(args.persons, args.seed)

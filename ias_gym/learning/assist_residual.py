@@ -75,11 +75,13 @@ def check_base(path: str | Path, base: str) -> None:
     """
     from ias_gym.safe_sb3 import PolicyFileError, read_model_json
 
-    saved = read_model_json(path).get(BASE_ATTRIBUTE, "analytic")
+    data = read_model_json(path)
+    saved = data.get(BASE_ATTRIBUTE, "analytic")
     if saved != base:
+        what = f"on the {saved!r} assistant" if BASE_ATTRIBUTE in data else "without a base"
         raise PolicyFileError(
-            f"{path} is a residual on the {saved!r} assistant, not on the {base!r} one "
-            f"(train/assist_residual.py --base {base})"
+            f"{path} is a residual {what}, not on the {base!r} one (train it with "
+            f"train/assist_residual.py --base {base})"
         )
 
 
