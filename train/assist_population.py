@@ -41,6 +41,11 @@ Row = tuple[str, str, str, str | None, bool | None]
 RESIDUAL_ARM = "residual"
 
 
+def arms_of(residual: str | None) -> tuple[str, ...]:
+    """The arms of a run: :data:`ARMS`, and :data:`RESIDUAL_ARM` with a residual."""
+    return ARMS if residual is None else (*ARMS, RESIDUAL_ARM)
+
+
 @dataclass(frozen=True)
 class PersonJob:
     """A picklable job: one person's sessions, every spec, skill and arm.
@@ -62,12 +67,11 @@ class PersonJob:
             "assisted": make_assistant(self.db, recogniser="phase", layout=layout),
             "no_skill_knowledge": make_assistant(self.db, recogniser="none", layout=layout),
         }
-        arms: tuple[str, ...] = ARMS
+        arms = arms_of(self.residual)
         if self.residual is not None:
             from ias_gym.learning.assist_residual import ObservationResidualAssistant
 
             assistants[RESIDUAL_ARM] = ObservationResidualAssistant.load(self.residual, self.db)
-            arms = (*ARMS, RESIDUAL_ARM)
         references: dict[tuple[str, str], Any] = {}
         rows: list[Row] = []
         for spec in self.specs:
@@ -154,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
         desc="persons",
         progress=True,
     )
-    arms: tuple[str, ...] = ARMS if args.residual is None else (*ARMS, RESIDUAL_ARM)
+    arms = arms_of(args.residual)
     outcomes: dict[str, dict[str, list[bool]]] = {s: {a: [] for a in arms} for s in specs}
     by_skill: dict[str, dict[str, list[bool]]] = {s: {k: [] for k in skills} for s in specs}
     by_family: dict[str, dict[str, dict[str, list[bool]]]] = {s: {} for s in specs}

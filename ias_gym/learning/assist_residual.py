@@ -85,6 +85,13 @@ def check_base(path: str | Path, base: str) -> None:
         )
 
 
+def _with_residual(base: FloatArray, r: FloatArray) -> FloatArray:
+    """The action ``clip(base + RESIDUAL_SCALE r)`` of a base action and a residual in
+    [-1, 1]: the one rule of training and acting."""
+    out: FloatArray = np.clip(base + RESIDUAL_SCALE * r, -1.0, 1.0)
+    return out
+
+
 class _ObservationBase:
     """The assistant on observations as a residual's base."""
 
@@ -153,7 +160,6 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
             -np.inf, np.inf, shape=(OBS_SIZE + N_JOINTS,), dtype=np.float64
         )
         self.action_space = spaces.Box(-1.0, 1.0, shape=(N_JOINTS,), dtype=np.float32)
-        self.base = base
         self.assistant: _ObservationBase | _AnalyticBase = (
             _ObservationBase(db) if base == "observation" else _AnalyticBase(templates)
         )
@@ -203,8 +209,7 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
     def step(self, action: NDArray[Any]) -> tuple[FloatArray, float, bool, bool, dict[str, Any]]:
         """Apply the base's offsets plus the residual."""
         r = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
-        total = np.clip(self._base + RESIDUAL_SCALE * r, -1.0, 1.0)
-        obs, _, terminated, truncated, info = self.env.step(total)
+        obs, _, terminated, truncated, info = self.env.step(_with_residual(self._base, r))
         k = min(self._steps, len(self._ref_pos) - 1)  # the reference may have ended early
         self._steps += 1
         dp = float(np.linalg.norm(obs[OBS_PEN] - self._ref_pos[k]))
@@ -227,8 +232,7 @@ class ResidualAssistEnv(gym.Env[FloatArray, NDArray[np.float32]]):
 def _residual(policy: Any, obs: FloatArray, base: FloatArray) -> FloatArray:
     """``clip(base + RESIDUAL_SCALE policy([obs, base]))``, the policy's output clipped."""
     r = np.clip(np.asarray(policy(np.concatenate([obs, base])), dtype=np.float64), -1.0, 1.0)
-    out: FloatArray = np.clip(base + RESIDUAL_SCALE * r, -1.0, 1.0)
-    return out
+    return _with_residual(base, r)
 
 
 class ResidualAssistant:
