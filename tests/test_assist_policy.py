@@ -31,11 +31,15 @@ FLEX = joint_index("wrist_flexion")
 #: A stop detector that latches (the development value): these tests are about what the
 #: assistant does once a stop is latched, not about the fitted threshold's rates, which
 #: train/fit_assistant.py reports. The tremor canceller, which touches every joint a
-#: little, is off in them (tests/test_assist_tremor.py tests it).
+#: little, is off in them (tests/test_assist_tremor.py tests it), and so is the pad keeping,
+#: which closes a finger whenever its pad is off the pen while the other's is on
+#: (tests/test_assist_pads.py).
 LATCHING = AssistParams(stop_window_s=0.1, stop_ratio=0.3)
 
 
-def _sessions(recogniser: str, impairment: str, skill: str = "tilt_left") -> list[tuple]:
+def _sessions(
+    recogniser: str, impairment: str, skill: str = "tilt_left", pads: bool = False
+) -> list[tuple]:
     """(operator's targets, commanded targets, assistant, pen heights [m]) of the session
     from reset seed 0 and from its nearby starts
     (:func:`~ias_gym.perturbed_starts.perturbed_starts`), the assistant fed nothing but
@@ -47,7 +51,12 @@ def _sessions(recogniser: str, impairment: str, skill: str = "tilt_left") -> lis
     out = []
     for options in list(perturbed_starts(env, 0)):
         assistant = make_assistant(
-            recogniser=recogniser, params=LATCHING, layout=layout, action_scale=scale, tremor=False
+            recogniser=recogniser,
+            params=LATCHING,
+            layout=layout,
+            action_scale=scale,
+            tremor=False,
+            pads=pads,
         )
         obs, _ = env.reset(seed=0, options=options)
         operator, commanded, heights = [], [], []
@@ -122,6 +131,14 @@ def test_a_stopped_tilt_is_completed_with_skill_knowledge_and_not_without() -> N
 def test_an_unimpaired_hold_is_left_alone() -> None:
     for op, cmd, _, _ in _sessions("phase", "none", skill="lift_hold"):
         np.testing.assert_allclose(cmd, op, atol=1e-9)
+    # with the pad keeping: the fingers at most a little closed while the pads meet
+    fingers = [joint_index(n) for n in ("index_mcp", "index_pip", "index_dip", "thumb_flexion")]
+    fingers.append(joint_index("thumb_cmc"))
+    for op, cmd, assistant, _ in _sessions("phase", "none", skill="lift_hold", pads=True):
+        rest = np.delete(np.arange(cmd.shape[1]), fingers)
+        np.testing.assert_allclose(cmd[:, rest], op[:, rest], atol=1e-9)
+        assert np.all(cmd[:, fingers] - op[:, fingers] >= -1e-9)
+        assert np.max(cmd[:, fingers] - op[:, fingers]) < 0.1 * assistant.scale
 
 
 def test_the_hold_raises_a_low_pen_and_turns_it_to_the_operators_tilt_within_bounds() -> None:

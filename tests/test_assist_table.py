@@ -83,3 +83,13 @@ def test_the_population_table_refuses_missing_inputs_and_writes_nothing(
     err = capsys.readouterr().err.strip()
     assert expected in err and len(err.splitlines()) == 1
     assert not out.exists()
+
+
+def test_an_ablation_arm_runs_the_assistant_without_its_part() -> None:
+    table = load_train_script("assist_population")
+    assert table.arms_of(None, ("pads",)) == (*table.ARMS, "without_pads")
+    job = table.PersonJob(("none",), ("tilt_left",), None, 0, without=("pads",))
+    rows = job("p1")
+    arms = [arm for _, _, _, arm, _ in rows]
+    assert sorted(arms) == sorted(table.arms_of(None, ("pads",)))
+    assert all(isinstance(ok, bool) for *_, ok in rows)

@@ -1,7 +1,8 @@
 """Population table of the observation assistant: per impairment spec, success unassisted,
 assisted with the recogniser and assisted without skill knowledge (and, with
-``--residual``, assisted with a learned residual on top), with 95 % intervals, on persons
-drawn by a seed (``--set held-out``: one the fitting never saw).
+``--residual``, assisted with a learned residual on top; with ``--without PART``, assisted
+with one part of the assistant switched off), with 95 % intervals, on persons drawn by a
+seed (``--set held-out``: one the fitting never saw).
 
     python train/assist_population.py --db out/library.db --persons 30 --seed S --set held-out \
         --impairment none --impairment stops:at=0.4 --out docs/assist_population.json
@@ -41,9 +42,15 @@ Row = tuple[str, str, str, str | None, bool | None]
 RESIDUAL_ARM = "residual"
 
 
-def arms_of(residual: str | None) -> tuple[str, ...]:
-    """The arms of a run: :data:`ARMS`, and :data:`RESIDUAL_ARM` with a residual."""
-    return ARMS if residual is None else (*ARMS, RESIDUAL_ARM)
+#: The assistant's parts an ablation arm switches off (``make_assistant``'s switches).
+PARTS = ("pads", "tremor", "completion")
+
+
+def arms_of(residual: str | None, without: tuple[str, ...] = ()) -> tuple[str, ...]:
+    """The arms of a run: :data:`ARMS`, :data:`RESIDUAL_ARM` with a residual, and
+    ``without_PART`` for each part switched off."""
+    extra = (RESIDUAL_ARM,) if residual is not None else ()
+    return (*ARMS, *extra, *(f"without_{part}" for part in without))
 
 
 @dataclass(frozen=True)
@@ -60,6 +67,7 @@ class PersonJob:
     reset_seed: int
     operator: str = "closed_loop"
     residual: str | None = None
+    without: tuple[str, ...] = ()
 
     def __call__(self, person: str) -> list[Row]:
         layout = observation_layout(OBSERVATION_PARTS)
@@ -67,7 +75,12 @@ class PersonJob:
             "assisted": make_assistant(self.db, recogniser="phase", layout=layout),
             "no_skill_knowledge": make_assistant(self.db, recogniser="none", layout=layout),
         }
-        arms = arms_of(self.residual)
+        for part in self.without:
+            switches: dict[str, bool] = {part: False}
+            assistants[f"without_{part}"] = make_assistant(
+                self.db, "phase", None, layout=layout, **switches
+            )
+        arms = arms_of(self.residual, self.without)
         if self.residual is not None:
             from ias_gym.learning.assist_residual import ObservationResidualAssistant
 
@@ -123,6 +136,13 @@ def main(argv: list[str] | None = None) -> int:
         "--residual",
         help="a residual trained on the assistant (train/assist_residual.py --base observation)",
     )
+    ap.add_argument(
+        "--without",
+        action="append",
+        choices=PARTS,
+        default=[],
+        help="an arm assisted with this part switched off, repeatable",
+    )
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes")
     ap.add_argument("--out", required=True, help="JSON file written")
     ap.add_argument("--overwrite", action="store_true", help="replace an existing --out")
@@ -151,14 +171,20 @@ def main(argv: list[str] | None = None) -> int:
     skills = sorted(load_motions(args.db))  # the skills with a motion of their own
     rows = run_jobs(
         PersonJob(
-            tuple(specs), tuple(skills), args.db, args.reset_seed, args.operator, args.residual
+            tuple(specs),
+            tuple(skills),
+            args.db,
+            args.reset_seed,
+            args.operator,
+            args.residual,
+            tuple(args.without),
         ),
         persons,
         Backend.from_options(args.workers),
         desc="persons",
         progress=True,
     )
-    arms = arms_of(args.residual)
+    arms = arms_of(args.residual, tuple(args.without))
     outcomes: dict[str, dict[str, list[bool]]] = {s: {a: [] for a in arms} for s in specs}
     by_skill: dict[str, dict[str, list[bool]]] = {s: {k: [] for k in skills} for s in specs}
     by_family: dict[str, dict[str, dict[str, list[bool]]]] = {s: {} for s in specs}
@@ -178,6 +204,7 @@ def main(argv: list[str] | None = None) -> int:
         "library": Path(args.db).name if args.db else "shipped",
         "operator": args.operator,
         "residual": Path(args.residual).name if args.residual else None,
+        "without": list(args.without),
         "skills": skills,
         "by_impairment": {
             spec: {

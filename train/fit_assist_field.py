@@ -1,6 +1,6 @@
 """Fit one of the observation assistant's fields on development persons, by what it is for.
 
-Two fields of :class:`~ias_gym.assist.motion_completion.AssistParams` are fitted this way,
+Three fields of :class:`~ias_gym.assist.motion_completion.AssistParams` are fitted this way,
 each against the impairment family it is for (``--field``):
 
 - ``tremor_window_s``: the tremor canceller (:class:`~ias_gym.assist.tremor.TremorCanceller`)
@@ -8,6 +8,10 @@ each against the impairment family it is for (``--field``):
   window on, retuned every window. A short window starts early, before the pinch closes,
   but on less of the line; a long one the other way. Judged with a tremor drawn from the
   family's sample ranges (``hz`` 4-12 Hz, ``amplitude_rad`` 0.02-0.1 rad).
+- ``pad_close_rate``: how fast a finger whose pad is off the pen while the other's is on is
+  closed (:class:`~ias_gym.assist.pad_contact.PadKeeper`). A slow close lets the pen go in
+  the lift, a fast one pushes it. Judged with a weak grip or a biased calibration (equally
+  likely), ``rad`` and ``fingers`` drawn from the families' sample ranges.
 - ``sight_gain``: once a completed motion is done, the rate at which the assistant brings
   the pen's height to where the skill's demonstrations leave it. A slow hold leaves the
   pen where the stopped operator left it, a fast one overshoots. Judged with
@@ -80,14 +84,32 @@ def drawn_stop(person: str, skill: str) -> str:
     return f"stops:at={float(session_rng('fit-stops', person, skill).uniform(lo, hi)):.3f}"
 
 
+#: The families a grip session draws from (:func:`drawn_grip`).
+GRIP_FAMILIES = ("weak_grip", "biased_calibration")
+
+
+def drawn_grip(person: str, skill: str) -> str:
+    """The grip spec of ``person``'s ``skill`` session: a weak grip or a biased calibration,
+    equally likely, its ``rad`` and ``fingers`` drawn uniformly from the family's sample
+    ranges, reproducibly per person and skill."""
+    rng = session_rng("fit-grip", person, skill)
+    family = GRIP_FAMILIES[int(rng.integers(len(GRIP_FAMILIES)))]
+    lo, hi = (float(v) for v in FAMILIES[family]["rad"].sample)
+    fingers = tuple(str(f) for f in FAMILIES[family]["fingers"].sample)
+    finger = fingers[int(rng.integers(len(fingers)))]
+    return f"{family}:rad={float(rng.uniform(lo, hi)):.4f},fingers={finger}"
+
+
 @dataclass(frozen=True)
 class Field:
-    """A fitted field: the family it is judged with, how a session's spec is drawn, and the
-    grid searched."""
+    """A fitted field: the family it is judged with (its name in the report), how a
+    session's spec is drawn, the grid searched, and the families the draw picks from
+    (default: ``family`` alone)."""
 
     family: str
     draw: Callable[[str, str], str]
     grid: tuple[float, ...]
+    families: tuple[str, ...] = ()
 
 
 FIELDS = {
@@ -95,6 +117,11 @@ FIELDS = {
     "tremor_window_s": Field("tremor", drawn_tremor, (0.2, 0.3, 0.4, 0.5)),
     # time constants from 0.67 s down to 0.08 s, about a person's visual delay [1/s]
     "sight_gain": Field("stops", drawn_stop, (1.5, 3.0, 6.0, 12.0)),
+    # from under half the speed at which the library's pinches close the index (about
+    # 0.6 rad/s on its MCP) to a step's closing of 0.08 rad at 8 rad/s [rad/s]
+    "pad_close_rate": Field(
+        "grip", drawn_grip, (0.25, 0.5, 1.0, 2.0, 4.0, 8.0), families=GRIP_FAMILIES
+    ),
 }
 
 

@@ -277,6 +277,10 @@ OPERATOR_NAMES = {
 }
 
 
+#: The assistant's parts an ablation arm of ``train/assist_population.py`` switches off.
+PART_NAMES = {"pads": "the pad keeping", "tremor": "the tremor canceller"}
+
+
 def assist_population(result: Mapping[str, Any]) -> str:
     """The observation assistant on population persons: success [95 % interval] per
     impairment spec, unassisted, assisted and without skill knowledge (and with a learned
@@ -288,6 +292,8 @@ def assist_population(result: Mapping[str, Any]) -> str:
     }
     if result.get("residual"):
         arms["residual"] = "assisted + learned residual"
+    for part in result.get("without", []):
+        arms[f"without_{part}"] = f"assisted without {PART_NAMES.get(part, part)}"
     body = [
         [f"`{spec}`", *(interval(row[arm]) for arm in arms), str(row["excluded"])]
         for spec, row in result["by_impairment"].items()

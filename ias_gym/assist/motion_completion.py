@@ -74,6 +74,9 @@ class AssistParams:
             moves by ``sight_gain x`` its error per second, in radians through the
             demonstrations' ``rise_per_flexion`` and ``tilt_per_pronation``
             (``train/fit_assist_field.py``).
+        pad_close_rate: how fast a finger whose pad is off the pen, while the other's is on,
+            is closed [rad/s] (:class:`~ias_gym.assist.pad_contact.PadKeeper`;
+            ``train/fit_assist_field.py``).
         fitted_on: what the values were fitted on (persons' seed and count), for the record.
     """
 
@@ -84,6 +87,7 @@ class AssistParams:
     min_remaining_rad: float = 0.05
     tremor_window_s: float = 0.5
     sight_gain: float = 3.0
+    pad_close_rate: float = 0.5
     fitted_on: str = "defaults"
 
     @classmethod

@@ -48,7 +48,13 @@ Every step:
    elevation at ``t0``) into the pronation through ``tilt_per_pronation`` (all from the
    demonstrations), at ``sight_gain``, weighted by ``p_k`` as well.
 
-3. **Acquisition** (between sessions): :meth:`ObservationAssistant.learn` stores a recorded
+3. **Both pads on the pen.** :class:`~ias_gym.assist.pad_contact.PadKeeper` reads the
+   force display: a finger whose pad is off the pen while the other's is on, for longer
+   than the library's pads took to meet, is closed along the library's closing direction
+   at ``pad_close_rate`` (the skills pinch the pen from the close to the end: a weak grip
+   or an opening calibration otherwise lets it go in the lift).
+
+4. **Acquisition** (between sessions): :meth:`ObservationAssistant.learn` stores a recorded
    demonstration the recogniser calls unknown as a new skill of the assistant's library,
    and from the next session on the assistant recognises and completes it.
 
@@ -67,6 +73,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ias_gym.assist.motion_completion import PARAMS_PATH, REFIT_EVERY, AssistParams, Completion
+from ias_gym.assist.pad_contact import PadKeeper, PinchClosing, pinch_closing
 from ias_gym.assist.recogniser_registry import METHODS, make_recogniser
 from ias_gym.assist.recognition import Acquisition, learn_demonstration
 from ias_gym.assist.sessions import LIFT_END
@@ -137,6 +144,8 @@ class ObservationAssistant:
         layout: the env's observation layout (``env.unwrapped.observation_layout``).
         completion: switch the completion off (an ablation).
         tremor: switch the tremor canceller off (an ablation).
+        closing: the library's pinches (:func:`~ias_gym.assist.pad_contact.pinch_closing`);
+            None: no pad keeping (an ablation).
         library: the skill database the motions came from (:meth:`learn` adds to it).
     """
 
@@ -155,6 +164,7 @@ class ObservationAssistant:
         layout: Mapping[str, slice] | None = None,
         completion: bool = True,
         tremor: bool = True,
+        closing: PinchClosing | None = None,
         library: str | Path | None = None,
     ) -> None:
         self.motions = dict(motions)
@@ -166,6 +176,11 @@ class ObservationAssistant:
         self.layout = dict(layout) if layout is not None else None
         self.completion = completion
         self.tremor = TremorCanceller(self.dt, params.tremor_window_s) if tremor else None
+        self.pads = (
+            None
+            if closing is None
+            else PadKeeper(closing, params.pad_close_rate, self.scale, self.dt)
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -173,6 +188,8 @@ class ObservationAssistant:
         self.recogniser.reset()
         if self.tremor is not None:
             self.tremor.reset()
+        if self.pads is not None:
+            self.pads.reset()
         self._post: dict[str, float] = {}
         self._last_offset = np.zeros(N_JOINTS)
         self._theta0: FloatArray | None = None  # the operator's pose at the lift's end
@@ -295,6 +312,8 @@ class ObservationAssistant:
                     if fit.motion_done:
                         self._hold_pen(fit, float(obs[layout["pen_position"]][2]))
             offset += self._authority * self._hold
+        if self.pads is not None:
+            offset += self.pads.update(obs[layout["feedback_torques"]])
         self._steps += 1
         out: FloatArray = np.clip(offset / self.scale, -1.0, 1.0)
         self._last_offset = out * self.scale
@@ -319,7 +338,8 @@ def make_assistant(
         params: the thresholds, or a JSON file of them (default: the fitted ones).
         control_dt, action_scale: the env's (``env.unwrapped.config``).
         layout: the env's observation layout.
-        **switches: ``completion``, ``tremor`` (ablations).
+        **switches: ``completion``, ``tremor``, ``pads`` (ablations: False switches the
+            part off).
 
     Raises:
         InputError: an unknown recogniser, a missing library or parameter file.
@@ -337,6 +357,7 @@ def make_assistant(
             rec = make_recogniser(recogniser, db)
     if params is None or isinstance(params, str | Path):
         params = AssistParams.load(params if params is not None else PARAMS_PATH)
+    closing = pinch_closing(path) if switches.pop("pads", True) else None
     return ObservationAssistant(
         motions,
         rec,
@@ -344,6 +365,7 @@ def make_assistant(
         control_dt=control_dt,
         action_scale=action_scale,
         layout=layout,
+        closing=closing,
         library=path,
         **switches,
     )

@@ -1,0 +1,100 @@
+"""Both pads kept on the pen from the force display (:mod:`ias_gym.assist.pad_contact`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ias_gym.assist.pad_contact import (
+    FINGER_JOINTS,
+    TORQUE_COLUMNS,
+    PadKeeper,
+    PinchClosing,
+    pinch_closing,
+)
+from ias_gym.assist.policy import make_assistant
+from ias_gym.envs.glove_assist import OBSERVATION_PARTS
+from ias_gym.envs.layout import observation_layout
+from ias_gym.errors import InputError
+from ias_gym.glove.hand import N_JOINTS, joint_index
+from ias_gym.skills.db import SkillDB
+from ias_gym.skills.transfer import shipped_skill_db
+
+DT = 0.01
+
+
+def _torques(index: bool, thumb: bool) -> np.ndarray:
+    """A force display with the index's and the thumb's pads on the pen or not."""
+    out = np.zeros(5)
+    if index:
+        out[list(TORQUE_COLUMNS["index"])] = [-0.05, -0.03, -0.01]
+    if thumb:
+        out[list(TORQUE_COLUMNS["thumb"])] = [0.1, -0.03]
+    return out
+
+
+def test_the_library_closes_each_finger_on_its_own_joints() -> None:
+    closing = pinch_closing(shipped_skill_db())
+    for finger, direction in closing.directions.items():
+        mine = np.zeros(N_JOINTS, dtype=bool)
+        mine[list(FINGER_JOINTS[finger])] = True
+        assert not direction[~mine].any()
+        assert np.max(np.abs(direction)) == pytest.approx(1.0)
+    # flexion closes the pinch: the index's MCP and the thumb's flexion lead
+    assert closing.directions["index"][joint_index("index_mcp")] == pytest.approx(1.0)
+    assert closing.directions["thumb"][joint_index("thumb_flexion")] == pytest.approx(1.0)
+    # the library's pads meet within a few steps of each other
+    assert 0.0 < closing.meet_s < 0.3
+
+
+def test_a_pad_alone_on_the_pen_brings_the_other_finger_and_keeps_it() -> None:
+    closing = PinchClosing(
+        {"index": np.eye(N_JOINTS)[3], "thumb": np.eye(N_JOINTS)[7]}, meet_s=0.05
+    )
+    keeper = PadKeeper(closing, rate=0.5, limit=0.2, control_dt=DT)
+    # nothing touches, then both pads: nothing to do
+    for index, thumb in ((False, False), (True, True)):
+        for _ in range(50):
+            assert not keeper.update(_torques(index, thumb)).any()
+    # the index alone for as long as the library's pads take to meet: still nothing
+    for _ in range(5):
+        assert not keeper.update(_torques(True, False)).any()
+    # longer: the thumb closes at the rate, the index is left as it is
+    offsets = [keeper.update(_torques(True, False)) for _ in range(10)]
+    assert offsets[-1][7] == pytest.approx(10 * 0.5 * DT)
+    assert np.all(np.diff([o[7] for o in offsets]) > 0)
+    assert not np.delete(offsets[-1], 7).any()
+    # the thumb on the pen again: what was added stays (a grip is never opened) ...
+    held = keeper.update(_torques(True, True))
+    np.testing.assert_allclose(held, offsets[-1])
+    # ... and never beyond the limit
+    for _ in range(1000):
+        out = keeper.update(_torques(False, True))
+    assert out[3] == pytest.approx(0.2) and out[7] == pytest.approx(offsets[-1][7])
+    keeper.reset()
+    assert not keeper.update(_torques(True, True)).any()
+
+
+def test_the_assistant_closes_the_finger_whose_pad_is_off() -> None:
+    layout = observation_layout(OBSERVATION_PARTS)
+    obs = np.zeros(max(s.stop for s in layout.values()))
+    obs[layout["feedback_torques"]] = _torques(True, False)
+    thumb = joint_index("thumb_flexion")
+    on = make_assistant(recogniser="none", layout=layout, tremor=False)
+    off = make_assistant(recogniser="none", layout=layout, tremor=False, pads=False)
+    for step in range(40):
+        obs[layout["time"]] = step * DT
+        with_pads, without = on.act(obs), off.act(obs)
+    assert with_pads[thumb] > 0 and not without.any()
+    assert not np.delete(with_pads, list(FINGER_JOINTS["thumb"])).any()
+
+
+def test_a_library_without_a_pinch_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="does not exist"):
+        pinch_closing(tmp_path / "missing.db")
+    with SkillDB(tmp_path / "empty.db"):
+        pass
+    with pytest.raises(InputError, match="no glove session that pinches"):
+        pinch_closing(tmp_path / "empty.db")
