@@ -131,7 +131,7 @@ def test_the_assistant_takes_a_tremor_out_of_the_commands() -> None:
     layout, scale = dict(u.observation_layout), u.config.action_scale  # type: ignore[attr-defined]
     band = butter(4, TREMOR_BAND, "bandpass", fs=1.0 / DT, output="sos")
     for tremor in (True, False):
-        assistant = make_assistant(recogniser="none", layout=layout, tremor=tremor)
+        assistant = make_assistant(recogniser="none", layout=layout, tremor=tremor, pads=False)
         for options in list(perturbed_starts(env, 0)):
             obs, _ = env.reset(seed=0, options=options)
             assistant.reset()
@@ -156,11 +156,13 @@ def test_the_assistant_takes_a_tremor_out_of_the_commands() -> None:
 @pytest.mark.parametrize("skill", ["lift_hold", "seesaw_fast"])
 def test_an_operator_without_a_tremor_is_barely_touched(skill: str) -> None:
     """No detection: the notch acts on every operator. Without a tremor its offsets stay a
-    fraction of a 0.06 rad tremor's (RMS, from nearby starts)."""
+    fraction of a 0.06 rad tremor's (RMS, from nearby starts). The pad keeping, which may
+    close a finger a step's worth where the pads meet later than the library's ever did,
+    is off: tests/test_assist_pads.py tests it."""
     env = gym.make("IAS-GloveAssist-v0", person_id="p1", skill=skill)
     u = env.unwrapped
     layout, scale = dict(u.observation_layout), u.config.action_scale  # type: ignore[attr-defined]
-    assistant = make_assistant(recogniser="none", layout=layout)
+    assistant = make_assistant(recogniser="none", layout=layout, pads=False)
     for options in list(perturbed_starts(env, 0)):
         obs, _ = env.reset(seed=0, options=options)
         assistant.reset()
