@@ -51,16 +51,20 @@ def test_a_fit_replaces_only_its_own_record(fit: ModuleType) -> None:
 
 
 @pytest.mark.parametrize(
-    "args",
+    ("args", "expected"),
     [
-        ["--field", "sight_gain", "--grid", "1,x"],
-        ["--field", "sight_gain", "--grid", "0"],
-        ["--field", "sight_gain", "--persons", "2"],
-        ["--field", "tremor_window_s", "--db", "no-such-library.db"],
+        (["--field", "sight_gain", "--grid", "1,x"], "--grid 1,x must be"),
+        (["--field", "sight_gain", "--grid", "0"], "--grid 0 must be"),
+        (["--field", "sight_gain", "--persons", "2"], "--persons 2 cannot fill 4 folds"),
+        (["--field", "pad_close_rate", "--db", "no-such.db"], "--db no-such.db does not exist"),
     ],
 )
 def test_bad_input_is_refused_before_any_session(
-    fit: ModuleType, args: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    fit: ModuleType,
+    args: list[str],
+    expected: str,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     out = tmp_path / "params.json"
     AssistParams().save(out)
@@ -70,5 +74,6 @@ def test_bad_input_is_refused_before_any_session(
         [*args, "--seed", "1", "--out", str(out), "--report", str(report), "--overwrite"]
     )
     assert code == 2
-    assert capsys.readouterr().err.strip()
+    err = capsys.readouterr().err.strip()
+    assert expected in err and len(err.splitlines()) == 1
     assert out.read_text() == before and not report.exists()

@@ -203,11 +203,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--report", required=True, help="JSON report written")
     ap.add_argument("--overwrite", action="store_true", help="replace --out and --report")
     args = ap.parse_args(argv)
+    field = FIELDS[args.field]
     try:
-        field = FIELDS[args.field]
         grid = tuple(float(w) for w in args.grid.split(",")) if args.grid else field.grid
-        if not all(w > 0 for w in grid):
-            raise ValueError
+    except ValueError:
+        grid = ()
+    if not grid or not all(w > 0 for w in grid):
+        print(f"--grid {args.grid} must be comma-separated numbers > 0", file=sys.stderr)
+        return 2
+    try:
         if args.db is not None and not Path(args.db).is_file():
             raise InputError(f"--db {args.db} does not exist (build one: ias-gym assist library)")
         if args.persons < args.folds:
@@ -215,9 +219,6 @@ def main(argv: list[str] | None = None) -> int:
         report = check_output_file(args.report, overwrite=args.overwrite, what="--report")
         out = check_output_file(args.out, overwrite=args.overwrite, what="--out")
         base = AssistParams.load(out)
-    except ValueError:
-        print("--grid is comma-separated numbers > 0", file=sys.stderr)
-        return 2
     except InputError as exc:
         print(str(exc), file=sys.stderr)
         return 2
