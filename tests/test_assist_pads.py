@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ias_gym.assist.pad_contact import (
-    FINGER_JOINTS,
+    PINCH_JOINTS_OF,
     TORQUE_COLUMNS,
     PadKeeper,
     PinchClosing,
@@ -39,7 +39,7 @@ def test_the_library_closes_each_finger_on_its_own_joints() -> None:
     closing = pinch_closing(shipped_skill_db())
     for finger, direction in closing.directions.items():
         mine = np.zeros(N_JOINTS, dtype=bool)
-        mine[list(FINGER_JOINTS[finger])] = True
+        mine[list(PINCH_JOINTS_OF[finger])] = True
         assert not direction[~mine].any()
         assert np.max(np.abs(direction)) == pytest.approx(1.0)
     # flexion closes the pinch: the index's MCP and the thumb's flexion lead
@@ -88,7 +88,7 @@ def test_the_assistant_closes_the_finger_whose_pad_is_off() -> None:
         obs[layout["time"]] = step * DT
         with_pads, without = on.act(obs), off.act(obs)
     assert with_pads[thumb] > 0 and not without.any()
-    assert not np.delete(with_pads, list(FINGER_JOINTS["thumb"])).any()
+    assert not np.delete(with_pads, list(PINCH_JOINTS_OF["thumb"])).any()
 
 
 def test_a_library_without_a_pinch_is_refused(tmp_path: Path) -> None:

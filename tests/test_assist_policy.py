@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import ias_gym  # noqa: F401
+from ias_gym.assist.pad_contact import PINCH_JOINTS_OF
 from ias_gym.assist.policy import (
     AssistParams,
     frame_from_observation,
@@ -135,8 +136,7 @@ def test_an_unimpaired_hold_is_left_alone() -> None:
         np.testing.assert_allclose(cmd, op, atol=1e-9)
     # with the pad keeping (at the fitted rate): only the fingers, only closing, and no more
     # than a few steps' worth, where the pads meet a little later than the library's did
-    fingers = [joint_index(n) for n in ("index_mcp", "index_pip", "index_dip", "thumb_flexion")]
-    fingers.append(joint_index("thumb_cmc"))
+    fingers = [j for joints in PINCH_JOINTS_OF.values() for j in joints]
     for op, cmd, assistant, _ in _sessions("phase", "none", skill="lift_hold", pads=True):
         rest = np.delete(np.arange(cmd.shape[1]), fingers)
         np.testing.assert_allclose(cmd[:, rest], op[:, rest], atol=1e-9)

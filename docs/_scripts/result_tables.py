@@ -280,7 +280,11 @@ OPERATOR_NAMES = {
 
 
 #: The assistant's parts an ablation arm of ``train/assist_population.py`` switches off.
-PART_NAMES = {"pads": "the pad keeping", "tremor": "the tremor canceller"}
+PART_NAMES = {
+    "pads": "the pad keeping",
+    "tremor": "the tremor canceller",
+    "completion": "the completion",
+}
 
 
 def assist_population(result: Mapping[str, Any]) -> str:

@@ -37,13 +37,14 @@ from ias_gym.skills.db import SkillDB
 FloatArray = NDArray[np.float64]
 
 #: The pinching fingers, and the force display's columns (``ACTUATED_JOINTS``) of each.
-FINGERS: tuple[str, ...] = ("index", "thumb")
+PINCH_FINGERS: tuple[str, ...] = ("index", "thumb")
 TORQUE_COLUMNS: dict[str, tuple[int, ...]] = {
-    f: tuple(i for i, name in enumerate(ACTUATED_JOINTS) if name.startswith(f)) for f in FINGERS
+    f: tuple(i for i, name in enumerate(ACTUATED_JOINTS) if name.startswith(f))
+    for f in PINCH_FINGERS
 }
-#: ... and each finger's joints among the hand's (``JOINT_NAMES``).
-FINGER_JOINTS: dict[str, tuple[int, ...]] = {
-    f: tuple(i for i, name in enumerate(JOINT_NAMES) if name.startswith(f)) for f in FINGERS
+#: ... and each finger's joints among the hand's (``JOINT_NAMES``), by index.
+PINCH_JOINTS_OF: dict[str, tuple[int, ...]] = {
+    f: tuple(i for i, name in enumerate(JOINT_NAMES) if name.startswith(f)) for f in PINCH_FINGERS
 }
 
 
@@ -78,7 +79,7 @@ def pinch_closing(db_path: str | Path) -> PinchClosing:
     path = Path(db_path)
     if not path.is_file():
         raise InputError(f"skill library {path} does not exist (give an existing --db)")
-    steps: dict[str, list[FloatArray]] = {f: [] for f in FINGERS}
+    steps: dict[str, list[FloatArray]] = {f: [] for f in PINCH_FINGERS}
     meets: list[float] = []
     with SkillDB(path, readonly=True) as db:
         for skill_id in db.ids():
@@ -92,13 +93,13 @@ def pinch_closing(db_path: str | Path) -> PinchClosing:
             raw = obs[:, OBSERVATION["joint_angles"]] if targets is None else targets
             theta = np.asarray(raw, dtype=np.float64)[: len(obs)]
             on = _on(obs[: len(theta), OBSERVATION["feedback_torques"]])
-            first = {f: np.flatnonzero(on[f]) for f in FINGERS}
+            first = {f: np.flatnonzero(on[f]) for f in PINCH_FINGERS}
             if any(not idx.size for idx in first.values()):
                 continue
             time = obs[: len(theta), OBSERVATION["time"].start]
-            for f in FINGERS:
+            for f in PINCH_FINGERS:
                 change = np.zeros(N_JOINTS)
-                joints = list(FINGER_JOINTS[f])
+                joints = list(PINCH_JOINTS_OF[f])
                 change[joints] = theta[first[f][0], joints] - theta[0, joints]
                 steps[f].append(change)
             both = np.flatnonzero(on["index"] & on["thumb"])
@@ -133,7 +134,7 @@ class PadKeeper:
 
     def reset(self) -> None:
         """Start a session."""
-        self.added = dict.fromkeys(FINGERS, 0.0)  # [rad] along each finger's direction
+        self.added = dict.fromkeys(PINCH_FINGERS, 0.0)  # [rad] along each finger's direction
         self._alone = 0.0  # how long one pad has been on the pen alone [s]
 
     def update(self, torques: FloatArray) -> FloatArray:
@@ -145,5 +146,5 @@ class PadKeeper:
             off = "thumb" if on["index"] else "index"
             self.added[off] = min(self.added[off] + self.rate * self.dt, self.limit)
         return sum(
-            (self.added[f] * self.closing.directions[f] for f in FINGERS), np.zeros(N_JOINTS)
+            (self.added[f] * self.closing.directions[f] for f in PINCH_FINGERS), np.zeros(N_JOINTS)
         )
