@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import ias_gym  # noqa: F401
+from ias_gym.assist.pad_contact import PinchClosing, pinch_closing
 from ias_gym.assist.policy import AssistParams, ObservationAssistant, make_assistant
 from ias_gym.assist.recognition import UNKNOWN
 from ias_gym.assist.skill_motions import shrunk_spread
@@ -73,6 +74,8 @@ def acquired(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
     from population persons' demonstrations (until two are stored)."""
     path = _library_without(tmp_path_factory.mktemp("acq"), NEW)
     assistant = make_assistant(path, recogniser="phase", params=LATCHING, tremor=False)
+    assert assistant.pads is not None
+    closing_before = assistant.pads.closing
     before = _stopped_sessions(assistant)
     results = []
     with SkillDB(path) as db:
@@ -85,7 +88,14 @@ def acquired(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
             if sum(r.stored_as == NAME for r in results) == 2:
                 break
         names = [db.get(i).name for i in db.ids()]
-    return {"assistant": assistant, "before": before, "results": results, "names": names}
+    return {
+        "assistant": assistant,
+        "before": before,
+        "results": results,
+        "names": names,
+        "path": path,
+        "closing_before": closing_before,
+    }
 
 
 def test_a_skill_the_library_lacks_is_not_completed(acquired: dict[str, object]) -> None:
@@ -104,6 +114,21 @@ def test_an_unknown_demonstration_is_stored_and_learnt(acquired: dict[str, objec
     assert acquired["names"].count(NAME) == 2  # type: ignore[attr-defined]
     assert NAME in assistant.motions and PRON in assistant.motions[NAME].joints
     assert NAME in assistant.recogniser.skills
+
+
+def _same_closing(a: PinchClosing, b: PinchClosing) -> bool:
+    return a.meet_s == b.meet_s and all(
+        np.allclose(a.directions[f], b.directions[f]) for f in a.directions
+    )
+
+
+def test_the_pad_keeping_reads_the_acquired_pinches(acquired: dict[str, object]) -> None:
+    assistant = acquired["assistant"]
+    assert isinstance(assistant, ObservationAssistant) and assistant.pads is not None
+    now = pinch_closing(acquired["path"])  # type: ignore[arg-type]
+    # the stored demonstrations moved the library's pinch, and the assistant follows it
+    assert not _same_closing(now, acquired["closing_before"])  # type: ignore[arg-type]
+    assert _same_closing(assistant.pads.closing, now)
 
 
 def test_the_acquired_skill_is_completed_for_a_stopped_operator(

@@ -212,7 +212,8 @@ class ObservationAssistant:
         (:func:`~ias_gym.assist.recognition.learn_demonstration`): stored in ``db``, the
         assistant's own library, when the recogniser calls it unknown or ``name``; then the
         recogniser knows it and the assistant completes it like a shipped skill, its motion
-        from every stored session of it. Call it between sessions.
+        from every stored session of it (and the pad keeping's pinches from every stored
+        session). Call it between sessions.
 
         Raises:
             InputError: ``db`` is not the assistant's library, or the assistant has no skill
@@ -227,6 +228,8 @@ class ObservationAssistant:
         result = learn_demonstration(db, self.recogniser, skill, frames, name)
         if result.stored_as is not None:
             self.motions = load_motions(self.library)
+            if self.pads is not None:  # the new demonstration's pinch counts too
+                self.pads.closing = pinch_closing(self.library)
         self.reset()
         return result
 
