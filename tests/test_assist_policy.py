@@ -192,6 +192,9 @@ def test_parameter_files_are_checked(tmp_path: Path) -> None:
     for text, match in (
         ("{", "unreadable"),
         (json.dumps({"stop_ratio": -1}), "not valid"),
+        (json.dumps({"tremor_trend_degree": 2.5}), "not valid"),
+        (json.dumps({"tremor_trend_degree": 0}), "not valid"),
+        (json.dumps({"tremor_trend_degree": True}), "not valid"),
         (json.dumps({"exec": 1}), "keys"),
     ):
         bad = tmp_path / "bad.json"

@@ -18,6 +18,7 @@ from ias_gym.assist.tremor import (
     notch_phase_deg,
     sinusoid_line,
     tremor_line,
+    trend_basis,
 )
 from ias_gym.glove.device import min_jerk
 from ias_gym.perturbed_starts import perturbed_starts
@@ -174,3 +175,24 @@ def test_an_operator_without_a_tremor_is_barely_touched(skill: str) -> None:
             done = terminated or truncated
         assert np.sqrt(np.mean(np.square(offsets))) < 0.01
     env.close()
+
+
+@pytest.mark.parametrize("degree", [1, 3, 5])
+def test_a_curve_of_the_trends_degree_leaves_the_line_exact(degree: int) -> None:
+    # a 1 s window: a polynomial of the trend's degree on every joint plus one line; the
+    # polynomial lies in the fit's span, so the line is found at its own frequency and size
+    t = np.arange(100) * DT
+    u = np.linspace(-1.0, 1.0, len(t))
+    curve = np.polynomial.polynomial.polyvander(u, degree) @ np.linspace(0.3, -0.2, degree + 1)
+    line = 0.01 * np.sin(2 * np.pi * 9.3 * t + 0.4)
+    window = np.repeat((curve + line)[:, None], 3, axis=1)
+    found = sinusoid_line(window, DT, degree)
+    assert found is not None
+    assert found[0] == pytest.approx(9.3, abs=0.02)
+    assert found[1] == pytest.approx(0.01 * np.sqrt(3), rel=0.02)
+
+
+def test_a_window_under_a_slow_tremors_period_takes_a_straight_line() -> None:
+    short = round(0.9 / TREMOR_BAND[0] / DT)  # under one period of the slowest tremor
+    assert trend_basis(short, DT, 5).shape == (short, 2)
+    assert trend_basis(100, DT, 5).shape == (100, 6)

@@ -57,6 +57,10 @@ def test_a_fit_replaces_only_its_own_record(fit: ModuleType) -> None:
         (["--field", "sight_gain", "--grid", "0"], "--grid 0 must be"),
         (["--field", "sight_gain", "--persons", "2"], "--persons 2 cannot fill 4 folds"),
         (["--field", "pad_close_rate", "--db", "no-such.db"], "--db no-such.db does not exist"),
+        (
+            ["--field", "tremor_trend_degree", "--grid", "1,2.5"],
+            "--grid 2.5: tremor_trend_degree takes whole numbers",
+        ),
     ],
 )
 def test_bad_input_is_refused_before_any_session(
@@ -77,3 +81,14 @@ def test_bad_input_is_refused_before_any_session(
     err = capsys.readouterr().err.strip()
     assert expected in err and len(err.splitlines()) == 1
     assert out.read_text() == before and not report.exists()
+
+
+def test_an_integer_field_is_stored_as_one_the_parameters_load(
+    fit: ModuleType, tmp_path: Path
+) -> None:
+    value = fit.field_value("tremor_trend_degree", 3.0)
+    assert value == 3 and isinstance(value, int)
+    assert fit.field_value("sight_gain", 3.0) == 3.0
+    path = tmp_path / "params.json"
+    AssistParams(tremor_trend_degree=value).save(path)
+    assert AssistParams.load(path).tremor_trend_degree == 3

@@ -1,6 +1,6 @@
 """Fit one of the observation assistant's fields on development persons, by what it is for.
 
-Three fields of :class:`~ias_gym.assist.motion_completion.AssistParams` are fitted this way,
+Four fields of :class:`~ias_gym.assist.motion_completion.AssistParams` are fitted this way,
 each against the impairment family it is for (``--field``):
 
 - ``tremor_window_s``: the tremor canceller (:class:`~ias_gym.assist.tremor.TremorCanceller`)
@@ -8,6 +8,11 @@ each against the impairment family it is for (``--field``):
   window on, retuned every window. A short window starts early, before the pinch closes,
   but on less of the line; a long one the other way. Judged with a tremor drawn from the
   family's sample ranges (``hz`` 4-12 Hz, ``amplitude_rad`` 0.02-0.1 rad).
+- ``tremor_trend_degree``: the degree of the polynomial the canceller fits beside the
+  tremor's line, the voluntary motion's part of its window. A low degree leaves the
+  motion's curvature to the line (the notch then sits at the band's lowest frequency,
+  away from a weak fast tremor), a high one takes up part of a slow tremor. Judged with a
+  tremor drawn as for ``tremor_window_s``.
 - ``pad_close_rate``: how fast a finger whose pad is off the pen while the other's is on is
   closed (:class:`~ias_gym.assist.pad_contact.PadKeeper`). A slow close lets the pen go in
   the lift, a fast one pushes it. Judged with a weak grip or a biased calibration (equally
@@ -115,6 +120,9 @@ class Field:
 FIELDS = {
     # from under one period of the slowest tremor to two [s]
     "tremor_window_s": Field("tremor", drawn_tremor, (0.2, 0.3, 0.4, 0.5)),
+    # a straight line to a quintic: a second of voluntary motion below 2 Hz has at most 4
+    # extrema, as a quintic; a higher degree reaches toward the tremor band [-]
+    "tremor_trend_degree": Field("tremor", drawn_tremor, (1.0, 3.0, 5.0)),
     # time constants from 0.67 s down to 0.08 s, about a person's visual delay [1/s]
     "sight_gain": Field("stops", drawn_stop, (1.5, 3.0, 6.0, 12.0)),
     # from under half the speed at which the library's pinches close the index (about
@@ -150,13 +158,26 @@ class PersonJob:
                     alone = run_session(env, None, 0)
                     rows.append((skill, kind, None, session_success(alone, reference)))
                 for value in self.grid:
-                    changes: dict[str, Any] = {self.field: value}
+                    changes: dict[str, Any] = {self.field: field_value(self.field, value)}
                     params = dataclasses.replace(self.base, **changes)
                     assistant = make_assistant(self.db, "phase", params=params, layout=layout)
                     result = run_session(env, assistant, 0)
                     rows.append((skill, kind, value, session_success(result, reference)))
                 env.close()
         return rows
+
+
+def field_value(field: str, value: float) -> float | int:
+    """``value`` as ``field``'s type (an integer field takes a whole number only).
+
+    Raises:
+        InputError: ``value`` is no whole number for an integer field.
+    """
+    if AssistParams.__dataclass_fields__[field].type not in (int, "int"):
+        return value
+    if value != round(value):
+        raise InputError(f"--grid {value:g}: {field} takes whole numbers")
+    return round(value)
 
 
 def choose(
@@ -214,6 +235,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.db is not None and not Path(args.db).is_file():
             raise InputError(f"--db {args.db} does not exist (build one: ias-gym assist library)")
+        for w in grid:
+            field_value(args.field, w)
         if args.persons < args.folds:
             raise InputError(f"--persons {args.persons} cannot fill {args.folds} folds")
         report = check_output_file(args.report, overwrite=args.overwrite, what="--report")
@@ -249,9 +272,10 @@ def main(argv: list[str] | None = None) -> int:
             if folds[index] == fold:
                 held[kind].append(success)
     chosen = choose(outcomes, set(range(len(persons))), args.objective)
+    change: dict[str, Any] = {args.field: field_value(args.field, chosen)}
     fitted = dataclasses.replace(
         base,
-        **{args.field: chosen},
+        **change,
         fitted_on=fitted_on(
             base.fitted_on, args.field, f"{args.persons} persons, seed {args.seed}"
         ),

@@ -66,6 +66,9 @@ class AssistParams:
         tremor_window_s: when the tremor canceller's notch starts and how often it is
             retuned [s] (:class:`~ias_gym.assist.tremor.TremorCanceller`;
             ``train/fit_assist_field.py``).
+        tremor_trend_degree: the degree of the polynomial the canceller fits beside the
+            tremor's line, the voluntary motion's part of its window [-]
+            (:func:`~ias_gym.assist.tremor.sinusoid_line`; ``train/fit_tremor_trend.py``).
         sight_gain: once a completed motion is done, the rate [1/s] at which the assistant
             brings the pen to where the operator's version of the skill leaves it, as the
             person would by sight: its height to the demonstrations'
@@ -86,6 +89,7 @@ class AssistParams:
     min_model_speed: float = 0.05
     min_remaining_rad: float = 0.05
     tremor_window_s: float = 0.5
+    tremor_trend_degree: int = 1
     sight_gain: float = 3.0
     pad_close_rate: float = 0.5
     fitted_on: str = "defaults"
@@ -110,7 +114,12 @@ class AssistParams:
         if not isinstance(data, dict) or not set(data) <= fields:
             raise InputError(f"assistant parameters {p}: keys must be among {sorted(fields)}")
         for key, value in data.items():
-            ok = isinstance(value, str) if key == "fitted_on" else _positive(value)
+            if key == "fitted_on":
+                ok = isinstance(value, str)
+            elif key == "tremor_trend_degree":
+                ok = isinstance(value, int) and not isinstance(value, bool) and value >= 1
+            else:
+                ok = _positive(value)
             if not ok:
                 raise InputError(f"assistant parameters {p}: {key}={value!r} is not valid")
         return cls(**data)

@@ -175,7 +175,13 @@ class ObservationAssistant:
         self.scale = float(action_scale)
         self.layout = dict(layout) if layout is not None else None
         self.completion = completion
-        self.tremor = TremorCanceller(self.dt, params.tremor_window_s) if tremor else None
+        self.tremor = (
+            TremorCanceller(
+                self.dt, params.tremor_window_s, trend_degree=params.tremor_trend_degree
+            )
+            if tremor
+            else None
+        )
         self.pads = (
             None
             if closing is None

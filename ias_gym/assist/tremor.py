@@ -7,17 +7,18 @@ spectral line of the tremor band from the targets, without knowing the tremor's 
 which joints shake or whether the operator has a tremor at all:
 
 1. **The line.** Over the last :data:`FREQUENCY_WINDOW_S` of the targets (at first, what
-   there is of it), the sinusoid that explains them best beside a straight line on each
-   joint, one frequency for all joints (:func:`sinusoid_line`: least squares on a grid of
-   frequencies). A short window holds under a cycle of a slow tremor at first (0.2 s of a
-   4 Hz one), and a spectrum's peak is then wide and pulled away by the voluntary motion:
-   at 4-5 Hz the spectral estimate of the first windows was 1-2 Hz off, and the pinch
-   closed with the tremor in it. Fitting the sinusoid with the motion's trend finds it
-   within a few tenths of a hertz from the first window on (Stoica & Moses, *Spectral
-   Analysis of Signals*, 2005, ch. 4: the least-squares frequency of a sinusoid). Where
-   the best frequency is the search's lowest, the window holds a curve, not a line (a
-   fast close of the fingers), and the line is the spectral peak of the targets through
-   a causal high-pass instead (Butterworth of order :data:`HIGHPASS_ORDER` at
+   there is of it), the sinusoid that explains them best beside a polynomial on each joint
+   (the voluntary motion's part; its degree is fitted by ``train/fit_assist_field.py --field
+   tremor_trend_degree``), one frequency for all joints (:func:`sinusoid_line`: least
+   squares on a grid of frequencies). A short window holds under a cycle of a slow tremor at
+   first (0.2 s of a 4 Hz one), and a spectrum's peak is then wide and pulled away by the
+   voluntary motion: at 4-5 Hz the spectral estimate of the first windows was 1-2 Hz off,
+   and the pinch closed with the tremor in it. Fitting the sinusoid with the motion's trend
+   finds it within a few tenths of a hertz from the first window on (Stoica & Moses,
+   *Spectral Analysis of Signals*, 2005, ch. 4: the least-squares frequency of a sinusoid).
+   Where the best frequency is the search's lowest, the window holds a curve, not a line (a
+   fast close of the fingers), and the line is the spectral peak of the targets through a
+   causal high-pass instead (Butterworth of order :data:`HIGHPASS_ORDER` at
    :data:`HIGHPASS_HZ`, between the two bands; :func:`tremor_line`: Hann window,
    zero-padded, summed over the joints, a parabola through the peak's log power).
 2. **Cancelling.** From the first ``window_s`` of the session on, a second-order notch
@@ -87,9 +88,10 @@ def tremor_line(window: FloatArray, dt: float) -> tuple[float, float]:
     return f, 2.0 * math.sqrt(float(power[k])) / float(hann.sum())
 
 
-def sinusoid_line(window: FloatArray, dt: float) -> tuple[float, float] | None:
-    """``(frequency [Hz], amplitude [rad])`` of the sinusoid that, beside a straight line on
-    each joint, explains ``window`` ``(N, joints)`` (sampled every ``dt``) best in least
+def sinusoid_line(window: FloatArray, dt: float, degree: int = 1) -> tuple[float, float] | None:
+    """``(frequency [Hz], amplitude [rad])`` of the sinusoid that, beside a polynomial of
+    ``degree`` (:func:`trend_basis`) on each joint, explains ``window`` ``(N, joints)``
+    (sampled every ``dt``) best in least
     squares, one frequency for all joints: the least residual over :data:`FIT_GRID_HZ`,
     refined by a parabola through it, clipped to the band; the amplitude is the norm over
     the joints of each joint's sinusoid. None when the least residual is at the grid's
@@ -97,18 +99,18 @@ def sinusoid_line(window: FloatArray, dt: float) -> tuple[float, float] | None:
     n = len(window)
     t = np.arange(n) * dt
     y = np.asarray(window, dtype=np.float64)
+    trend = trend_basis(n, dt, degree)
     phase = 2 * np.pi * FIT_GRID_HZ[:, None] * t[None, :]  # (F, n)
-    x = np.stack(
+    x = np.concatenate(
         [
-            np.ones_like(phase),
-            np.broadcast_to(t - t.mean(), phase.shape),
-            np.sin(phase),
-            np.cos(phase),
+            np.broadcast_to(trend, (len(FIT_GRID_HZ), *trend.shape)),
+            np.sin(phase)[:, :, None],
+            np.cos(phase)[:, :, None],
         ],
         axis=2,
-    )  # (F, n, 4): every frequency's design at once
+    )  # (F, n, K): every frequency's design at once
     xty = np.einsum("fnk,nj->fkj", x, y)
-    coef = np.linalg.solve(np.einsum("fnk,fnl->fkl", x, x), xty)  # (F, 4, J)
+    coef = np.linalg.solve(np.einsum("fnk,fnl->fkl", x, x), xty)  # (F, K, J)
     costs = float(np.sum(y * y)) - np.einsum("fkj,fkj->f", xty, coef)  # residual sums
     k = int(np.argmin(costs))
     if k == 0:
@@ -119,11 +121,20 @@ def sinusoid_line(window: FloatArray, dt: float) -> tuple[float, float] | None:
         a, b, c = costs[k - 1 : k + 2]
         offset = 0.5 * (a - c) / (a - 2 * b + c) if a - 2 * b + c > 0 else 0.0
     f = float(np.clip(FIT_GRID_HZ[k] + offset * step, *TREMOR_BAND))
-    design = np.column_stack(
-        [np.ones(n), t - t.mean(), np.sin(2 * np.pi * f * t), np.cos(2 * np.pi * f * t)]
-    )
+    design = np.column_stack([trend, np.sin(2 * np.pi * f * t), np.cos(2 * np.pi * f * t)])
     amplitudes, *_ = np.linalg.lstsq(design, y, rcond=None)
-    return f, float(np.sqrt(np.sum(amplitudes[2:] ** 2)))
+    return f, float(np.sqrt(np.sum(amplitudes[-2:] ** 2)))
+
+
+def trend_basis(n: int, dt: float, degree: int) -> FloatArray:
+    """``(n, d + 1)``: the Legendre polynomials up to ``d`` (on [-1, 1]: well conditioned)
+    over a window of ``n`` samples every ``dt``, the voluntary motion's part of it. ``d`` is
+    ``degree``, or 1 in a window shorter than a period of the band's slowest tremor: a
+    curve of higher degree takes up part of a slow line that the window holds under a cycle
+    of."""
+    d = int(degree) if n * dt >= 1.0 / TREMOR_BAND[0] else 1
+    basis = np.polynomial.legendre.legvander(np.linspace(-1.0, 1.0, n), d)
+    return np.asarray(basis, dtype=np.float64)
 
 
 class TremorCanceller:
@@ -133,15 +144,18 @@ class TremorCanceller:
         dt: the control step [s].
         window_s: when the notch starts and how often it is retuned [s].
         joints: how many joints the targets have.
+        trend_degree: the degree of the voluntary motion's polynomial beside the line
+            (:func:`sinusoid_line`).
 
     Raises:
         ValueError: a step too long to see the tremor band, or a window shorter than 4
             steps.
     """
 
-    def __init__(self, dt: float, window_s: float, joints: int = 10) -> None:
+    def __init__(self, dt: float, window_s: float, joints: int = 10, trend_degree: int = 1) -> None:
         self.dt = float(dt)
         self.joints = int(joints)
+        self.trend_degree = int(trend_degree)
         self.window = round(float(window_s) / self.dt)
         fs = 1.0 / self.dt
         if TREMOR_BAND[1] >= fs / 2:
@@ -178,7 +192,7 @@ class TremorCanceller:
         self._raw.append(x.copy())
         self._since_tuned += 1
         if self._since_tuned >= self.window:
-            line = sinusoid_line(np.asarray(self._raw), self.dt)
+            line = sinusoid_line(np.asarray(self._raw), self.dt, self.trend_degree)
             if line is None:
                 line = tremor_line(np.asarray(self._recent), self.dt)
             self.frequency_hz, self.amplitude_rad = line
