@@ -68,7 +68,7 @@ class AssistParams:
             ``train/fit_assist_field.py``).
         tremor_trend_degree: the degree of the polynomial the canceller fits beside the
             tremor's line, the voluntary motion's part of its window [-]
-            (:func:`~ias_gym.assist.tremor.sinusoid_line`; ``train/fit_tremor_trend.py``).
+            (:func:`~ias_gym.assist.tremor.sinusoid_line`; ``train/fit_assist_field.py``).
         sight_gain: once a completed motion is done, the rate [1/s] at which the assistant
             brings the pen to where the operator's version of the skill leaves it, as the
             person would by sight: its height to the demonstrations'
@@ -113,10 +113,11 @@ class AssistParams:
         fields = {f.name for f in dataclasses.fields(cls)}
         if not isinstance(data, dict) or not set(data) <= fields:
             raise InputError(f"assistant parameters {p}: keys must be among {sorted(fields)}")
+        integers = {f.name for f in dataclasses.fields(cls) if f.type in (int, "int")}
         for key, value in data.items():
             if key == "fitted_on":
                 ok = isinstance(value, str)
-            elif key == "tremor_trend_degree":
+            elif key in integers:
                 ok = isinstance(value, int) and not isinstance(value, bool) and value >= 1
             else:
                 ok = _positive(value)
