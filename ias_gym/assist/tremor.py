@@ -92,9 +92,10 @@ def sinusoid_line(window: FloatArray, dt: float, degree: int = 1) -> tuple[float
     """``(frequency [Hz], amplitude [rad])`` of the sinusoid that, beside a polynomial of
     ``degree`` (:func:`trend_basis`) on each joint, explains ``window`` ``(N, joints)``
     (sampled every ``dt``) best in least squares, one frequency for all joints: the least
-    residual over :data:`FIT_GRID_HZ`, refined by a parabola through it, clipped to the band; the amplitude is the norm over
-    the joints of each joint's sinusoid. None when the least residual is at the grid's
-    lowest frequency: the window holds a curve of the voluntary motion, not a line."""
+    residual over :data:`FIT_GRID_HZ`, refined by a parabola through it, clipped to the
+    band; the amplitude is the norm over the joints of each joint's sinusoid. None when the
+    least residual is at the grid's lowest frequency: the window holds a curve of the
+    voluntary motion, not a line."""
     n = len(window)
     t = np.arange(n) * dt
     y = np.asarray(window, dtype=np.float64)
