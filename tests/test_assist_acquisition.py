@@ -117,7 +117,7 @@ def test_an_unknown_demonstration_is_stored_and_learnt(acquired: dict[str, objec
 
 
 def _same_closing(a: PinchClosing, b: PinchClosing) -> bool:
-    return a.meet_s == b.meet_s and all(
+    return (a.meet_s, a.touch_from_s) == (b.meet_s, b.touch_from_s) and all(
         np.allclose(a.directions[f], b.directions[f]) for f in a.directions
     )
 

@@ -45,36 +45,59 @@ def test_the_library_closes_each_finger_on_its_own_joints() -> None:
     # flexion closes the pinch: the index's MCP and the thumb's flexion lead
     assert closing.directions["index"][joint_index("index_mcp")] == pytest.approx(1.0)
     assert closing.directions["thumb"][joint_index("thumb_flexion")] == pytest.approx(1.0)
-    # the library's pads meet within a few steps of each other
+    # the library's pads meet within a few steps of each other, in the close
     assert 0.0 < closing.meet_s < 0.3
+    assert 0.1 < closing.touch_from_s < 1.0
+
+
+def _closing(touch_from_s: float = 0.5) -> PinchClosing:
+    """A library whose index closes on joint 3 and thumb on joint 7, its first pads on the
+    pen from ``touch_from_s`` and the second within 0.05 s."""
+    return PinchClosing(
+        {"index": np.eye(N_JOINTS)[3], "thumb": np.eye(N_JOINTS)[7]},
+        meet_s=0.05,
+        touch_from_s=touch_from_s,
+    )
 
 
 def test_a_pad_alone_on_the_pen_brings_the_other_finger_and_keeps_it() -> None:
-    closing = PinchClosing(
-        {"index": np.eye(N_JOINTS)[3], "thumb": np.eye(N_JOINTS)[7]}, meet_s=0.05
-    )
-    keeper = PadKeeper(closing, rate=0.5, limit=0.2, control_dt=DT)
+    keeper = PadKeeper(_closing(), rate=0.5, limit=0.2, control_dt=DT)
+    t = 0.5  # a demonstrator's pad has come to the pen
     # nothing touches, then both pads: nothing to do
     for index, thumb in ((False, False), (True, True)):
         for _ in range(50):
-            assert not keeper.update(_torques(index, thumb)).any()
+            assert not keeper.update(_torques(index, thumb), t).any()
     # the index alone for as long as the library's pads take to meet: still nothing
     for _ in range(5):
-        assert not keeper.update(_torques(True, False)).any()
+        assert not keeper.update(_torques(True, False), t).any()
     # longer: the thumb closes at the rate, the index is left as it is
-    offsets = [keeper.update(_torques(True, False)) for _ in range(10)]
+    offsets = [keeper.update(_torques(True, False), t) for _ in range(10)]
     assert offsets[-1][7] == pytest.approx(10 * 0.5 * DT)
     assert np.all(np.diff([o[7] for o in offsets]) > 0)
     assert not np.delete(offsets[-1], 7).any()
     # the thumb on the pen again: what was added stays (a grip is never opened) ...
-    held = keeper.update(_torques(True, True))
+    held = keeper.update(_torques(True, True), t)
     np.testing.assert_allclose(held, offsets[-1])
     # ... and never beyond the limit
     for _ in range(1000):
-        out = keeper.update(_torques(False, True))
+        out = keeper.update(_torques(False, True), t)
     assert out[3] == pytest.approx(0.2) and out[7] == pytest.approx(offsets[-1][7])
     keeper.reset()
-    assert not keeper.update(_torques(True, True)).any()
+    assert not keeper.update(_torques(True, True), t).any()
+
+
+def test_a_pad_resting_on_the_pen_before_the_pinch_is_left_alone() -> None:
+    """A thumb on the pen from the start while the index is still on its way: it rests on
+    the pen until a demonstrator's first pad came to it; from then on it counts."""
+    keeper = PadKeeper(_closing(touch_from_s=0.5), rate=0.5, limit=0.2, control_dt=DT)
+    steps = np.arange(60) * DT
+    out = [keeper.update(_torques(False, True), float(t)) for t in steps]
+    # counted from the library's first touch, as long as its pads take to meet
+    before = steps < 0.5 + 0.05 - 0.5 * DT
+    assert not np.any([o.any() for o, b in zip(out, before, strict=True) if b])
+    # then the index (joint 3) is brought to the pen
+    assert out[-1][3] == pytest.approx((~before).sum() * 0.5 * DT)
+    assert not np.delete(out[-1], 3).any()
 
 
 def test_the_assistant_closes_the_finger_whose_pad_is_off() -> None:
@@ -84,7 +107,7 @@ def test_the_assistant_closes_the_finger_whose_pad_is_off() -> None:
     thumb = joint_index("thumb_flexion")
     on = make_assistant(recogniser="none", layout=layout, tremor=False)
     off = make_assistant(recogniser="none", layout=layout, tremor=False, pads=False)
-    for step in range(40):
+    for step in range(100):  # past the close of the library's pinches
         obs[layout["time"]] = step * DT
         with_pads, without = on.act(obs), off.act(obs)
     assert with_pads[thumb] > 0 and not without.any()

@@ -7,14 +7,17 @@ on something (in the pinch, its pad on the pen). An operator whose pinch falls s
 grip, a calibration that reads the fingers more open than they are) brings one pad to the
 pen and never the other, or lets it slip off, and the pen falls in the lift.
 :class:`PadKeeper` closes the finger whose pad is off the pen while the other's is on, once
-that has lasted longer than the library's pads ever took to meet, and keeps what it added:
-it never opens a grip.
+that has lasted longer than the library's pads ever took to meet, counted from no earlier
+than the first time a demonstrator's pad came to the pen, and keeps what it added: it never
+opens a grip. Before that a pad on the pen is resting on it (a thumb that touches the pen
+from the start), not pinching.
 
 What it reads of the library (:func:`pinch_closing`): each finger's closing direction (the
 demonstrations' joint change from the session's start to that pad's first contact, of the
 operator's targets or, in a recording without them, the hand's joint angles, mean
-over the demonstrations, largest component 1) and how long a demonstrator's first pad was on
-the pen alone before the other met it (the longest, over the demonstrations). Its rate is
+over the demonstrations, largest component 1), how long a demonstrator's first pad was on
+the pen alone before the other met it (the longest, over the demonstrations) and when the
+first pad of any demonstration came to the pen. Its rate is
 :attr:`~ias_gym.assist.motion_completion.AssistParams.pad_close_rate`, fitted on
 development persons (``train/fit_assist_field.py --field pad_close_rate``).
 """
@@ -57,10 +60,13 @@ class PinchClosing:
             largest component 1).
         meet_s: the longest time a demonstration's first pad was on the pen before the other
             touched it too [s].
+        touch_from_s: the earliest episode time at which a demonstration's first pad came to
+            the pen [s].
     """
 
     directions: dict[str, FloatArray]
     meet_s: float
+    touch_from_s: float
 
 
 def _on(torques: FloatArray) -> dict[str, NDArray[np.bool_]]:
@@ -81,6 +87,7 @@ def pinch_closing(db_path: str | Path) -> PinchClosing:
         raise InputError(f"skill library {path} does not exist (give an existing --db)")
     steps: dict[str, list[FloatArray]] = {f: [] for f in PINCH_FINGERS}
     meets: list[float] = []
+    touches: list[float] = []
     with SkillDB(path, readonly=True) as db:
         for skill_id in db.ids():
             skill = db.get(skill_id)
@@ -103,15 +110,17 @@ def pinch_closing(db_path: str | Path) -> PinchClosing:
                 change[joints] = theta[first[f][0], joints] - theta[0, joints]
                 steps[f].append(change)
             both = np.flatnonzero(on["index"] & on["thumb"])
+            touch = float(time[min(i[0] for i in first.values())])
             if both.size:
-                meets.append(float(time[both[0]] - time[min(i[0] for i in first.values())]))
+                meets.append(float(time[both[0]]) - touch)
+                touches.append(touch)
     if not meets:
         raise InputError(f"skill library {path} holds no glove session that pinches the pen")
     directions = {}
     for f, changes in steps.items():
         mean = np.mean(changes, axis=0)
         directions[f] = mean / np.max(np.abs(mean))
-    return PinchClosing(directions, max(meets))
+    return PinchClosing(directions, max(meets), min(touches))
 
 
 class PadKeeper:
@@ -137,11 +146,13 @@ class PadKeeper:
         self.added = dict.fromkeys(PINCH_FINGERS, 0.0)  # [rad] along each finger's direction
         self._alone = 0.0  # how long one pad has been on the pen alone [s]
 
-    def update(self, torques: FloatArray) -> FloatArray:
+    def update(self, torques: FloatArray, t: float) -> FloatArray:
         """The ``(10,)`` joint offset [rad] after a step whose force display was
-        ``torques`` (the observation's ``feedback_torques``)."""
+        ``torques`` (the observation's ``feedback_torques``), at episode time ``t`` [s]."""
         on = {f: bool(v[0]) for f, v in _on(np.asarray(torques, dtype=np.float64)).items()}
-        self._alone = self._alone + self.dt if on["index"] != on["thumb"] else 0.0
+        # one pad alone counts from the library's first touch on (before, it rests on the pen)
+        alone = on["index"] != on["thumb"] and t >= self.closing.touch_from_s
+        self._alone = self._alone + self.dt if alone else 0.0
         if self._alone > self.closing.meet_s:
             off = "thumb" if on["index"] else "index"
             self.added[off] = min(self.added[off] + self.rate * self.dt, self.limit)

@@ -50,9 +50,10 @@ Every step:
 
 3. **Both pads on the pen.** :class:`~ias_gym.assist.pad_contact.PadKeeper` reads the
    force display: a finger whose pad is off the pen while the other's is on, for longer
-   than the library's pads took to meet, is closed along the library's closing direction
-   at ``pad_close_rate`` (the skills pinch the pen from the close to the end: a weak grip
-   or an opening calibration otherwise lets it go in the lift).
+   than the library's pads took to meet (counted from the first touch of a demonstrator's
+   pad on: before, a pad on the pen rests on it), is closed along the library's closing
+   direction at ``pad_close_rate`` (the skills pinch the pen from the close to the end: a
+   weak grip or an opening calibration otherwise lets it go in the lift).
 
 4. **Acquisition** (between sessions): :meth:`ObservationAssistant.learn` stores a recorded
    demonstration the recogniser calls unknown as a new skill of the assistant's library,
@@ -322,7 +323,7 @@ class ObservationAssistant:
                         self._hold_pen(fit, float(obs[layout["pen_position"]][2]))
             offset += self._authority * self._hold
         if self.pads is not None:
-            offset += self.pads.update(obs[layout["feedback_torques"]])
+            offset += self.pads.update(obs[layout["feedback_torques"]], t - self.dt)
         self._steps += 1
         out: FloatArray = np.clip(offset / self.scale, -1.0, 1.0)
         self._last_offset = out * self.scale
