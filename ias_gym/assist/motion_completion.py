@@ -30,8 +30,11 @@ PARAMS_PATH = Path(__file__).resolve().parents[1] / "assets" / "assistant_params
 #: The grids the operator's speed and start are fitted on: speeds relative to the
 #: library's mean person [-] (the population's speed factors lie within 0.6-1.6) ...
 SPEED_GRID = np.linspace(0.6, 1.6, 21)
-#: ... and starts before the detected onset [s].
-START_GRID = np.arange(0.0, 0.32, 0.02)
+#: ... and starts relative to the detected onset [s], on either side of it: an unsteady
+#: operator's wrist can leave its pose by ``onset_rad`` a few tenths of a second before the
+#: motion begins (a drift, an anticipatory dip), and a fit whose start could not follow the
+#: motion there took a slower, larger motion for it.
+START_GRID = np.arange(-0.3, 0.32, 0.02)
 #: The operator's motion is refitted every this many steps (between them the last fit
 #: predicts; a fit costs about a millisecond).
 REFIT_EVERY = 5
@@ -189,7 +192,7 @@ class Completion:
         wa = (self.noise / max(self.motion.amplitude_sd, 1e-3)) ** 2  # prior weights, in
         wv = (self.noise / max(self.motion.speed_sd, 1e-3)) ** 2  # units of the residual
         best = (math.inf, (1.0, 1.0, self.onset))
-        for t0 in self.onset - START_GRID:
+        for t0 in self.onset + START_GRID:
             tau = SPEED_GRID[:, None] * (t[None, :] - t0)  # (V, N)
             m = self.motion.at(tau.ravel()).reshape(len(SPEED_GRID), len(t), -1)
             mm = (m * m).sum(axis=(1, 2))
