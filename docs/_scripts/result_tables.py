@@ -20,6 +20,8 @@ JSON in ``docs/``                      written by                          table
                                        ``--without pads``                  ``population.md``
 ``assist_trend_population.json``       ``train/assist_population.py``      ``assist_trend_``
                                        ``--without tremor``                ``population.md``
+``assist_unimpaired_population.json``  ``train/assist_population.py``      ``assist_unimpaired_``
+                                                                           ``population.md``
 ``assist_acquisition.json``            ``train/assist_acquisition.py``     ``assist_acquisition.md``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
@@ -841,6 +843,9 @@ def tables(docs: Path) -> dict[str, str]:
         "assist_residual_population.md": assist_population(load("assist_residual_population.json")),
         "assist_pads_population.md": assist_population(load("assist_pads_population.json")),
         "assist_trend_population.md": assist_population(load("assist_trend_population.json")),
+        "assist_unimpaired_population.md": assist_population(
+            load("assist_unimpaired_population.json")
+        ),
         "assist_acquisition.md": assist_acquisition(load("assist_acquisition.json")),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "pen_skill_bc_robustness.md": pen_skill_bc_robustness(load("pen_skill_bc_results.json")),
