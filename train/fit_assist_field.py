@@ -173,7 +173,7 @@ def field_value(field: str, value: float) -> float | int:
     Raises:
         InputError: ``value`` is no whole number for an integer field.
     """
-    if AssistParams.__dataclass_fields__[field].type not in (int, "int"):
+    if field not in AssistParams.integer_fields():
         return value
     if value != round(value):
         raise InputError(f"--grid {value:g}: {field} takes whole numbers")

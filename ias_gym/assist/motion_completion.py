@@ -98,6 +98,11 @@ class AssistParams:
     fitted_on: str = "defaults"
 
     @classmethod
+    def integer_fields(cls) -> frozenset[str]:
+        """The fields that take whole numbers (declared ``int``)."""
+        return frozenset(f.name for f in dataclasses.fields(cls) if f.type in (int, "int"))
+
+    @classmethod
     def load(cls, path: str | Path = PARAMS_PATH) -> AssistParams:
         """Read the parameters from a JSON file (plain data: nothing executes).
 
@@ -116,7 +121,7 @@ class AssistParams:
         fields = {f.name for f in dataclasses.fields(cls)}
         if not isinstance(data, dict) or not set(data) <= fields:
             raise InputError(f"assistant parameters {p}: keys must be among {sorted(fields)}")
-        integers = {f.name for f in dataclasses.fields(cls) if f.type in (int, "int")}
+        integers = cls.integer_fields()
         for key, value in data.items():
             if key == "fitted_on":
                 ok = isinstance(value, str)
