@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -12,10 +14,12 @@ from ias_gym.assist.pad_contact import (
     TORQUE_COLUMNS,
     PadKeeper,
     PinchClosing,
+    pad_arrivals,
     pinch_closing,
 )
 from ias_gym.assist.policy import make_assistant
 from ias_gym.envs.glove_assist import OBSERVATION_PARTS
+from ias_gym.envs.glove_world import OBSERVATION
 from ias_gym.envs.layout import observation_layout
 from ias_gym.errors import InputError
 from ias_gym.glove.hand import N_JOINTS, joint_index
@@ -48,6 +52,36 @@ def test_the_library_closes_each_finger_on_its_own_joints() -> None:
     # the library's pads meet within a few steps of each other, in the close
     assert 0.0 < closing.meet_s < 0.3
     assert 0.1 < closing.touch_from_s < 1.0
+
+
+def test_a_pad_comes_to_the_pen_from_off_it() -> None:
+    off, on = np.zeros(6, dtype=bool), np.ones(6, dtype=bool)
+    came_at_3 = np.array([0, 0, 0, 1, 1, 1], dtype=bool)
+    assert pad_arrivals({"index": came_at_3, "thumb": off}) == {"index": 3}
+    # a thumb on the pen from the first step rests there; it comes once it left and returned
+    assert pad_arrivals({"index": came_at_3, "thumb": on}) == {"index": 3}
+    back_at_4 = np.array([1, 1, 0, 0, 1, 1], dtype=bool)
+    assert pad_arrivals({"index": came_at_3, "thumb": back_at_4}) == {"index": 3, "thumb": 4}
+
+
+def test_a_demonstrator_resting_a_pad_on_the_pen_moves_no_statistic(tmp_path: Path) -> None:
+    """A demonstration whose thumb rests on the pen from the session's first step has no
+    first touch at 0 s: the library's statistics stay those of its pinches."""
+    path = tmp_path / "library.db"
+    shutil.copy(shipped_skill_db(), path)
+    before = pinch_closing(path)
+    with SkillDB(path) as db:
+        skill = db.get(db.ids()[0])
+        demo = skill.demonstration
+        obs = np.array(demo.observations, dtype=np.float64)
+        thumb = [OBSERVATION["feedback_torques"].start + c for c in TORQUE_COLUMNS["thumb"]]
+        touching = np.flatnonzero(np.any(obs[:, thumb] != 0.0, axis=1))
+        obs[: touching[0], thumb[0]] = 0.01  # resting from the start until the pinch
+        resting = dataclasses.replace(demo, observations=obs)
+        db.add(dataclasses.replace(skill, demonstration=resting))
+    after = pinch_closing(path)
+    assert after.touch_from_s == pytest.approx(before.touch_from_s)
+    assert after.meet_s == pytest.approx(before.meet_s)
 
 
 def _closing(touch_from_s: float = 0.5) -> PinchClosing:

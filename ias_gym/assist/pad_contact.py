@@ -17,7 +17,9 @@ demonstrations' joint change from the session's start to that pad's first contac
 operator's targets or, in a recording without them, the hand's joint angles, mean
 over the demonstrations, largest component 1), how long a demonstrator's first pad was on
 the pen alone before the other met it (the longest, over the demonstrations) and when the
-first pad of any demonstration came to the pen. Its rate is
+first pad of any demonstration came to the pen (:func:`pad_arrivals`: a pad on the pen from
+the session's first step rests on it and has not come to it, so one such demonstrator
+moves neither statistic). Its rate is
 :attr:`~ias_gym.assist.motion_completion.AssistParams.pad_close_rate`, fitted on
 development persons (``train/fit_assist_field.py --field pad_close_rate``).
 """
@@ -61,7 +63,7 @@ class PinchClosing:
         meet_s: the longest time a demonstration's first pad was on the pen before the other
             touched it too [s].
         touch_from_s: the earliest episode time at which a demonstration's first pad came to
-            the pen [s].
+            the pen [s] (:func:`pad_arrivals`: a pad resting on it from the start has not).
     """
 
     directions: dict[str, FloatArray]
@@ -73,6 +75,19 @@ def _on(torques: FloatArray) -> dict[str, NDArray[np.bool_]]:
     """Per finger, whether its pad touches (any of its display torques nonzero), per row."""
     t = np.atleast_2d(np.abs(torques))
     return {f: np.any(t[:, list(cols)] > 0.0, axis=1) for f, cols in TORQUE_COLUMNS.items()}
+
+
+def pad_arrivals(on: dict[str, NDArray[np.bool_]]) -> dict[str, int]:
+    """The step at which each finger's pad came to the pen in one session (``on``: per
+    finger, whether its pad touches, per step; :func:`_on`): the first step on the pen after
+    one off it. A pad on the pen from the session's first step rests there; it has not come
+    to the pen until it left it and came back (a finger that never came is left out)."""
+    out = {}
+    for f, touching in on.items():
+        came = np.flatnonzero(touching[1:] & ~touching[:-1])
+        if came.size:
+            out[f] = int(came[0]) + 1
+    return out
 
 
 def pinch_closing(db_path: str | Path) -> PinchClosing:
@@ -100,21 +115,23 @@ def pinch_closing(db_path: str | Path) -> PinchClosing:
             raw = obs[:, OBSERVATION["joint_angles"]] if targets is None else targets
             theta = np.asarray(raw, dtype=np.float64)[: len(obs)]
             on = _on(obs[: len(theta), OBSERVATION["feedback_torques"]])
-            first = {f: np.flatnonzero(on[f]) for f in PINCH_FINGERS}
-            if any(not idx.size for idx in first.values()):
-                continue
             time = obs[: len(theta), OBSERVATION["time"].start]
-            for f in PINCH_FINGERS:
+            arrived = pad_arrivals(on)
+            if not arrived:
+                continue
+            first = min(arrived.values())
+            both = np.flatnonzero(on["index"] & on["thumb"])
+            both = both[both >= first]
+            if not both.size:  # no pinch
+                continue
+            touches.append(float(time[first]))
+            meets.append(float(time[both[0]] - time[first]))
+            for f, k in arrived.items():
                 change = np.zeros(N_JOINTS)
                 joints = list(PINCH_JOINTS_OF[f])
-                change[joints] = theta[first[f][0], joints] - theta[0, joints]
+                change[joints] = theta[k, joints] - theta[0, joints]
                 steps[f].append(change)
-            both = np.flatnonzero(on["index"] & on["thumb"])
-            touch = float(time[min(i[0] for i in first.values())])
-            if both.size:
-                meets.append(float(time[both[0]]) - touch)
-                touches.append(touch)
-    if not meets:
+    if not meets or not all(steps.values()):
         raise InputError(f"skill library {path} holds no glove session that pinches the pen")
     directions = {}
     for f, changes in steps.items():
