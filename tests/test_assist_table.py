@@ -90,6 +90,27 @@ def test_an_ablation_arm_runs_the_assistant_without_its_part() -> None:
     assert table.arms_of(None, ("pads",)) == (*table.ARMS, "without_pads")
     job = table.PersonJob(("none",), ("tilt_left",), None, 0, without=("pads",))
     rows = job("p1")
-    arms = [arm for _, _, _, arm, _ in rows]
+    arms = [row[3] for row in rows]
     assert sorted(arms) == sorted(table.arms_of(None, ("pads",)))
-    assert all(isinstance(ok, bool) for *_, ok in rows)
+    assert all(isinstance(ok, bool) for *_, ok, _ in rows)
+    # every judged session's record: who, what was drawn, which arm, how it ended
+    for spec, skill, _, arm, ok, record in rows:
+        assert record["person"] == "p1" and record["skill"] == skill == "tilt_left"
+        assert record["spec"] == spec and record["drawn"] == "none" and record["arm"] == arm
+        assert record["success"] is ok
+        assert {"pad_off_from_s", "position_error_mm", "lift_height_error_mm"} <= set(record)
+
+
+def test_the_population_table_refuses_to_replace_a_sessions_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    table = load_train_script("assist_population")
+    sessions, out = tmp_path / "sessions.json", tmp_path / "table.json"
+    sessions.write_text("[]")
+    argv = ["--seed", "1", "--set", "development", "--out", str(out)]
+    assert table.main([*argv, "--sessions", str(sessions)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--overwrite" in err and len(err.splitlines()) == 1
+    assert table.main([*argv, "--sessions", str(out)]) == 2
+    assert "other than --out" in capsys.readouterr().err
+    assert sessions.read_text() == "[]" and not out.exists()

@@ -2,7 +2,10 @@
 assisted with the recogniser and assisted without skill knowledge (and, with
 ``--residual``, assisted with a learned residual on top; with ``--without PART``, assisted
 with one part of the assistant switched off), with 95 % intervals, on persons drawn by a
-seed (``--set held-out``: one the fitting never saw).
+seed (``--set held-out``: one the fitting never saw). ``--sessions FILE`` also keeps every
+judged session: the impairment it drew, the arm and how it ended
+(:func:`~ias_gym.assist.sessions.session_record`: where a pad came off the pen, the pose
+errors, the lift's height): where the losses of a row sit, and what an arm changes.
 
     python train/assist_population.py --db out/library.db --persons 30 --seed S --set held-out \
         --impairment none --impairment stops:at=0.4 --out docs/assist_population.json
@@ -23,10 +26,11 @@ import gymnasium as gym
 import ias_gym  # noqa: F401  (registers the envs)
 from ias_gym.assist.assistance_evaluation import reference_session
 from ias_gym.assist.policy import make_assistant
-from ias_gym.assist.sessions import run_session, session_success
+from ias_gym.assist.sessions import run_session, session_record
 from ias_gym.assist.skill_motions import load_motions
 from ias_gym.envs.glove_assist import OBSERVATION_PARTS
 from ias_gym.envs.layout import observation_layout
+from ias_gym.errors import InputError
 from ias_gym.glove.impairment_spec import expand_specs
 from ias_gym.glove.impairments import reference_kwargs
 from ias_gym.glove.operator import OPERATORS
@@ -36,8 +40,8 @@ from ias_gym.rates import SET_KINDS, rate_json
 from ias_gym.runtime.jobs import Backend, run_jobs
 
 ARMS = ("unassisted", "assisted", "no_skill_knowledge")
-#: One session's ``(spec, skill, drawn family, arm, success)`` (:class:`PersonJob`).
-Row = tuple[str, str, str, str | None, bool | None]
+#: One session's ``(spec, skill, drawn family, arm, success, record)`` (:class:`PersonJob`).
+Row = tuple[str, str, str, str | None, bool | None, dict[str, Any] | None]
 #: The arm of a learned residual on the assistant (``--residual``).
 RESIDUAL_ARM = "residual"
 
@@ -57,9 +61,10 @@ def arms_of(residual: str | None, without: tuple[str, ...] = ()) -> tuple[str, .
 class PersonJob:
     """A picklable job: one person's sessions, every spec, skill and arm.
 
-    Returns rows ``(spec, skill, family, arm, success)`` with ``family`` the impairment the
-    session drew (``sampled``: one family); ``(spec, skill, family, None, None)`` for a
-    session without a reference."""
+    Returns rows ``(spec, skill, family, arm, success, record)`` with ``family`` the
+    impairment the session drew (``sampled``: one family) and ``record`` the session's
+    :func:`~ias_gym.assist.sessions.session_record` with the person and the drawn spec;
+    ``(spec, skill, family, None, None, None)`` for a session without a reference."""
 
     specs: tuple[str, ...]
     skills: tuple[str, ...]
@@ -105,10 +110,18 @@ class PersonJob:
                     )
                 ref = references[key]
                 if ref is None:
-                    rows.append((spec, skill, drawn.name, None, None))
+                    rows.append((spec, skill, drawn.name, None, None, None))
                 for arm in arms if ref is not None else ():
                     result = run_session(env, assistants.get(arm), self.reset_seed)
-                    rows.append((spec, skill, drawn.name, arm, session_success(result, ref)))
+                    record = {
+                        "person": person,
+                        "spec": spec,
+                        "drawn": drawn.spec,
+                        "skill": skill,
+                        "arm": arm,
+                        **session_record(result, ref),
+                    }
+                    rows.append((spec, skill, drawn.name, arm, record["success"], record))
                 env.close()
         return rows
 
@@ -145,6 +158,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes")
     ap.add_argument("--out", required=True, help="JSON file written")
+    ap.add_argument(
+        "--sessions", help="JSON file of every judged session, also written (default: none)"
+    )
     ap.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     args = ap.parse_args(argv)
     if args.db is not None and not Path(args.db).is_file():
@@ -165,7 +181,19 @@ def main(argv: list[str] | None = None) -> int:
         except PolicyFileError as exc:
             print(f"--residual: {exc}", file=sys.stderr)
             return 2
-    out = check_output_file(args.out, overwrite=args.overwrite, what="--out")
+    try:
+        out = check_output_file(args.out, overwrite=args.overwrite, what="--out")
+        sessions_out = (
+            check_output_file(args.sessions, overwrite=args.overwrite, what="--sessions")
+            if args.sessions
+            else None
+        )
+    except InputError as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    if sessions_out is not None and sessions_out.resolve() == out.resolve():
+        print("--sessions: give a file other than --out", file=sys.stderr)
+        return 2
     specs = expand_specs(args.impairment or ["none", "stops:at=0.4"])
     persons = population_ids(args.persons, args.seed)
     skills = sorted(load_motions(args.db))  # the skills with a motion of their own
@@ -189,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
     by_skill: dict[str, dict[str, list[bool]]] = {s: {k: [] for k in skills} for s in specs}
     by_family: dict[str, dict[str, dict[str, list[bool]]]] = {s: {} for s in specs}
     excluded = dict.fromkeys(specs, 0)
-    for spec, skill, family, arm, ok in (row for person_rows in rows for row in person_rows):
+    for spec, skill, family, arm, ok, _ in (row for person_rows in rows for row in person_rows):
         if arm is None:
             excluded[spec] += 1
             continue
@@ -227,6 +255,10 @@ def main(argv: list[str] | None = None) -> int:
     }
     with atomic_output(Path(out), overwrite=args.overwrite) as tmp:
         tmp.write_text(json.dumps(table, indent=2) + "\n")
+    if sessions_out is not None:
+        records = [row[5] for person_rows in rows for row in person_rows if row[5] is not None]
+        with atomic_output(Path(sessions_out), overwrite=args.overwrite) as tmp:
+            tmp.write_text(json.dumps(records, indent=1) + "\n")
     print(json.dumps(table["by_impairment"], indent=2))
     return 0
 
