@@ -290,14 +290,15 @@ class ObservationAssistant:
             raise InputError("give the observation's layout (env.unwrapped.observation_layout)")
         obs = np.asarray(obs, dtype=np.float64)
         operator = self._operator_theta(obs, layout)
-        t = float(obs[layout["time"]][0]) + self.dt  # the step the action acts on
+        now = float(obs[layout["time"]][0])  # the observation's time [s] ...
+        t = now + self.dt  # ... and the step's the action acts on
         # a tremor is no motion of the skill's: what follows reads the targets without it
         offset = self.tremor.update(operator) if self.tremor is not None else np.zeros(N_JOINTS)
         theta = operator + offset
         # the recogniser sees what the hand is commanded: the operator's targets with the
         # assistant's last offset (a completed skill looks like the skill)
         frame = frame_from_observation(obs, layout, operator + self._last_offset)
-        self._times.append(t - self.dt)
+        self._times.append(now)
         self._tilts.append(float(pen_elevation(obs[layout["pen_quat"]][None])[0]))
         post = dict(self.recogniser.update(frame))
         self._post = post
@@ -323,7 +324,7 @@ class ObservationAssistant:
                         self._hold_pen(fit, float(obs[layout["pen_position"]][2]))
             offset += self._authority * self._hold
         if self.pads is not None:
-            offset += self.pads.update(obs[layout["feedback_torques"]], t - self.dt)
+            offset += self.pads.update(obs[layout["feedback_torques"]], now)
         self._steps += 1
         out: FloatArray = np.clip(offset / self.scale, -1.0, 1.0)
         self._last_offset = out * self.scale
