@@ -11,6 +11,8 @@ from pathlib import Path
 import pytest
 from PIL import Image
 
+from ias_gym.rates import rate_json
+
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 sys.path.insert(0, str(DOCS / "_scripts"))
@@ -159,6 +161,24 @@ def test_a_results_table_follows_its_numbers() -> None:
     result["summary"]["ias4f|gt|nominal|tilt_left"]["refused"] = 1
     assert "| gt | tilt_left | 50 % (2, 1 refused) |" in result_tables.transfer_skills(result)
     assert "| all |" not in by_skill
+
+
+def test_the_assistant_population_table_shows_each_arm_s_intervention() -> None:
+    outcomes = {"unassisted": 0, "assisted": 3, "no_skill_knowledge": 0}
+    row = {arm: rate_json([True] * k + [False] * (4 - k)) for arm, k in outcomes.items()}
+    result = {
+        "set": "development",
+        "persons": 2,
+        "population_seed": 1,
+        "operator": "closed_loop",
+        "skills": [],
+        "by_impairment": {"stops:at=0.4": {**row, "excluded": 1}},
+    }
+    table = result_tables.assist_population(result)
+    assert "Intervention" not in table  # a table from before the intervention was kept
+    sizes = {"unassisted": 0.0, "assisted": 0.123, "no_skill_knowledge": None}
+    result["by_impairment"]["stops:at=0.4"]["intervention"] = sizes
+    assert "| `stops:at=0.4` | 0.12 | - |" in result_tables.assist_population(result)
 
 
 def readme_snippets() -> list[str]:

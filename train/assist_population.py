@@ -2,8 +2,11 @@
 assisted with the recogniser and assisted without skill knowledge (and, with
 ``--residual``, assisted with a learned residual on top; with ``--without PART``, assisted
 with one part of the assistant switched off), with 95 % intervals, on persons drawn by a
-seed (``--set held-out``: one the fitting never saw). ``--sessions FILE`` also keeps every
-judged session: the impairment it drew, the arm and how it ended
+seed (``--set held-out``: one the fitting never saw). Beside each rate, each arm's
+intervention: the mean over the judged sessions of
+:attr:`~ias_gym.assist.sessions.SessionResult.intervention` (the size of the assistant's
+offsets over the operator's own motion). ``--sessions FILE`` also keeps every judged
+session: the impairment it drew, the arm and how it ended
 (:func:`~ias_gym.assist.sessions.session_record`: where a pad came off the pen, the pose
 errors, the lift's height): where the losses of a row sit, and what an arm changes.
 
@@ -22,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 
 import ias_gym  # noqa: F401  (registers the envs)
 from ias_gym.assist.assistance_evaluation import reference_session
@@ -217,11 +221,13 @@ def main(argv: list[str] | None = None) -> int:
     by_skill: dict[str, dict[str, list[bool]]] = {s: {k: [] for k in skills} for s in specs}
     by_family: dict[str, dict[str, dict[str, list[bool]]]] = {s: {} for s in specs}
     excluded = dict.fromkeys(specs, 0)
-    for spec, skill, family, arm, ok, _ in (row for person_rows in rows for row in person_rows):
-        if arm is None:
+    sizes: dict[str, dict[str, list[float]]] = {s: {a: [] for a in arms} for s in specs}
+    for spec, skill, family, arm, ok, record in (r for person_rows in rows for r in person_rows):
+        if arm is None or record is None:
             excluded[spec] += 1
             continue
         outcomes[spec][arm].append(bool(ok))
+        sizes[spec][arm].append(float(record["intervention"]))
         by_family[spec].setdefault(family, {a: [] for a in arms})[arm].append(bool(ok))
         if arm == "assisted":
             by_skill[spec][skill].append(bool(ok))
@@ -238,6 +244,9 @@ def main(argv: list[str] | None = None) -> int:
             spec: {
                 **{arm: rate_json(outcomes[spec][arm]) for arm in arms},
                 "excluded": excluded[spec],
+                "intervention": {
+                    arm: float(np.mean(v)) if v else None for arm, v in sizes[spec].items()
+                },
                 "assisted_by_skill": {k: rate_json(v) for k, v in by_skill[spec].items()},
                 **(
                     {

@@ -291,6 +291,11 @@ PART_NAMES = {
 }
 
 
+def _size(value: float | None) -> str:
+    """An intervention size, or a dash where an arm judged no session."""
+    return "-" if value is None else f"{value:.2f}"
+
+
 def assist_population(result: Mapping[str, Any]) -> str:
     """The observation assistant on population persons: success [95 % interval] per
     impairment spec, unassisted, assisted and without skill knowledge (and with a learned
@@ -318,6 +323,22 @@ def assist_population(result: Mapping[str, Any]) -> str:
         "reference.\n\n"
     )
     table = intro + rows(["impairment", *arms.values(), "left out"], body)
+    helped = [arm for arm in arms if arm != "unassisted"]
+    sized = {
+        s: row["intervention"]
+        for s, row in result["by_impairment"].items()
+        if "intervention" in row
+    }
+    if sized:
+        size_rows = [
+            [f"`{spec}`", *(_size(per_arm.get(arm)) for arm in helped)]
+            for spec, per_arm in sized.items()
+        ]
+        table += (
+            "\nIntervention (the mean over the judged sessions of the size of the assistant's "
+            "offsets over the operator's own motion):\n\n"
+            + rows(["impairment", *(arms[a] for a in helped)], size_rows)
+        )
     specs = [s for s, row in result["by_impairment"].items() if "assisted_by_skill" in row]
     if specs:
         skill_rows = [
