@@ -7,6 +7,7 @@ from __future__ import annotations
 import re
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 from PIL import Image
@@ -166,7 +167,7 @@ def test_a_results_table_follows_its_numbers() -> None:
 def test_the_assistant_population_table_shows_each_arm_s_intervention() -> None:
     outcomes = {"unassisted": 0, "assisted": 3, "no_skill_knowledge": 0}
     row = {arm: rate_json([True] * k + [False] * (4 - k)) for arm, k in outcomes.items()}
-    result = {
+    result: dict[str, Any] = {
         "set": "development",
         "persons": 2,
         "population_seed": 1,
