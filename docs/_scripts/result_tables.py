@@ -22,6 +22,8 @@ JSON in ``docs/``                      written by                          table
                                        ``--without tremor``                ``population.md``
 ``assist_unimpaired_population.json``  ``train/assist_population.py``      ``assist_unimpaired_``
                                                                            ``population.md``
+``assist_redraw_population.json``      ``train/assist_population.py``      ``assist_redraw_``
+                                       ``--sessions``                      ``population.md``
 ``assist_acquisition.json``            ``train/assist_acquisition.py``     ``assist_acquisition.md``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
@@ -867,6 +869,7 @@ def tables(docs: Path) -> dict[str, str]:
         "assist_unimpaired_population.md": assist_population(
             load("assist_unimpaired_population.json")
         ),
+        "assist_redraw_population.md": assist_population(load("assist_redraw_population.json")),
         "assist_acquisition.md": assist_acquisition(load("assist_acquisition.json")),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "pen_skill_bc_robustness.md": pen_skill_bc_robustness(load("pen_skill_bc_results.json")),
