@@ -3,6 +3,7 @@ bad input refused before any work, the rates' intervals."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -114,3 +115,48 @@ def test_the_population_table_refuses_to_replace_a_sessions_file(
     assert table.main([*argv, "--sessions", str(out)]) == 2
     assert "other than --out" in capsys.readouterr().err
     assert sessions.read_text() == "[]" and not out.exists()
+
+
+def _session(person: str, arm: str, success: bool, drawn: str = "lag:s=0.2") -> dict[str, object]:
+    return {
+        "person": person,
+        "spec": "sampled",
+        "drawn": drawn,
+        "skill": "tilt_left",
+        "arm": arm,
+        "success": success,
+        "position_error_mm": 3.5,
+    }
+
+
+def test_the_sessions_of_two_arms_are_set_side_by_side(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    sessions = load_train_script("assist_sessions")
+    records = [
+        _session("a", "assisted", True),
+        _session("a", "without_tremor", False),
+        _session("b", "assisted", False),
+        _session("b", "without_tremor", True),
+        _session("c", "assisted", True, "tremor:hz=5"),
+        _session("c", "without_tremor", True, "tremor:hz=5"),
+        _session("d", "assisted", True),  # judged by one arm only: left out
+    ]
+    result = sessions.compare(records, "assisted", "without_tremor")
+    assert result["counts"]["sampled"] == {
+        "lag": {"sessions": 2, "assisted": 1, "without_tremor": 1},
+        "tremor": {"sessions": 1, "assisted": 1, "without_tremor": 1},
+    }
+    assert [(r["person"], r["arm"]) for r in result["won"]] == [("a", "without_tremor")]
+    assert [(r["person"], r["arm"]) for r in result["lost"]] == [("b", "assisted")]
+    path = tmp_path / "sessions.json"
+    path.write_text(json.dumps(records))
+    assert sessions.main([str(path), "--against", "without_tremor"]) == 0
+    assert "3.50" in capsys.readouterr().out
+    # bad input: one line, exit 2
+    for argv in ([str(tmp_path / "missing.json")], [str(path), "--arm", "residual"]):
+        assert sessions.main(argv) == 2
+        assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    path.write_text('{"not": "a list"}')
+    assert sessions.main([str(path)]) == 2
+    assert "no list of session records" in capsys.readouterr().err
