@@ -29,6 +29,14 @@ def test_a_bare_name_takes_every_default_and_keys_override_them() -> None:
     weak = parse_impairment("weak_grip:fingers=thumb, rad=0.1").families[0]
     assert weak["fingers"] == "thumb" and weak.number("rad") == 0.1
     assert parse_impairment("biased_calibration:rad=-0.05").strength == -0.05
+    # a sign on a value is no join of families
+    assert parse_impairment("biased_calibration:rad=+0.05").strength == 0.05
+    signed = parse_impairment("biased_calibration:rad=+0.05,fingers=index + tremor:hz=5")
+    assert signed.name == "biased_calibration+tremor"
+    assert (
+        signed.family("biased_calibration")
+        == parse_impairment("biased_calibration:rad=0.05,fingers=index").families[0]
+    )
     both = parse_impairment("tremor+weak_grip:rad=0.1")
     assert both.name == "tremor+weak_grip" and both.family("weak_grip") is not None
     assert parse_impairment("none").families == () and parse_impairment("none").strength == 0.0

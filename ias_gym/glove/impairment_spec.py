@@ -8,6 +8,7 @@ from, with the source of the range). A spec string names it::
     tremor:hz=5,amplitude_rad=0.04
     weak_grip:fingers=thumb
     biased_calibration:rad=-0.08,fingers=index
+    biased_calibration:rad=+0.08  # a sign on a value; a + before a name joins families
     tremor+weak_grip:rad=0.1    # a combination: every part applies
     sampled                     # a family and its parameters drawn per session
     none
@@ -22,6 +23,7 @@ the parts.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
@@ -267,6 +269,10 @@ def _family(text: str) -> Family:
     return Family(name, tuple((k, given.get(k, v.default)) for k, v in keys.items()))
 
 
+#: A ``+`` that joins families: one before a family's name, not a value's sign (``rad=+0.1``).
+_JOIN = re.compile(r"\+(?=\s*[A-Za-z_])")
+
+
 def parse_impairment(spec: str) -> Impairment:
     """The impairment a spec names (module docstring).
 
@@ -284,7 +290,7 @@ def parse_impairment(spec: str) -> Impairment:
     text = spec.strip()
     if text in (NONE, SAMPLED):
         return Impairment(text, (), sampled=text == SAMPLED)
-    parts = [p.strip() for p in text.split("+")]
+    parts = [p.strip() for p in _JOIN.split(text)]
     if any(p in (NONE, SAMPLED, ALL) for p in parts):
         raise InputError(f"impairment {spec!r}: {NONE}, {SAMPLED} and {ALL} stand alone")
     families = tuple(_family(p) for p in parts)
