@@ -141,11 +141,14 @@ def test_the_sessions_of_two_arms_are_set_side_by_side(
         _session("c", "assisted", True, "tremor:hz=5"),
         _session("c", "without_tremor", True, "tremor:hz=5"),
         _session("d", "assisted", True),  # judged by one arm only: left out
+        _session("e", "assisted", False, "tremor:hz=5+weak_grip:rad=0.1"),
+        _session("e", "without_tremor", False, "tremor:hz=5+weak_grip:rad=0.1"),
     ]
     result = sessions.compare(records, "assisted", "without_tremor")
     assert result["counts"]["sampled"] == {
         "lag": {"sessions": 2, "assisted": 1, "without_tremor": 1},
         "tremor": {"sessions": 1, "assisted": 1, "without_tremor": 1},
+        "tremor+weak_grip": {"sessions": 1, "assisted": 0, "without_tremor": 0},
     }
     assert [(r["person"], r["arm"]) for r in result["won"]] == [("a", "without_tremor")]
     assert [(r["person"], r["arm"]) for r in result["lost"]] == [("b", "assisted")]

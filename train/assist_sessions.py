@@ -20,6 +20,8 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
+from ias_gym.glove.impairment_spec import parse_impairment
+
 #: What a kept session must hold (``train/assist_population.py``'s records).
 KEYS = ("person", "spec", "drawn", "skill", "arm", "success")
 #: How a lost session ended, in the listing.
@@ -55,7 +57,8 @@ def compare(records: list[dict[str, Any]], arm: str, against: str) -> dict[str, 
         does not, and the other way round, each ``arm``'s or ``against``'s losing record.
 
     Raises:
-        ValueError: an arm that no record has.
+        ValueError: an arm that no record has (an unknown drawn spec:
+            :class:`~ias_gym.errors.InputError`, a ValueError too).
     """
     arms = {r["arm"] for r in records}
     for name in (arm, against):
@@ -70,7 +73,7 @@ def compare(records: list[dict[str, Any]], arm: str, against: str) -> dict[str, 
         if arm not in by_arm or against not in by_arm:
             continue
         mine, theirs = by_arm[arm], by_arm[against]
-        family = str(mine["drawn"]).split(":")[0].split("+")[0]
+        family = parse_impairment(str(mine["drawn"])).name
         row = counts[spec].setdefault(family, {"sessions": 0, arm: 0, against: 0})
         row["sessions"] += 1
         row[arm] += bool(mine["success"])
