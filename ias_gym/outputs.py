@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 import tempfile
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -80,6 +80,29 @@ def check_output_file(
         raise InputError(f"{what} {path}: the directory {parent} does not exist; create it first")
     _probe_writable(parent, f"{what} {path}")
     return path
+
+
+def check_output_files(
+    outputs: Mapping[str, Path | str | None], *, overwrite: bool = False
+) -> dict[str, Path | None]:
+    """:func:`check_output_file` for each of a command's output files, keyed by what names
+    them (``{"--out": ..., "--report": ...}``); an output not asked for (None) stays None.
+
+    Raises:
+        InputError: as :func:`check_output_file`, or two of them are one file.
+        OutputExistsError: as :func:`check_output_file`.
+    """
+    checked: dict[str, Path | None] = {}
+    for what, path in outputs.items():
+        checked[what] = (
+            None if path is None else check_output_file(path, overwrite=overwrite, what=what)
+        )
+    given = [(what, p.resolve()) for what, p in checked.items() if p is not None]
+    for i, (what, path) in enumerate(given):
+        for other, other_path in given[:i]:
+            if path == other_path:
+                raise InputError(f"{what}: give a file other than {other}'s")
+    return checked
 
 
 def prepare_output_dir(

@@ -19,7 +19,7 @@ import ias_gym.figures.wrench_intensities as wrench
 from ias_gym.cli import main
 from ias_gym.errors import InputError
 from ias_gym.evaluation import evaluate_spec, write_video
-from ias_gym.outputs import OutputExistsError
+from ias_gym.outputs import OutputExistsError, check_output_files
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -134,3 +134,18 @@ def test_figure_creates_its_directory_and_refuses_to_overwrite(
     assert main([*argv, "--overwrite"]) == 0
     assert csv.read_text().startswith("t,c1,")
     assert sorted(p.name for p in out.iterdir()) == [csv.name, png.name]
+
+
+def test_a_commands_output_files_are_checked_together(tmp_path: Path) -> None:
+    """Each output is checked as one file is; one not asked for stays None; two options
+    naming one file (even by another spelling) are refused, before anything is written."""
+    out, report = tmp_path / "out.json", tmp_path / "report.json"
+    checked = check_output_files({"--out": out, "--report": None})
+    assert checked == {"--out": out, "--report": None}
+    with pytest.raises(InputError, match="--report: give a file other than --out's"):
+        check_output_files({"--out": out, "--report": tmp_path / "." / "out.json"})
+    report.write_text("{}")
+    with pytest.raises(OutputExistsError):
+        check_output_files({"--out": out, "--report": report})
+    assert check_output_files({"--report": report}, overwrite=True)["--report"] == report
+    assert report.read_text() == "{}" and not out.exists()

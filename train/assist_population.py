@@ -35,17 +35,16 @@ from ias_gym.assist.skill_motions import load_motions
 from ias_gym.envs.glove_assist import OBSERVATION_PARTS
 from ias_gym.envs.layout import observation_layout
 from ias_gym.errors import InputError
-from ias_gym.glove.impairment_spec import expand_specs
+from ias_gym.glove.impairment_spec import expand_specs, parse_impairment
 from ias_gym.glove.impairments import reference_kwargs
 from ias_gym.glove.operator import OPERATORS
 from ias_gym.glove.population import population_ids
-from ias_gym.outputs import atomic_output, check_output_file
+from ias_gym.outputs import atomic_output, check_output_files
 from ias_gym.rates import SET_KINDS, rate_json
 from ias_gym.runtime.jobs import Backend, run_jobs
 
 ARMS = ("unassisted", "assisted", "no_skill_knowledge")
 #: One session's ``(spec, skill, drawn family, arm, success, record)`` (:class:`PersonJob`).
-Row = tuple[str, str, str, str | None, bool | None, dict[str, Any] | None]
 #: The arm of a learned residual on the assistant (``--residual``).
 RESIDUAL_ARM = "residual"
 
@@ -65,10 +64,9 @@ def arms_of(residual: str | None, without: tuple[str, ...] = ()) -> tuple[str, .
 class PersonJob:
     """A picklable job: one person's sessions, every spec, skill and arm.
 
-    Returns rows ``(spec, skill, family, arm, success, record)`` with ``family`` the
-    impairment the session drew (``sampled``: one family) and ``record`` the session's
-    :func:`~ias_gym.assist.sessions.session_record` with the person and the drawn spec;
-    ``(spec, skill, family, None, None, None)`` for a session without a reference."""
+    Returns every judged session's :func:`~ias_gym.assist.sessions.session_record` with the
+    person, the spec, the spec the session drew (``sampled``: one family's), the skill and
+    the arm; and the spec of each session left out for want of a reference."""
 
     specs: tuple[str, ...]
     skills: tuple[str, ...]
@@ -78,7 +76,7 @@ class PersonJob:
     residual: str | None = None
     without: tuple[str, ...] = ()
 
-    def __call__(self, person: str) -> list[Row]:
+    def __call__(self, person: str) -> tuple[list[dict[str, Any]], list[str]]:
         layout = observation_layout(OBSERVATION_PARTS)
         assistants: dict[str, Any] = {
             "assisted": make_assistant(self.db, recogniser="phase", layout=layout),
@@ -95,7 +93,8 @@ class PersonJob:
 
             assistants[RESIDUAL_ARM] = ObservationResidualAssistant.load(self.residual, self.db)
         references: dict[tuple[str, str], Any] = {}
-        rows: list[Row] = []
+        records: list[dict[str, Any]] = []
+        unjudged: list[str] = []
         for spec in self.specs:
             for skill in self.skills:
                 env = gym.make(
@@ -114,20 +113,21 @@ class PersonJob:
                     )
                 ref = references[key]
                 if ref is None:
-                    rows.append((spec, skill, drawn.name, None, None, None))
+                    unjudged.append(spec)
                 for arm in arms if ref is not None else ():
                     result = run_session(env, assistants.get(arm), self.reset_seed)
-                    record = {
-                        "person": person,
-                        "spec": spec,
-                        "drawn": drawn.spec,
-                        "skill": skill,
-                        "arm": arm,
-                        **session_record(result, ref),
-                    }
-                    rows.append((spec, skill, drawn.name, arm, record["success"], record))
+                    records.append(
+                        {
+                            "person": person,
+                            "spec": spec,
+                            "drawn": drawn.spec,
+                            "skill": skill,
+                            "arm": arm,
+                            **session_record(result, ref),
+                        }
+                    )
                 env.close()
-        return rows
+        return records, unjudged
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -186,22 +186,17 @@ def main(argv: list[str] | None = None) -> int:
             print(f"--residual: {exc}", file=sys.stderr)
             return 2
     try:
-        out = check_output_file(args.out, overwrite=args.overwrite, what="--out")
-        sessions_out = (
-            check_output_file(args.sessions, overwrite=args.overwrite, what="--sessions")
-            if args.sessions
-            else None
+        outputs = check_output_files(
+            {"--out": args.out, "--sessions": args.sessions}, overwrite=args.overwrite
         )
     except InputError as exc:
         print(exc, file=sys.stderr)
         return 2
-    if sessions_out is not None and sessions_out.resolve() == out.resolve():
-        print("--sessions: give a file other than --out", file=sys.stderr)
-        return 2
+    out, sessions_out = Path(args.out), outputs["--sessions"]
     specs = expand_specs(args.impairment or ["none", "stops:at=0.4"])
     persons = population_ids(args.persons, args.seed)
     skills = sorted(load_motions(args.db))  # the skills with a motion of their own
-    rows = run_jobs(
+    per_person = run_jobs(
         PersonJob(
             tuple(specs),
             tuple(skills),
@@ -222,15 +217,17 @@ def main(argv: list[str] | None = None) -> int:
     by_family: dict[str, dict[str, dict[str, list[bool]]]] = {s: {} for s in specs}
     excluded = dict.fromkeys(specs, 0)
     sizes: dict[str, dict[str, list[float]]] = {s: {a: [] for a in arms} for s in specs}
-    for spec, skill, family, arm, ok, record in (r for person_rows in rows for r in person_rows):
-        if arm is None or record is None:
-            excluded[spec] += 1
-            continue
-        outcomes[spec][arm].append(bool(ok))
-        sizes[spec][arm].append(float(record["intervention"]))
-        by_family[spec].setdefault(family, {a: [] for a in arms})[arm].append(bool(ok))
+    records = [r for person_records, _ in per_person for r in person_records]
+    for spec in (s for _, unjudged in per_person for s in unjudged):
+        excluded[spec] += 1
+    for r in records:
+        spec, arm, ok = r["spec"], r["arm"], bool(r["success"])
+        family = parse_impairment(r["drawn"]).name
+        outcomes[spec][arm].append(ok)
+        sizes[spec][arm].append(float(r["intervention"]))
+        by_family[spec].setdefault(family, {a: [] for a in arms})[arm].append(ok)
         if arm == "assisted":
-            by_skill[spec][skill].append(bool(ok))
+            by_skill[spec][r["skill"]].append(ok)
     table = {
         "set": args.set,
         "persons": args.persons,
@@ -265,7 +262,6 @@ def main(argv: list[str] | None = None) -> int:
     with atomic_output(Path(out), overwrite=args.overwrite) as tmp:
         tmp.write_text(json.dumps(table, indent=2) + "\n")
     if sessions_out is not None:
-        records = [row[5] for person_rows in rows for row in person_rows if row[5] is not None]
         with atomic_output(Path(sessions_out), overwrite=args.overwrite) as tmp:
             tmp.write_text(json.dumps(records, indent=1) + "\n")
     print(json.dumps(table["by_impairment"], indent=2))

@@ -48,7 +48,7 @@ from ias_gym.errors import InputError
 from ias_gym.glove.impairment_spec import FAMILIES
 from ias_gym.glove.impairments import session_rng
 from ias_gym.glove.population import population_ids
-from ias_gym.outputs import atomic_output, check_output_file
+from ias_gym.outputs import atomic_output, check_output_files
 from ias_gym.rates import Rate
 from ias_gym.runtime.jobs import Backend, run_jobs
 
@@ -157,15 +157,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"--persons {args.persons} cannot fill {args.folds} folds", file=sys.stderr)
         return 2
     try:  # before any work
-        out = check_output_file(args.out, overwrite=args.overwrite, what="--out")
-        report_path = (
-            check_output_file(args.report, overwrite=args.overwrite, what="--report")
-            if args.report
-            else None
+        outputs = check_output_files(
+            {"--out": args.out, "--report": args.report}, overwrite=args.overwrite
         )
     except InputError as exc:
         print(str(exc), file=sys.stderr)
         return 2
+    out, report_path = Path(args.out), outputs["--report"]
     persons = population_ids(args.persons, args.seed)
     # the defaults of what is not fitted here, never a former stop fit's values; the fields
     # train/fit_assist_field.py fits are kept from the file
