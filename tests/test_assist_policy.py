@@ -187,6 +187,9 @@ def test_parameter_files_are_checked(tmp_path: Path) -> None:
     good = tmp_path / "params.json"
     AssistParams(stop_ratio=0.3).save(good)
     assert AssistParams.load(good).stop_ratio == 0.3
+    off = tmp_path / "off.json"
+    off.write_text(json.dumps({"tremor_floor_rad": 0}))
+    assert AssistParams.load(off).tremor_floor_rad == 0  # 0 switches detection off
     with pytest.raises(FileExistsError):
         AssistParams().save(good)
     for text, match in (
@@ -195,6 +198,8 @@ def test_parameter_files_are_checked(tmp_path: Path) -> None:
         (json.dumps({"tremor_trend_degree": 2.5}), "not valid"),
         (json.dumps({"tremor_trend_degree": 0}), "not valid"),
         (json.dumps({"tremor_trend_degree": True}), "not valid"),
+        (json.dumps({"tremor_floor_rad": -0.01}), "not valid"),
+        (json.dumps({"stop_ratio": 0}), "not valid"),
         (json.dumps({"exec": 1}), "keys"),
     ):
         bad = tmp_path / "bad.json"
@@ -205,3 +210,12 @@ def test_parameter_files_are_checked(tmp_path: Path) -> None:
         AssistParams.load(tmp_path / "missing.json")
     with pytest.raises(InputError, match="recogniser"):
         make_assistant(recogniser="psychic")
+
+
+def test_the_detection_ablation_notches_every_operator() -> None:
+    params = AssistParams(tremor_floor_rad=0.01)
+    with_it = make_assistant(recogniser="none", params=params)
+    without = make_assistant(recogniser="none", params=params, detection=False)
+    assert with_it.tremor is not None and with_it.tremor.floor_rad == 0.01
+    assert without.tremor is not None and without.tremor.floor_rad == 0.0
+    assert without.params.tremor_floor_rad == 0.0 and params.tremor_floor_rad == 0.01

@@ -196,3 +196,31 @@ def test_a_window_under_a_slow_tremors_period_takes_a_straight_line() -> None:
     short = round(0.9 / TREMOR_BAND[0] / DT)  # under one period of the slowest tremor
     assert trend_basis(short, DT, 5).shape == (short, 2)
     assert trend_basis(100, DT, 5).shape == (100, 6)
+
+
+def test_a_line_above_the_floor_is_notched_from_the_first_window() -> None:
+    """Detection: a weak 12 Hz tremor (0.015 rad on 4 joints: a line of 0.03 rad) on the
+    see-saw is notched out as without detection, from the first window on."""
+    x = VOLUNTARY + _tremor(12.0, 0.015)
+    gated, always = TremorCanceller(DT, 0.2, floor_rad=0.01), TremorCanceller(DT, 0.2)
+    np.testing.assert_array_equal(_run(gated, x), _run(always, x))
+    assert gated.engaged
+
+
+def test_a_weak_line_is_left_alone_and_a_fading_tremor_released() -> None:
+    """An operator's own line is weak: below the floor (0.004 rad on 4 joints is a line of
+    0.008 rad) the targets pass untouched. A tremor that stops half way is notched while it
+    lasts, and the targets pass untouched again a second after it stopped (the line's
+    window is a second long). The quintic beside the line, as the shipped assistant's: a
+    straight line leaves the see-saw's onset to a 4 Hz line of about 0.01 rad."""
+    weak = VOLUNTARY + _tremor(8.0, 0.004)
+    c = TremorCanceller(DT, 0.2, trend_degree=5, floor_rad=0.01)
+    np.testing.assert_array_equal(_run(c, weak), weak)
+    stop = len(T) // 2
+    fading = VOLUNTARY + _tremor(8.0, 0.02) * (np.arange(len(T)) < stop)[:, None]
+    out = _run(c, fading)
+    assert np.abs(out[stop - 50 : stop] - fading[stop - 50 : stop]).max() > 0.005
+    after = stop + round(1.2 / DT)
+    np.testing.assert_array_equal(out[after:], fading[after:])
+    with pytest.raises(ValueError, match="floor"):
+        TremorCanceller(DT, 0.2, floor_rad=-0.01)

@@ -44,13 +44,12 @@ from ias_gym.rates import SET_KINDS, rate_json
 from ias_gym.runtime.jobs import Backend, run_jobs
 
 ARMS = ("unassisted", "assisted", "no_skill_knowledge")
-#: One session's ``(spec, skill, drawn family, arm, success, record)`` (:class:`PersonJob`).
 #: The arm of a learned residual on the assistant (``--residual``).
 RESIDUAL_ARM = "residual"
 
 
 #: The assistant's parts an ablation arm switches off (``make_assistant``'s switches).
-PARTS = ("pads", "tremor", "completion")
+PARTS = ("pads", "tremor", "completion", "detection")
 
 
 def arms_of(residual: str | None, without: tuple[str, ...] = ()) -> tuple[str, ...]:

@@ -1,6 +1,6 @@
 """Fit one of the observation assistant's fields on development persons, by what it is for.
 
-Four fields of :class:`~ias_gym.assist.motion_completion.AssistParams` are fitted this way,
+Five fields of :class:`~ias_gym.assist.motion_completion.AssistParams` are fitted this way,
 each against the impairment family it is for (``--field``):
 
 - ``tremor_window_s``: the tremor canceller (:class:`~ias_gym.assist.tremor.TremorCanceller`)
@@ -17,6 +17,11 @@ each against the impairment family it is for (``--field``):
   closed (:class:`~ias_gym.assist.pad_contact.PadKeeper`). A slow close lets the pen go in
   the lift, a fast one pushes it. Judged with a weak grip or a biased calibration (equally
   likely), ``rad`` and ``fingers`` drawn from the families' sample ranges.
+- ``tremor_floor_rad``: the least amplitude of a line that the canceller takes for a
+  tremor (0: no detection, the notch on every operator). A low floor notches an
+  operator without a tremor too, whose voluntary motion the notch delays (a lagged
+  operator's most); a high one misses a weak tremor. Judged with a tremor drawn as for
+  ``tremor_window_s`` or a lag (``s`` from the family's sample range), equally likely.
 - ``sight_gain``: once a completed motion is done, the rate at which the assistant brings
   the pen's height to where the skill's demonstrations leave it. A slow hold leaves the
   pen where the stopped operator left it, a fast one overshoots. Judged with
@@ -59,11 +64,11 @@ from ias_gym.assist.motion_completion import PARAMS_PATH, AssistParams
 from ias_gym.assist.policy import make_assistant
 from ias_gym.assist.sessions import run_session, session_success
 from ias_gym.errors import InputError
-from ias_gym.glove.impairment_spec import FAMILIES
+from ias_gym.glove.impairment_spec import FAMILIES, parse_impairment
 from ias_gym.glove.impairments import session_rng
 from ias_gym.glove.population import population_ids
 from ias_gym.glove.skills import SKILLS
-from ias_gym.outputs import atomic_output, check_output_file
+from ias_gym.outputs import atomic_output, check_output_files
 from ias_gym.rates import rate_json
 from ias_gym.runtime.jobs import Backend, run_jobs
 
@@ -87,6 +92,22 @@ def drawn_stop(person: str, skill: str) -> str:
     family's sample range, reproducibly per person and skill."""
     lo, hi = (float(v) for v in FAMILIES["stops"]["at"].sample)
     return f"stops:at={float(session_rng('fit-stops', person, skill).uniform(lo, hi)):.3f}"
+
+
+#: The families a detection session draws from (:func:`drawn_shake`).
+SHAKE_FAMILIES = ("tremor", "lag")
+
+
+def drawn_shake(person: str, skill: str) -> str:
+    """The spec of ``person``'s ``skill`` session for the tremor's detection: a tremor as
+    :func:`drawn_tremor` or a lag (``s`` drawn uniformly from the family's sample range,
+    whose operator the notch's phase lag costs most), equally likely, reproducibly per
+    person and skill."""
+    rng = session_rng("fit-shake", person, skill)
+    if SHAKE_FAMILIES[int(rng.integers(len(SHAKE_FAMILIES)))] == "tremor":
+        return drawn_tremor(person, skill)
+    lo, hi = (float(v) for v in FAMILIES["lag"]["s"].sample)
+    return f"lag:s={float(rng.uniform(lo, hi)):.3f}"
 
 
 #: The families a grip session draws from (:func:`drawn_grip`).
@@ -123,6 +144,11 @@ FIELDS = {
     # a straight line to a quintic: a second of voluntary motion below 2 Hz has at most 4
     # extrema, as a quintic; a higher degree reaches toward the tremor band [-]
     "tremor_trend_degree": Field("tremor", drawn_tremor, (1.0, 3.0, 5.0)),
+    # from no detection (0) to the strongest line an unimpaired operator's targets show
+    # (0.02 rad, measured in docs/assistance.md) [rad]
+    "tremor_floor_rad": Field(
+        "shake", drawn_shake, (0.0, 0.01, 0.015, 0.02), families=SHAKE_FAMILIES
+    ),
     # time constants from 0.67 s down to 0.08 s, about a person's visual delay [1/s]
     "sight_gain": Field("stops", drawn_stop, (1.5, 3.0, 6.0, 12.0)),
     # from under half the speed at which the library's pinches close the index (about
@@ -229,8 +255,10 @@ def main(argv: list[str] | None = None) -> int:
         grid = tuple(float(w) for w in args.grid.split(",")) if args.grid else field.grid
     except ValueError:
         grid = ()
-    if not grid or not all(w > 0 for w in grid):
-        print(f"--grid {args.grid} must be comma-separated numbers > 0", file=sys.stderr)
+    least = 0.0 if args.field in AssistParams.may_be_zero() else None
+    if not grid or not all(w > 0 or w == least for w in grid):
+        sign = ">= 0" if least is not None else "> 0"
+        print(f"--grid {args.grid} must be comma-separated numbers {sign}", file=sys.stderr)
         return 2
     try:
         if args.db is not None and not Path(args.db).is_file():
@@ -239,8 +267,8 @@ def main(argv: list[str] | None = None) -> int:
             field_value(args.field, w)
         if args.persons < args.folds:
             raise InputError(f"--persons {args.persons} cannot fill {args.folds} folds")
-        report = check_output_file(args.report, overwrite=args.overwrite, what="--report")
-        out = check_output_file(args.out, overwrite=args.overwrite, what="--out")
+        check_output_files({"--report": args.report, "--out": args.out}, overwrite=args.overwrite)
+        report, out = Path(args.report), Path(args.out)
         base = AssistParams.load(out)
     except InputError as exc:
         print(str(exc), file=sys.stderr)
@@ -254,16 +282,21 @@ def main(argv: list[str] | None = None) -> int:
         progress=True,
     )
     outcomes: dict[float, list[tuple[int, bool, int]]] = {w: [] for w in grid}
+    # each value's impaired sessions by the family they drew (a field judged with several)
+    by_family: dict[float, dict[str, list[bool]]] = {w: {} for w in grid}
     alone: list[bool] = []
     excluded = 0
     for index, rows in enumerate(per_person):
-        for _skill, kind, value, success in rows:
+        for skill, kind, value, success in rows:
             if kind < 0:
                 excluded += 1
             elif value is None:
                 alone.append(success)
             else:
                 outcomes[value].append((kind, success, index))
+                if kind == IMPAIRED:
+                    family = parse_impairment(field.draw(persons[index], skill)).name
+                    by_family[value].setdefault(family, []).append(success)
     folds = np.arange(len(persons)) % args.folds
     held: dict[int, list[bool]] = {UNIMPAIRED: [], IMPAIRED: []}
     for fold in range(args.folds):
@@ -294,8 +327,15 @@ def main(argv: list[str] | None = None) -> int:
         },
         "grid": {
             str(w): {
-                name: rate_json([s for k, s, _ in rows if k == kind])
-                for name, kind in (("unimpaired", UNIMPAIRED), (field.family, IMPAIRED))
+                **{
+                    name: rate_json([s for k, s, _ in rows if k == kind])
+                    for name, kind in (("unimpaired", UNIMPAIRED), (field.family, IMPAIRED))
+                },
+                **(
+                    {"by_family": {f: rate_json(v) for f, v in sorted(by_family[w].items())}}
+                    if len(field.families) > 1
+                    else {}
+                ),
             }
             for w, rows in outcomes.items()
         },

@@ -72,6 +72,9 @@ class AssistParams:
         tremor_trend_degree: the degree of the polynomial the canceller fits beside the
             tremor's line, the voluntary motion's part of its window [-]
             (:func:`~ias_gym.assist.tremor.sinusoid_line`; ``train/fit_assist_field.py``).
+        tremor_floor_rad: the least amplitude of a persisting line of the tremor band that
+            the canceller takes for a tremor [rad]; 0: no detection, every line is notched
+            (:class:`~ias_gym.assist.tremor.TremorCanceller`; ``train/fit_assist_field.py``).
         sight_gain: once a completed motion is done, the rate [1/s] at which the assistant
             brings the pen to where the operator's version of the skill leaves it, as the
             person would by sight: its height to the demonstrations'
@@ -93,6 +96,7 @@ class AssistParams:
     min_remaining_rad: float = 0.05
     tremor_window_s: float = 0.5
     tremor_trend_degree: int = 1
+    tremor_floor_rad: float = 0.0
     sight_gain: float = 3.0
     pad_close_rate: float = 0.5
     fitted_on: str = "defaults"
@@ -101,6 +105,11 @@ class AssistParams:
     def integer_fields(cls) -> frozenset[str]:
         """The fields that take whole numbers (declared ``int``)."""
         return frozenset(f.name for f in dataclasses.fields(cls) if f.type in (int, "int"))
+
+    @classmethod
+    def may_be_zero(cls) -> frozenset[str]:
+        """The fields a 0 switches off."""
+        return frozenset({"tremor_floor_rad"})
 
     @classmethod
     def load(cls, path: str | Path = PARAMS_PATH) -> AssistParams:
@@ -127,6 +136,8 @@ class AssistParams:
                 ok = isinstance(value, str)
             elif key in integers:
                 ok = isinstance(value, int) and not isinstance(value, bool) and value >= 1
+            elif key in cls.may_be_zero():
+                ok = _positive(value) or value == 0
             else:
                 ok = _positive(value)
             if not ok:

@@ -65,6 +65,7 @@ persons by ``train/fit_assistant.py`` and stored in ``ias_gym/assets/assistant_p
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -178,7 +179,10 @@ class ObservationAssistant:
         self.completion = completion
         self.tremor = (
             TremorCanceller(
-                self.dt, params.tremor_window_s, trend_degree=params.tremor_trend_degree
+                self.dt,
+                params.tremor_window_s,
+                trend_degree=params.tremor_trend_degree,
+                floor_rad=params.tremor_floor_rad,
             )
             if tremor
             else None
@@ -349,8 +353,9 @@ def make_assistant(
         params: the thresholds, or a JSON file of them (default: the fitted ones).
         control_dt, action_scale: the env's (``env.unwrapped.config``).
         layout: the env's observation layout.
-        **switches: ``completion``, ``tremor``, ``pads`` (ablations: False switches the
-            part off).
+        **switches: ``completion``, ``tremor``, ``pads``, ``detection`` (ablations: False
+            switches the part off; without ``detection`` the tremor canceller notches every
+            operator, ``tremor_floor_rad`` 0).
 
     Raises:
         InputError: an unknown recogniser, a missing library or parameter file.
@@ -369,6 +374,8 @@ def make_assistant(
     if params is None or isinstance(params, str | Path):
         params = AssistParams.load(params if params is not None else PARAMS_PATH)
     closing = pinch_closing(path) if switches.pop("pads", True) else None
+    if not switches.pop("detection", True):
+        params = dataclasses.replace(params, tremor_floor_rad=0.0)
     return ObservationAssistant(
         motions,
         rec,

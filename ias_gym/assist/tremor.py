@@ -27,9 +27,19 @@ which joints shake or whether the operator has a tremor at all:
    is the notched targets less the targets. ``window_s`` is fitted by
    ``train/fit_assist_field.py`` (:class:`~ias_gym.assist.motion_completion.AssistParams`).
 
-There is no detection: an operator without a tremor gets the notch too, at whatever line
-their targets have. What that costs is the notch's phase lag on their voluntary motion,
-bounded by its width :data:`NOTCH_WIDTH_HZ`: at most 15 deg at 1.5 Hz under a 4 Hz notch
+3. **Detection** (``floor_rad`` > 0). The offset is applied only while the line, at its
+   last retune, is at least ``floor_rad`` strong (the norm over the joints): a tremor's line
+   is strong, the line an operator without one shows is weak. The notch runs on in between,
+   its state kept, so that a line that grows again is cancelled at once. ``floor_rad`` is
+   fitted by ``train/fit_assist_field.py --field tremor_floor_rad`` against unimpaired,
+   lagged and tremor sessions together; 0 switches detection off. Asking the line to stay at
+   one frequency over two retunes as well was measured and not kept: in a window still
+   filling, a strong tremor's frequency estimate moves by more than a notch's tolerance, and
+   the notch started 0.2-0.4 s later, after the pinch had closed with the tremor in it.
+
+Without detection an operator without a tremor gets the notch too, at whatever line their
+targets have. What that costs is the notch's phase lag on their voluntary motion, bounded
+by its width :data:`NOTCH_WIDTH_HZ`: at most 15 deg at 1.5 Hz under a 4 Hz notch
 (:func:`notch_phase_deg`; about 25 ms), less for higher ones.
 """
 
@@ -146,16 +156,28 @@ class TremorCanceller:
         joints: how many joints the targets have.
         trend_degree: the degree of the voluntary motion's polynomial beside the line
             (:func:`sinusoid_line`).
+        floor_rad: the least amplitude of a line that counts as a tremor [rad] (module
+            docstring, 3.); 0: no detection, every line is notched.
 
     Raises:
-        ValueError: a step too long to see the tremor band, or a window shorter than 4
-            steps.
+        ValueError: a step too long to see the tremor band, a window shorter than 4 steps,
+            or a negative floor.
     """
 
-    def __init__(self, dt: float, window_s: float, joints: int = 10, trend_degree: int = 1) -> None:
+    def __init__(
+        self,
+        dt: float,
+        window_s: float,
+        joints: int = 10,
+        trend_degree: int = 1,
+        floor_rad: float = 0.0,
+    ) -> None:
         self.dt = float(dt)
         self.joints = int(joints)
         self.trend_degree = int(trend_degree)
+        self.floor_rad = float(floor_rad)
+        if not self.floor_rad >= 0.0:
+            raise ValueError(f"a floor of {floor_rad} rad is not >= 0")
         self.window = round(float(window_s) / self.dt)
         fs = 1.0 / self.dt
         if TREMOR_BAND[1] >= fs / 2:
@@ -180,6 +202,9 @@ class TremorCanceller:
         self.frequency_hz: float | None = None
         #: ... and the line's amplitude there when it was last tuned [rad].
         self.amplitude_rad = 0.0
+        #: Whether the offset is applied: the line is strong enough (always, without
+        #: detection).
+        self.engaged = False
 
     def update(self, theta: FloatArray) -> FloatArray:
         """Take the operator's targets ``(joints,)`` [rad]; return the offset that cancels
@@ -196,6 +221,7 @@ class TremorCanceller:
             if line is None:
                 line = tremor_line(np.asarray(self._recent), self.dt)
             self.frequency_hz, self.amplitude_rad = line
+            self.engaged = self.amplitude_rad >= self.floor_rad
             b, a = iirnotch(self.frequency_hz, self.frequency_hz / NOTCH_WIDTH_HZ, fs=1.0 / self.dt)
             self._notch = tf2sos(b, a)
             self._since_tuned = 0
@@ -204,5 +230,7 @@ class TremorCanceller:
         if self._notch is None or self._notch_state is None:
             return np.zeros(self.joints)
         y, self._notch_state = sosfilt(self._notch, x[None, :], axis=0, zi=self._notch_state)
+        if not self.engaged:
+            return np.zeros(self.joints)
         out: FloatArray = y[0] - x
         return out
