@@ -24,6 +24,8 @@ JSON in ``docs/``                      written by                          table
                                                                            ``population.md``
 ``assist_redraw_population.json``      ``train/assist_population.py``      ``assist_redraw_``
                                        ``--sessions``                      ``population.md``
+``assist_detection_population.json``   ``train/assist_population.py``      ``assist_detection_``
+                                       ``--without detection``             ``population.md``
 ``assist_acquisition.json``            ``train/assist_acquisition.py``     ``assist_acquisition.md``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
@@ -290,6 +292,7 @@ PART_NAMES = {
     "pads": "the pad keeping",
     "tremor": "the tremor canceller",
     "completion": "the completion",
+    "detection": "the tremor's detection",
 }
 
 
@@ -870,6 +873,9 @@ def tables(docs: Path) -> dict[str, str]:
             load("assist_unimpaired_population.json")
         ),
         "assist_redraw_population.md": assist_population(load("assist_redraw_population.json")),
+        "assist_detection_population.md": assist_population(
+            load("assist_detection_population.json")
+        ),
         "assist_acquisition.md": assist_acquisition(load("assist_acquisition.json")),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "pen_skill_bc_robustness.md": pen_skill_bc_robustness(load("pen_skill_bc_results.json")),
