@@ -13,8 +13,8 @@ are the hand's ``joint_angles`` less the assistant's own last offset.
 Every step:
 
 0. **Tremor.** :class:`~ias_gym.assist.tremor.TremorCanceller` notches the strongest line
-   of the tremor band (4-12 Hz) out of the operator's targets, and what follows reads the
-   targets without it.
+   of the tremor band (4-12 Hz) out of the operator's targets where it is strong enough to
+   be a tremor (``tremor_floor_rad``), and what follows reads the targets without it.
 1. **Recognition.** The observation becomes a
    :class:`~ias_gym.assist.stream.SessionFrame` (:func:`frame_from_observation`) and the
    recogniser (:mod:`ias_gym.assist.recognition`) updates its posterior ``p_k`` over the
