@@ -72,8 +72,8 @@ class AssistParams:
         tremor_trend_degree: the degree of the polynomial the canceller fits beside the
             tremor's line, the voluntary motion's part of its window [-]
             (:func:`~ias_gym.assist.tremor.sinusoid_line`; ``train/fit_assist_field.py``).
-        tremor_floor_rad: the least amplitude of a persisting line of the tremor band that
-            the canceller takes for a tremor [rad]; 0: no detection, every line is notched
+        tremor_floor_rad: the least amplitude of a line of the tremor band that the
+            canceller takes for a tremor [rad]; 0: no detection, every line is notched
             (:class:`~ias_gym.assist.tremor.TremorCanceller`; ``train/fit_assist_field.py``).
         sight_gain: once a completed motion is done, the rate [1/s] at which the assistant
             brings the pen to where the operator's version of the skill leaves it, as the
