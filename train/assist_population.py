@@ -258,10 +258,10 @@ def main(argv: list[str] | None = None) -> int:
             for spec in specs
         },
     }
-    with atomic_output(Path(out), overwrite=args.overwrite) as tmp:
+    with atomic_output(out, overwrite=args.overwrite) as tmp:
         tmp.write_text(json.dumps(table, indent=2) + "\n")
     if sessions_out is not None:
-        with atomic_output(Path(sessions_out), overwrite=args.overwrite) as tmp:
+        with atomic_output(sessions_out, overwrite=args.overwrite) as tmp:
             tmp.write_text(json.dumps(records, indent=1) + "\n")
     print(json.dumps(table["by_impairment"], indent=2))
     return 0

@@ -161,8 +161,9 @@ FIELDS = {
 
 @dataclass(frozen=True)
 class PersonJob:
-    """A picklable job: one person's sessions. Rows ``(skill, kind, value, success)``;
-    ``value`` None for the operator alone, ``kind`` -1 for a pair without a reference."""
+    """A picklable job: one person's sessions. Rows ``(spec, kind, value, success)`` with
+    ``spec`` the session's impairment (``none`` unimpaired, else the drawn one); ``value``
+    None for the operator alone, ``kind`` -1 for a pair without a reference."""
 
     field: str
     grid: tuple[float, ...]
@@ -172,23 +173,23 @@ class PersonJob:
     def __call__(self, person: str) -> list[tuple[str, int, float | None, bool]]:
         rows: list[tuple[str, int, float | None, bool]] = []
         for skill in SKILLS:
+            drawn = FIELDS[self.field].draw(person, skill)
             reference = reference_session(person, skill, 0)
             if reference is None:
-                rows.append((skill, -1, None, False))
+                rows.append((drawn, -1, None, False))
                 continue
-            drawn = FIELDS[self.field].draw(person, skill)
             for kind, spec in ((UNIMPAIRED, "none"), (IMPAIRED, drawn)):
                 env = gym.make("IAS-GloveAssist-v0", person_id=person, skill=skill, impairment=spec)
                 layout = env.unwrapped.observation_layout  # type: ignore[attr-defined]
                 if kind == IMPAIRED:
                     alone = run_session(env, None, 0)
-                    rows.append((skill, kind, None, session_success(alone, reference)))
+                    rows.append((spec, kind, None, session_success(alone, reference)))
                 for value in self.grid:
                     changes: dict[str, Any] = {self.field: field_value(self.field, value)}
                     params = dataclasses.replace(self.base, **changes)
                     assistant = make_assistant(self.db, "phase", params=params, layout=layout)
                     result = run_session(env, assistant, 0)
-                    rows.append((skill, kind, value, session_success(result, reference)))
+                    rows.append((spec, kind, value, session_success(result, reference)))
                 env.close()
         return rows
 
@@ -287,7 +288,7 @@ def main(argv: list[str] | None = None) -> int:
     alone: list[bool] = []
     excluded = 0
     for index, rows in enumerate(per_person):
-        for skill, kind, value, success in rows:
+        for spec, kind, value, success in rows:
             if kind < 0:
                 excluded += 1
             elif value is None:
@@ -295,7 +296,7 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 outcomes[value].append((kind, success, index))
                 if kind == IMPAIRED:
-                    family = parse_impairment(field.draw(persons[index], skill)).name
+                    family = parse_impairment(spec).name
                     by_family[value].setdefault(family, []).append(success)
     folds = np.arange(len(persons)) % args.folds
     held: dict[int, list[bool]] = {UNIMPAIRED: [], IMPAIRED: []}
@@ -341,7 +342,7 @@ def main(argv: list[str] | None = None) -> int:
         },
         "sessions": {str(w): rows for w, rows in outcomes.items()},
     }
-    with atomic_output(Path(report), overwrite=args.overwrite) as tmp:
+    with atomic_output(report, overwrite=args.overwrite) as tmp:
         tmp.write_text(json.dumps(summary, indent=2) + "\n")
     fitted.save(out, overwrite=args.overwrite)
     print(json.dumps(summary, indent=2))
