@@ -39,6 +39,7 @@ from ias_gym.assist.assistance_evaluation import (
     switch_latency,
 )
 from ias_gym.assist.assistants import AnalyticAssistant
+from ias_gym.assist.intent_switches import SWITCH_PAIRS, SWITCH_TIME
 from ias_gym.assist.skill_templates import load_templates
 from ias_gym.errors import InputError
 from ias_gym.glove.impairments import DEFAULT_STRENGTHS, IMPAIRMENTS
@@ -48,13 +49,6 @@ from ias_gym.glove.skills import SKILLS
 from ias_gym.outputs import atomic_output
 from ias_gym.rates import SET_KINDS
 from ias_gym.runtime.jobs import Backend, run_jobs
-
-#: (from, to) skill pairs of the intent-switch measurement.
-SWITCH_PAIRS = [
-    ("lift_hold", "tilt_left"),
-    ("seesaw_slow", "tilt_right"),
-    ("tilt_left", "lift_place"),
-]
 
 
 def _seconds(value: float | None) -> str:
@@ -129,7 +123,7 @@ class PersonJob:
                 operator=self.operator,
             )
             latencies[name] = switch_latency(
-                make, [person], SWITCH_PAIRS, self.switch_time, self.seed, self.operator
+                make, [person], list(SWITCH_PAIRS), self.switch_time, self.seed, self.operator
             )
         return scores, latencies
 
@@ -155,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--recogniser", default="oracle", help="oracle, dtw or phase")
     parser.add_argument("--strength", type=float, default=None, help="override (one impairment)")
-    parser.add_argument("--switch-time", type=float, default=2.2, help="episode time [s]")
+    parser.add_argument("--switch-time", type=float, default=SWITCH_TIME, help="episode time [s]")
     parser.add_argument(
         "--operator",
         choices=OPERATORS,

@@ -5,8 +5,11 @@ Records (once; reused when the databases exist) a library of glove sessions of
 ``--library-persons`` development persons (drawn with ``--library-seed``) and one session per
 skill of ``--persons`` evaluation persons (drawn with ``--population-seed``; say with ``--set``
 whether the method was tuned on them), evaluates both recognisers side by side
-(:mod:`ias_gym.assist.metrics`), measures how many demonstrations of a skill the library did
-not know it takes to recognise it after on-line acquisition, and writes a markdown table, a
+(:mod:`ias_gym.assist.metrics`), records each evaluation person switching between the skills
+of :data:`~ias_gym.assist.intent_switches.SWITCH_PAIRS` at ``--switch-time`` and measures
+how the recognisers follow them (:mod:`ias_gym.assist.intent_switches`), measures how many
+demonstrations of a skill the library did not know it takes to recognise it after on-line
+acquisition, and writes a markdown table, a
 JSON (the rates with their 95 % Wilson intervals) and a plot (accuracy vs the observed
 fraction of the skill's motion).
 
@@ -26,6 +29,12 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from ias_gym.assist.intent_switches import (
+    SWITCH_PAIRS,
+    SWITCH_TIME,
+    evaluate_switches,
+    record_switch_sessions,
+)
 from ias_gym.assist.metrics import (
     FRACTIONS,
     LabelledSession,
@@ -54,6 +63,8 @@ KEYS = (
     "final_accuracy",
     "unknown_detected_rate",
     "known_as_unknown_rate",
+    "switches_followed",
+    "switch_latency_s",
 )
 
 
@@ -146,6 +157,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--library-episodes", type=int, default=2, help="sessions per skill")
     parser.add_argument("--episodes", type=int, default=1, help="evaluation sessions per skill")
     parser.add_argument("--demos", type=int, default=5, help="acquisition demonstrations")
+    parser.add_argument(
+        "--switch-time", type=float, default=SWITCH_TIME, help="intent switches' time [s]"
+    )
     parser.add_argument("--out", default="out/recognition", help="output and cache folder")
     parser.add_argument("--plot", default="docs/img/recognition.png", help="the figure")
     parser.add_argument("--overwrite", action="store_true", help="replace existing outputs")
@@ -178,6 +192,14 @@ def main(argv: list[str] | None = None) -> int:
     _, held_out = sessions_of(ho_path, ids, args.episodes, seed=1000)
     methods = list(METHODS)
     results = evaluate_methods([s.library() for s in library], held_out, methods, progress=tqdm)
+    switch_jobs = [(p, a, b, args.switch_time) for p in ids for a, b in SWITCH_PAIRS]
+    switches = record_switch_sessions(switch_jobs, seed=1000, progress=tqdm)
+    latencies = {}
+    for m in methods:
+        followed = evaluate_switches(make_recogniser(m, [s.library() for s in library]), switches)
+        latencies[m] = followed.pop("switch_latencies_s")
+        results[m]["rates"].update(followed.pop("rates"))
+        results[m].update(followed)
     acquisition = {
         m: acquisition_curve(m, library_skills, library, held_out, args.demos) for m in methods
     }
@@ -190,6 +212,9 @@ def main(argv: list[str] | None = None) -> int:
         "library_sessions": len(library),
         "held_out_sessions": len(held_out),
         "methods": results,
+        "switch_time_s": args.switch_time,
+        "switch_pairs": [list(pair) for pair in SWITCH_PAIRS],
+        "switch_latencies_s": latencies,
         "acquisition": acquisition,
     }
     (out / "recognition.json").write_text(json.dumps(payload, indent=2))

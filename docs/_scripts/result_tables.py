@@ -222,6 +222,7 @@ RECOGNITION_RATES = {
     "recog_acc_at_60": "correct at 60 % of the motion",
     "final_accuracy": "correct at the end",
     "false_trigger_rate": "false triggers",
+    "switches_followed": "intent switches followed",
 }
 
 
@@ -232,7 +233,7 @@ def recognition(result: Mapping[str, Any]) -> str:
     keys = [
         k
         for k, v in next(iter(methods.values())).items()
-        if k not in ("method", "sessions") and not isinstance(v, dict)
+        if k not in ("method", "sessions", "switches") and not isinstance(v, dict)
     ]
     scores = rows(
         ["method", *keys],
@@ -259,7 +260,7 @@ def recognition(result: Mapping[str, Any]) -> str:
     intervals = rows(
         ["method", *RECOGNITION_RATES.values()],
         [
-            [names.get(n, n), *(interval(m["rates"][k]) for k in RECOGNITION_RATES)]
+            [names.get(n, n), *(interval(m["rates"].get(k)) for k in RECOGNITION_RATES)]
             for n, m in methods.items()
             if "rates" in m
         ],

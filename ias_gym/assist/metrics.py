@@ -16,6 +16,9 @@ until the session's end.
 - ``unknown_auroc`` (:func:`unknown_auroc`): each skill in turn is left out of the library
   and its sessions are scored as unknown against the sessions of the known skills, by their
   final novelty score; the area under the ROC curve of all folds pooled.
+
+How a recogniser follows an operator who changes their mind is
+:mod:`~ias_gym.assist.intent_switches`'s.
 """
 
 from __future__ import annotations

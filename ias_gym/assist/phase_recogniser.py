@@ -2,12 +2,14 @@
 
 A phase-aware probabilistic model: each skill a mean trajectory and a variance over its
 phase (:class:`PhaseModel`, :func:`fit_phase_model`), a grid of delay/speed hypotheses per
-skill on line (:class:`PhaseRecogniser`), and the model's constants.
+skill on line (:class:`PhaseRecogniser`), an operator who may switch from one skill to
+another while performing it (:func:`switching_step`), and the model's constants.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -16,6 +18,7 @@ from numpy.typing import NDArray
 
 from ias_gym.assist.recognition import LibraryRecogniser, LibrarySession
 from ias_gym.assist.recognition_features import FEATURE_NAMES, FEATURE_T0
+from ias_gym.errors import InputError
 
 FloatArray = NDArray[np.float64]
 
@@ -33,6 +36,10 @@ PHASE_TEMPER = 0.1
 PHASE_PRIOR_WEIGHT = 2.0
 #: Phase model: the phase grid's step [s] (one control step).
 PHASE_DT = 0.01
+#: The probability per frame that the operator switches to another skill (a fixed-share
+#: prior over the skills, :func:`switching_step`), fitted by ``train/fit_switch_rate.py``
+#: (its report: docs/switch_rate_fit.json); 0: the skill of a session never changes.
+PHASE_SWITCH_RATE = 1e-20
 
 
 @dataclass(frozen=True, eq=False)
@@ -148,24 +155,84 @@ def fit_phase_model(
     return model
 
 
+def switch_cost(rate: float, skills: int) -> float:
+    """What a switch to one other skill costs in the novelty's units (summed squared z), as
+    the tempered log-likelihood counts it: ``2 / PHASE_TEMPER x log((1 - rate) / (rate /
+    (skills - 1)))``; ``inf`` when no switch is possible (``rate`` 0 or one skill)."""
+    if rate <= 0.0 or skills < 2:
+        return math.inf
+    return 2.0 / PHASE_TEMPER * math.log((1.0 - rate) * (skills - 1) / rate)
+
+
+def switching_step(
+    log_alpha: FloatArray, path: FloatArray, ll: FloatArray, z2: FloatArray, rate: float
+) -> tuple[FloatArray, FloatArray]:
+    """One frame of the switching model: the forward recursion of the skills' evidence and
+    its best path's squared distance.
+
+    Between two frames the operator stays with their skill with probability ``1 - rate``,
+    or switches to one of the other ``K - 1`` skills (each equally likely) and keeps their
+    delay and speed hypothesis (a person's timing is theirs, not the skill's): a fixed-share
+    prior (Herbster and Warmuth, "Tracking the best expert", 1998). With ``rate`` 0 the
+    recursion is the plain sum of each hypothesis' log-likelihoods.
+
+    Args:
+        log_alpha: ``(K, H)`` log of the forward variables so far (skill, hypothesis).
+        path: ``(K, H)`` the summed squared z of the best path into each state so far, a
+            switch counted as :func:`switch_cost`.
+        ll: ``(K, H)`` the frame's tempered log-likelihoods.
+        z2: ``(K, H)`` its summed squared z.
+        rate: the switch probability per frame.
+
+    Returns:
+        The new ``(log_alpha, path)``.
+    """
+    k = len(log_alpha)
+    cost = switch_cost(rate, k)
+    if not math.isfinite(cost):
+        return log_alpha + ll, path + z2
+    m = log_alpha.max(axis=0, keepdims=True)
+    e = np.exp(log_alpha - m)
+    mixed = (1.0 - rate) * e + rate / (k - 1) * (e.sum(axis=0, keepdims=True) - e)
+    # the best path from another skill: the smallest of the others in each column
+    order = np.argsort(path, axis=0)
+    first = np.take_along_axis(path, order[:1], axis=0)
+    second = np.take_along_axis(path, order[1:2], axis=0)
+    other = np.where(np.arange(k)[:, None] == order[:1], second, first)
+    return m + np.log(mixed) + ll, np.minimum(path, other + cost) + z2
+
+
 class PhaseRecogniser(LibraryRecogniser):
     """Phase-aware Gaussian model per skill with on-line phase hypotheses (the better method).
 
-    For skill k and hypothesis h (delay, speed of the skill's own motion) the log-likelihood
-    ``L[k, h] += PHASE_TEMPER * log N(x_t; mean_k(phase_h(t)), std_k(phase_h(t))^2)`` is
-    accumulated frame by frame; the skill's evidence is ``log mean_h exp(L[k, h])`` (a
-    uniform prior over the hypotheses) and the posterior is Bayes' rule over the skills. The
-    novelty score is the mean squared Mahalanobis distance per feature and frame under the
-    best skill and hypothesis.
+    For skill k and hypothesis h (delay, speed of the skill's own motion) each frame adds
+    ``PHASE_TEMPER * log N(x_t; mean_k(phase_h(t)), std_k(phase_h(t))^2)`` to the forward
+    variable of (k, h), which may also come from another skill's at the same hypothesis
+    with the probability ``switch_rate`` (:func:`switching_step`); the skill's evidence is
+    the sum over its hypotheses (a uniform prior over them) and the posterior is Bayes' rule
+    over the skills. The novelty score is the mean squared Mahalanobis distance per feature
+    and frame along the best path into the most probable skill and hypothesis.
 
     Args:
         sessions: the library.
+        switch_rate: the probability per frame of a switch to another skill (default:
+            the fitted :data:`PHASE_SWITCH_RATE`; 0: a session is one skill throughout).
 
     Raises:
-        InputError: empty library, or no skill performed by two persons (no calibration).
+        InputError: empty library, no skill performed by two persons (no calibration), or a
+            switch rate outside [0, 1).
     """
 
     method = "phase"
+
+    def __init__(
+        self, sessions: Sequence[LibrarySession], switch_rate: float | None = None
+    ) -> None:
+        rate = PHASE_SWITCH_RATE if switch_rate is None else float(switch_rate)
+        if not 0.0 <= rate < 1.0:
+            raise InputError(f"switch_rate must lie in [0, 1), got {switch_rate!r}")
+        self.switch_rate = rate
+        super().__init__(sessions)
 
     def _fit_all(self) -> None:
         # The variance prior: the mean variance over the phase of the skills that several
@@ -191,8 +258,8 @@ class PhaseRecogniser(LibraryRecogniser):
     def _reset_state(self) -> None:
         self._delays, self._speeds = _hypotheses()
         k, h = len(self._classes), len(self._delays)
-        self._loglik = np.zeros((k, h))
-        self._maha = np.zeros((k, h))
+        self._log_alpha = np.zeros((k, h))
+        self._path = np.zeros((k, h))
 
     @staticmethod
     def _frame_terms(
@@ -207,20 +274,27 @@ class PhaseRecogniser(LibraryRecogniser):
     def _evidence(self) -> tuple[dict[str, float], float] | None:
         x = self._feats[-1]
         phase = phase_of(np.array([self._times[-1]]), self._delays, self._speeds)[:, 0]
-        for i, name in enumerate(self._classes):
-            ll, z2 = self._frame_terms(self._models[name], x, phase)
-            self._loglik[i] += ll
-            self._maha[i] += z2
-        return self._summarise(list(self._classes), self._loglik, self._maha, len(self._feats))
+        terms = [self._frame_terms(self._models[name], x, phase) for name in self._classes]
+        ll = np.stack([t[0] for t in terms])
+        z2 = np.stack([t[1] for t in terms])
+        if len(self._feats) == 1:
+            self._log_alpha, self._path = ll, z2
+        else:
+            self._log_alpha, self._path = switching_step(
+                self._log_alpha, self._path, ll, z2, self.switch_rate
+            )
+        # keep the forward variables near 0 (only their differences count)
+        self._log_alpha -= self._log_alpha.max()
+        return self._summarise(list(self._classes), self._log_alpha, self._path, len(self._feats))
 
     @staticmethod
     def _summarise(
-        names: list[str], loglik: FloatArray, maha: FloatArray, n: int
+        names: list[str], log_alpha: FloatArray, path: FloatArray, n: int
     ) -> tuple[dict[str, float], float]:
-        m = loglik.max(axis=1, keepdims=True)
-        evidence = (m[:, 0] + np.log(np.exp(loglik - m).mean(axis=1))).tolist()
-        k, h = np.unravel_index(int(np.argmax(loglik)), loglik.shape)
-        novelty = float(maha[k, h]) / (n * len(FEATURE_NAMES))
+        m = log_alpha.max(axis=1, keepdims=True)
+        evidence = (m[:, 0] + np.log(np.exp(log_alpha - m).mean(axis=1))).tolist()
+        k, h = np.unravel_index(int(np.argmax(log_alpha)), log_alpha.shape)
+        novelty = float(path[k, h]) / (n * len(FEATURE_NAMES))
         return dict(zip(names, evidence, strict=True)), novelty
 
     def _batch_evidence(
@@ -232,14 +306,21 @@ class PhaseRecogniser(LibraryRecogniser):
     ) -> tuple[dict[str, float], float]:
         n = len(feats)
         phase = phase_of(times, self._delays, self._speeds)  # (H, T)
-        loglik = np.zeros((len(classes), len(self._delays)))
-        maha = np.zeros_like(loglik)
+        ll = np.zeros((len(classes), len(self._delays), n))
+        z2 = np.zeros_like(ll)
         for i, name in enumerate(classes):
             model = (
                 fit_phase_model(classes[name], self._prior_var)
                 if name == refit or name not in self._models
                 else self._models[name]
             )
-            ll, z2 = self._frame_terms(model, feats[None, :, :], phase)
-            loglik[i], maha[i] = ll.sum(axis=1), z2.sum(axis=1)
-        return self._summarise(list(classes), loglik, maha, n)
+            ll[i], z2[i] = self._frame_terms(model, feats[None, :, :], phase)
+        if not math.isfinite(switch_cost(self.switch_rate, len(classes))):
+            return self._summarise(list(classes), ll.sum(axis=2), z2.sum(axis=2), n)
+        log_alpha, path = ll[:, :, 0], z2[:, :, 0]
+        for t in range(1, n):
+            log_alpha, path = switching_step(
+                log_alpha, path, ll[:, :, t], z2[:, :, t], self.switch_rate
+            )
+            log_alpha = log_alpha - log_alpha.max()
+        return self._summarise(list(classes), log_alpha, path, n)

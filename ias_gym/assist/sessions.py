@@ -33,6 +33,7 @@ sessions is :mod:`ias_gym.assist.assistance_evaluation`'s.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -163,8 +164,10 @@ class SessionResult:
         return bool(self.env_success and self.held and np.all(self.pinched[after]))
 
 
-def _switch_latency(times: FloatArray, top: list[str], target: str, t_switch: float) -> float:
-    """Time from ``t_switch`` until ``top`` is ``target`` from then to the end [s]."""
+def intent_latency(times: FloatArray, top: Sequence[str], target: str, t_switch: float) -> float:
+    """The intent-switch latency [s]: the time from ``t_switch`` until the most probable
+    skill ``top`` (one per time of ``times``) is ``target`` from then to the end; 0 if it
+    is already, ``inf`` if it is not at the end, NaN without a trace."""
     if not top:
         return math.nan
     wrong = [i for i, (t, s) in enumerate(zip(times, top, strict=True)) if s != target]
@@ -221,7 +224,7 @@ def run_session(
         pinched=np.asarray(pinched, dtype=bool),
     )
     if getattr(u, "switch_to", None) is not None:
-        result.switch_latency_s = _switch_latency(
+        result.switch_latency_s = intent_latency(
             result.times, top, str(u.switch_to), float(u.switch_time)
         )
     return result
