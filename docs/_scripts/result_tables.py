@@ -26,6 +26,8 @@ JSON in ``docs/``                      written by                          table
                                        ``--sessions``                      ``population.md``
 ``assist_detection_population.json``   ``train/assist_population.py``      ``assist_detection_``
                                        ``--without detection``             ``population.md``
+``assist_switch_population.json``      ``train/assist_population.py``      ``assist_switch_``
+                                       ``--sessions``                      ``population.md``
 ``assist_acquisition.json``            ``train/assist_acquisition.py``     ``assist_acquisition.md``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
@@ -229,7 +231,11 @@ RECOGNITION_RATES = {
 def recognition(result: Mapping[str, Any]) -> str:
     """Each recogniser's scores, its accuracy by observed fraction, and on-line acquisition."""
     methods = result["methods"]
-    names = {"dtw": "DTW (baseline)", "phase": "phase model"}
+    names = {
+        "dtw": "DTW (baseline)",
+        "phase": "phase model",
+        "phase_single": "phase model, no switches",
+    }
     keys = [
         k
         for k, v in next(iter(methods.values())).items()
@@ -877,6 +883,7 @@ def tables(docs: Path) -> dict[str, str]:
         "assist_detection_population.md": assist_population(
             load("assist_detection_population.json")
         ),
+        "assist_switch_population.md": assist_population(load("assist_switch_population.json")),
         "assist_acquisition.md": assist_acquisition(load("assist_acquisition.json")),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "pen_skill_bc_robustness.md": pen_skill_bc_robustness(load("pen_skill_bc_results.json")),

@@ -3,7 +3,7 @@ builds one on a skill database or on library sessions."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 from ias_gym.assist.dtw_recogniser import DTWRecogniser
@@ -14,15 +14,27 @@ from ias_gym.errors import InputError
 if TYPE_CHECKING:
     from ias_gym.skills import SkillDB
 
-#: The recognisers by method name.
-METHODS: dict[str, type[LibraryRecogniser]] = {"dtw": DTWRecogniser, "phase": PhaseRecogniser}
+
+def _phase_single(sessions: Sequence[LibrarySession]) -> LibraryRecogniser:
+    """The phase model with no switches: one skill per session (the switching's ablation)."""
+    return PhaseRecogniser(sessions, switch_rate=0.0)
+
+
+#: The recognisers by method name: the DTW baseline, the phase model, and the phase model
+#: without switches between skills (``phase_single``, an ablation).
+METHODS: dict[str, Callable[[Sequence[LibrarySession]], LibraryRecogniser]] = {
+    "dtw": DTWRecogniser,
+    "phase": PhaseRecogniser,
+    "phase_single": _phase_single,
+}
 
 
 def make_recogniser(method: str, db: SkillDB | Sequence[LibrarySession]) -> LibraryRecogniser:
     """A recogniser of the glove sessions in ``db``.
 
     Args:
-        method: ``"dtw"`` (baseline) or ``"phase"`` (the phase-aware probabilistic model).
+        method: ``"dtw"`` (baseline), ``"phase"`` (the phase-aware probabilistic model) or
+            ``"phase_single"`` (the same, for an operator who never switches skills).
         db: an open :class:`~ias_gym.skills.SkillDB`, or library sessions.
 
     Returns:
