@@ -21,12 +21,15 @@ detection and on-line acquisition; the features are
   from its sessions after aligning each to the class mean (delay and speed of the skill's
   own motion); on line, a grid of delay/speed hypotheses per skill accumulates the Gaussian
   log-likelihood of every frame (tempered for the frames' correlation), and the posterior is
-  Bayes' rule over the skills with the hypotheses marginalised.
+  Bayes' rule over the skills with the hypotheses marginalised. The operator may switch from
+  one skill to another while performing it (a fixed-share prior over the skills,
+  :func:`~ias_gym.assist.phase_recogniser.switching_step`).
 
 Unknown detection (both): a novelty score of the session (DTW: the nearest template's mean
-cost per sample; phase: the mean squared Mahalanobis distance per feature under the best
-skill and hypothesis) is compared with the library's own leave-one-person-out scores (every
-stored session scored against the library without its person's sessions of that skill):
+cost per sample; phase: the mean squared Mahalanobis distance per feature along the best
+path into the most probable skill and hypothesis) is compared with the library's own
+leave-one-person-out scores (every stored session scored against the library without its
+person's sessions of that skill):
 the threshold is their 95 % quantile, where ``p(unknown) = 0.5``, and ``p(unknown)`` is 0.01
 at their median (a logistic in the log score). No number is tuned per skill.
 
