@@ -191,12 +191,13 @@ def main(argv: list[str] | None = None) -> int:
     library_skills, library = sessions_of(lib_path, library_ids, args.library_episodes, seed=0)
     _, held_out = sessions_of(ho_path, ids, args.episodes, seed=1000)
     methods = list(METHODS)
-    results = evaluate_methods([s.library() for s in library], held_out, methods, progress=tqdm)
+    library_sessions = [s.library() for s in library]
+    results = evaluate_methods(library_sessions, held_out, methods, progress=tqdm)
     switch_jobs = [(p, a, b, args.switch_time) for p in ids for a, b in SWITCH_PAIRS]
     switches = record_switch_sessions(switch_jobs, seed=1000, progress=tqdm)
     latencies = {}
     for m in methods:
-        followed = evaluate_switches(make_recogniser(m, [s.library() for s in library]), switches)
+        followed = evaluate_switches(make_recogniser(m, library_sessions), switches)
         latencies[m] = followed.pop("switch_latencies_s")
         results[m]["rates"].update(followed.pop("rates"))
         results[m].update(followed)

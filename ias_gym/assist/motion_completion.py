@@ -96,7 +96,7 @@ class AssistParams:
     min_remaining_rad: float = 0.05
     tremor_window_s: float = 0.5
     tremor_trend_degree: int = 1
-    tremor_floor_rad: float = 0.0
+    tremor_floor_rad: float = dataclasses.field(default=0.0, metadata={"zero_switches_off": True})
     sight_gain: float = 3.0
     pad_close_rate: float = 0.5
     fitted_on: str = "defaults"
@@ -108,8 +108,10 @@ class AssistParams:
 
     @classmethod
     def may_be_zero(cls) -> frozenset[str]:
-        """The fields a 0 switches off."""
-        return frozenset({"tremor_floor_rad"})
+        """The fields a 0 switches off (marked ``zero_switches_off`` in their metadata)."""
+        return frozenset(
+            f.name for f in dataclasses.fields(cls) if f.metadata.get("zero_switches_off")
+        )
 
     @classmethod
     def load(cls, path: str | Path = PARAMS_PATH) -> AssistParams:
