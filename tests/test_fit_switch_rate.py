@@ -1,4 +1,5 @@
-"""train/fit_switch_rate.py: the switches it draws, the rate it chooses, what it refuses."""
+"""train/fit_switch_rate.py: the switches it draws, the rate and temper it chooses, what it
+refuses."""
 
 from __future__ import annotations
 
@@ -28,20 +29,25 @@ def test_switches_are_distinct_pairs_drawn_reproducibly_per_person(fit: ModuleTy
 
 
 def test_the_choice_counts_every_kind_alike_on_the_given_persons(fit: ModuleType) -> None:
-    # rows (kind, person, right)
+    # rows (kind, person, right); points (temper, rate)
     sticky = [("plain", "p", True), ("switch", "p", False), ("left out", "q", True)]
     loose = [("plain", "p", True), ("switch", "p", True), ("left out", "q", False)]
-    outcomes = {0.0: sticky, 1e-9: loose}
-    assert fit.choose(outcomes, {"p", "q"}) == 0.0  # a tie: the lower rate
-    assert fit.choose(outcomes, {"p"}) == 1e-9
-    assert fit.choose(outcomes, {"q"}) == 0.0
+    outcomes = {(0.1, 1e-20): sticky, (0.1, 1e-9): loose}
+    assert fit.choose(outcomes, {"p", "q"}) == (0.1, 1e-20)  # a tie: the lower rate
+    assert fit.choose(outcomes, {"p"}) == (0.1, 1e-9)
+    assert fit.choose(outcomes, {"q"}) == (0.1, 1e-20)
+    # a tie between tempers: the lower (the posterior least sure)
+    assert fit.choose({(0.1, 1e-20): sticky, (0.05, 1e-10): sticky}, {"p"}) == (0.05, 1e-10)
 
 
 @pytest.mark.parametrize(
     ("extra", "needle"),
     [
-        (["--grid", "0,1.5"], "--grid"),
-        (["--grid", "a,b"], "--grid"),
+        (["--tempers", "0,0.1"], "--tempers"),
+        (["--tempers", "0.1,1.5"], "--tempers"),
+        (["--tempers", "a,b"], "--tempers"),
+        (["--costs", "950,-1"], "--costs"),
+        (["--costs", "nan"], "--costs"),
         (["--persons", "3", "--folds", "4"], "--persons"),
         (["--switches", "0"], "--switches"),
     ],

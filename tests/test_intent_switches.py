@@ -17,6 +17,7 @@ from ias_gym.assist.phase_recogniser import (
     PHASE_SWITCH_RATE,
     PHASE_TEMPER,
     PhaseRecogniser,
+    rate_of_cost,
     switch_cost,
     switching_step,
 )
@@ -75,6 +76,13 @@ def test_the_switch_cost_is_the_tempered_log_odds() -> None:
     assert switch_cost(0.1, 1) == math.inf
     assert switch_cost(0.1, 2) == pytest.approx(2 / PHASE_TEMPER * math.log(9.0))
     assert switch_cost(1e-9, 6) > switch_cost(1e-3, 6)
+    assert switch_cost(0.1, 2, temper=0.05) == pytest.approx(2 / 0.05 * math.log(9.0))
+
+
+@pytest.mark.parametrize(("rate", "skills", "temper"), [(1e-20, 6, 0.1), (3e-7, 5, 0.035)])
+def test_the_rate_of_a_cost_inverts_the_cost(rate: float, skills: int, temper: float) -> None:
+    cost = switch_cost(rate, skills, temper)
+    assert rate_of_cost(cost, skills, temper) == pytest.approx(rate, rel=1e-9)
 
 
 # --- a library of three made-up skills of the wrist's flexion and deviation
@@ -150,11 +158,13 @@ def test_a_switched_skill_is_followed_and_a_plain_one_kept() -> None:
     assert _run(PhaseRecogniser(known), deviate)[-1] == UNKNOWN
 
 
-def test_the_switch_rate_is_the_fitted_one() -> None:
-    """``PHASE_SWITCH_RATE`` is what ``train/fit_switch_rate.py`` chose (its report)."""
+def test_the_switch_rate_and_temper_are_the_fitted_ones() -> None:
+    """``PHASE_SWITCH_RATE`` and ``PHASE_TEMPER`` are what ``train/fit_switch_rate.py`` chose
+    (its report)."""
     report = json.loads((Path(__file__).parents[1] / "docs" / "switch_rate_fit.json").read_text())
     assert report["set"] == "development"
     assert PHASE_SWITCH_RATE == report["switch_rate"] > 0
+    assert PHASE_TEMPER == report["temper"] > 0
 
 
 def test_stepping_and_scoring_a_whole_session_agree() -> None:
@@ -175,11 +185,14 @@ def test_stepping_and_scoring_a_whole_session_agree() -> None:
         assert scored[name] == pytest.approx(stepped[name], abs=1e-9)
 
 
-def test_a_switch_rate_outside_zero_to_one_is_refused() -> None:
+def test_a_switch_rate_or_temper_outside_its_range_is_refused() -> None:
     library = _library(np.random.default_rng(3))
     for rate in (-0.1, 1.0, math.nan):
         with pytest.raises(InputError, match="switch_rate"):
             PhaseRecogniser(library, rate)
+    for temper in (0.0, -0.1, 1.5, math.nan):
+        with pytest.raises(InputError, match="temper"):
+            PhaseRecogniser(library, temper=temper)
 
 
 class _Scripted:

@@ -1,12 +1,18 @@
-"""Fit the phase recogniser's switch rate on development persons, by what it is for.
+"""Fit the phase recogniser's switch rate and temper on development persons, by what they
+are for.
 
 The phase recogniser (:class:`~ias_gym.assist.phase_recogniser.PhaseRecogniser`) lets the
 operator switch from one skill to another between two frames with a probability, its switch
-rate (0: a session is one skill throughout). A low rate keeps the first skill's evidence
-after the operator has changed their mind, and the session then ends as ``unknown`` (no
-skill explains all of it); a high one lets a few odd frames of one skill's session look like
-another skill, and a skill nobody stored like pieces of stored ones. So the rate is judged
-on three kinds of session together, every one counted alike:
+rate. A low rate keeps the first skill's evidence after the operator has changed their mind,
+and the session then ends as ``unknown`` (no skill explains all of it); a high one lets a few
+odd frames of one skill's session look like another skill, and a skill nobody stored like
+pieces of stored ones. Its temper is the share of a frame that counts as an independent
+observation: a high one makes the posterior sure early, and sure of the wrong skill in a
+session's first ambiguous frames; a low one makes it slow. The two act together: a switch
+costs ``2 / temper x log((1 - rate)(K - 1) / rate)`` in the novelty's units
+(:func:`~ias_gym.assist.phase_recogniser.switch_cost`), so the grid is spanned by the temper
+and that cost, and each point's rate follows from them (for the library's K skills). Every
+point is judged on three kinds of session together, every one counted alike:
 
 - **plain**: each person performs every skill once, unimpaired; right when the recogniser
   names the skill at 60 % of its motion and at the end, and never triggers on another
@@ -22,10 +28,10 @@ Every session is the person in the loop alone (no assistant), recorded as the re
 table records them (:func:`~ias_gym.assist.metrics.record_sessions`,
 :func:`~ias_gym.assist.intent_switches.record_switch_sessions`). Persons are drawn from the
 population with ``--seed`` (development persons); the library is ``--db``'s (other
-persons). Folds are groups of persons, each fold's rate
-chosen on the others and its sessions reported with 95 % intervals. The rate chosen on all
-persons is the report's ``switch_rate``; ``PHASE_SWITCH_RATE`` in
-``ias_gym/assist/phase_recogniser.py`` holds it (a test compares the two).
+persons). Folds are groups of persons, each fold's point
+chosen on the others and its sessions reported with 95 % intervals. The point chosen on all
+persons gives the report's ``switch_rate`` and ``temper``; ``PHASE_SWITCH_RATE`` and
+``PHASE_TEMPER`` in ``ias_gym/assist/phase_recogniser.py`` hold them (a test compares).
 
     ias-gym assist library --db out/library.db --population 8 --population-seed 61
     python train/fit_switch_rate.py --db out/library.db --persons 16 --seed 7001 \
@@ -36,6 +42,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 from dataclasses import dataclass
@@ -49,7 +56,7 @@ from ias_gym.assist.metrics import (
     record_sessions,
     score_trace,
 )
-from ias_gym.assist.phase_recogniser import PhaseRecogniser
+from ias_gym.assist.phase_recogniser import PhaseRecogniser, rate_of_cost, switch_cost
 from ias_gym.assist.recognition import UNKNOWN, LibrarySession, load_library
 from ias_gym.errors import InputError
 from ias_gym.glove.impairments import session_rng
@@ -60,12 +67,12 @@ from ias_gym.rates import rate_json
 from ias_gym.runtime.jobs import Backend, run_jobs
 from ias_gym.skills import SkillDB
 
-#: The rates searched [1/frame]. The frames' likelihoods are tempered
-#: (:data:`~ias_gym.assist.phase_recogniser.PHASE_TEMPER`), so a switch costs twenty times its
-#: log-odds in the novelty's units (:func:`~ias_gym.assist.phase_recogniser.switch_cost`):
-#: from none, through rates whose switch costs as much as a few frames far off the model
-#: (1e-60: about 2800, e.g. 35 frames at 10 squared z per feature), to one every second.
-GRID = (0.0, 1e-60, 1e-40, 1e-30, 1e-20, 1e-12, 1e-8)
+#: The tempers searched: from one independent observation in 10 frames (0.1 s) to one in 40.
+TEMPERS = (0.025, 0.035, 0.05, 0.1)
+#: The switch costs searched [summed squared z]: at a temper of 0.1 and 6 skills, the rates
+#: 1e-12, 1e-20 and 1e-30 (a first grid of rates from 0 to 1e-8 at that temper chose 1e-20;
+#: none, rate 0, followed 18 of 96 switches). 950 is e.g. 12 frames at 10 squared z a feature.
+COSTS = (590.0, 950.0, 1410.0)
 #: The range a switch time is drawn from [s]: from where the slowest-starting person's
 #: motion has begun (the lift ends at 1.7 s, a motion starts up to 0.2 s later) to 1.2 s
 #: before the session's end, so the second skill has time to show.
@@ -102,9 +109,10 @@ class ScoreJob:
     plain: tuple[LabelledSession, ...]
     switched: tuple[SwitchSession, ...]
 
-    def __call__(self, rate: float) -> list[tuple[str, str, bool]]:
+    def __call__(self, point: tuple[float, float]) -> list[tuple[str, str, bool]]:
+        temper, rate = point
         rows: list[tuple[str, str, bool]] = []
-        rec = PhaseRecogniser(self.library, rate)
+        rec = PhaseRecogniser(self.library, rate, temper)
         at60 = FRACTIONS.index(0.6)
         for s in self.plain:
             r = score_trace(*posterior_trace(rec, s.frames), s)
@@ -114,7 +122,7 @@ class ScoreJob:
         for w, latency in zip(self.switched, latencies, strict=True):
             rows.append(("switch", w.person_id, latency is not None))
         for skill in sorted({s.skill for s in self.library}):
-            without = PhaseRecogniser([s for s in self.library if s.skill != skill], rate)
+            without = PhaseRecogniser([s for s in self.library if s.skill != skill], rate, temper)
             for s in self.plain:
                 if s.skill == skill:
                     post, _ = without.score_session(s.frames)
@@ -125,9 +133,27 @@ class ScoreJob:
 KINDS = ("plain", "switch", "left out")
 
 
-def choose(outcomes: dict[float, list[tuple[str, str, bool]]], persons: set[str]) -> float:
-    """The rate with the most sessions right among ``persons`` (ties: the lowest)."""
-    return max(outcomes, key=lambda r: (sum(ok for _, p, ok in outcomes[r] if p in persons), -r))
+Point = tuple[float, float]
+
+
+def choose(outcomes: dict[Point, list[tuple[str, str, bool]]], persons: set[str]) -> Point:
+    """The (temper, rate) with the most sessions right among ``persons`` (ties: the lowest
+    temper, then the lowest rate: the posterior least sure, the switch least likely)."""
+    return max(
+        outcomes,
+        key=lambda tr: (sum(ok for _, p, ok in outcomes[tr] if p in persons), -tr[0], -tr[1]),
+    )
+
+
+def parse_grid(text: str, name: str, low: float, high: float) -> tuple[float, ...]:
+    """Comma-separated numbers in (low, high]; InputError naming ``name`` otherwise."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if not values or not all(low < v <= high for v in values):
+        raise InputError(f"{name} {text} must be comma-separated numbers in ({low:g}, {high:g}]")
+    return values
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -140,18 +166,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, required=True, help="their population seed")
     ap.add_argument("--switches", type=int, default=6, help="switch sessions per person")
     ap.add_argument("--folds", type=int, default=4, help="cross-validation groups of persons")
-    ap.add_argument("--grid", default=",".join(f"{r:g}" for r in GRID), help="rates searched")
+    ap.add_argument("--tempers", default=",".join(f"{t:g}" for t in TEMPERS), help="tempers")
+    ap.add_argument(
+        "--costs", default=",".join(f"{c:g}" for c in COSTS), help="switch costs [squared z]"
+    )
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes")
     ap.add_argument("--report", required=True, help="JSON report written")
     ap.add_argument("--overwrite", action="store_true", help="replace --report")
     args = ap.parse_args(argv)
     try:
-        try:
-            grid = tuple(float(r) for r in args.grid.split(","))
-        except ValueError:
-            grid = ()
-        if not grid or not all(0.0 <= r < 1.0 for r in grid):
-            raise InputError(f"--grid {args.grid} must be comma-separated rates in [0, 1)")
+        tempers = parse_grid(args.tempers, "--tempers", 0.0, 1.0)
+        costs = parse_grid(args.costs, "--costs", 0.0, math.inf)
         if not Path(args.db).is_file():
             raise InputError(f"--db {args.db} does not exist (build one: ias-gym assist library)")
         if args.persons < args.folds or args.folds < 2:
@@ -169,29 +194,38 @@ def main(argv: list[str] | None = None) -> int:
     recorded = run_jobs(RecordJob(args.switches), persons, backend, desc="persons", progress=True)
     plain = tuple(s for p, _ in recorded for s in p)
     switched = tuple(s for _, w in recorded for s in w)
+    skills = len({s.skill for s in library})
+    grid = [(t, rate_of_cost(c, skills, t)) for t in tempers for c in costs]
     job = ScoreJob(library, plain, switched)
-    scored = run_jobs(job, grid, backend, desc="rates", progress=True)
+    scored = run_jobs(job, grid, backend, desc="tempers x costs", progress=True)
     outcomes = dict(zip(grid, scored, strict=True))
     folds = {p: i % args.folds for i, p in enumerate(persons)}
     held: dict[str, list[bool]] = {k: [] for k in KINDS}
     for fold in range(args.folds):
-        rate = choose(outcomes, {p for p, f in folds.items() if f != fold})
-        for kind, person, ok in outcomes[rate]:
+        point = choose(outcomes, {p for p, f in folds.items() if f != fold})
+        for kind, person, ok in outcomes[point]:
             if folds[person] == fold:
                 held[kind].append(ok)
-    chosen = choose(outcomes, set(persons))
+    temper, rate = choose(outcomes, set(persons))
     summary = {
         "set": "development",
         "persons": args.persons,
         "population_seed": args.seed,
         "library": Path(args.db).name,
         "switches_per_person": args.switches,
-        "switch_rate": chosen,
+        "temper": temper,
+        "switch_rate": rate,
+        "switch_cost_sq_z": switch_cost(rate, skills, temper),
         "cross_validated": {k: rate_json(v) for k, v in held.items()},
-        "grid": {
-            f"{r:g}": {k: rate_json([ok for kind, _, ok in rows if kind == k]) for k in KINDS}
-            for r, rows in outcomes.items()
-        },
+        "grid": [
+            {
+                "temper": t,
+                "switch_rate": r,
+                "switch_cost_sq_z": switch_cost(r, skills, t),
+                **{k: rate_json([ok for kind, _, ok in rows if kind == k]) for k in KINDS},
+            }
+            for (t, r), rows in outcomes.items()
+        ],
         "switch_pairs": [[s.first, s.second, s.switch_time] for s in switched],
     }
     with atomic_output(Path(args.report), overwrite=args.overwrite) as tmp:

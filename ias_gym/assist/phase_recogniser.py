@@ -28,10 +28,13 @@ PHASE_T0 = FEATURE_T0
 PHASE_DELAYS = np.linspace(0.0, 0.2, 5)
 PHASE_SPEEDS = np.linspace(0.8, 1.2, 9)
 #: Phase model: the floor of each feature's standard deviation (feature units, i.e. a
-#: tenth of FEATURE_SCALE) and the log-likelihood's tempering (one independent frame per
-#: 10 control steps, ~0.1 s: consecutive frames of the smooth motion are far from independent).
+#: tenth of FEATURE_SCALE).
 PHASE_SIGMA_FLOOR = 0.1
-PHASE_TEMPER = 0.1
+#: Phase model: the log-likelihood's tempering, the share of a frame that counts as an
+#: independent observation (consecutive frames of the smooth motion are far from
+#: independent); it sets how sure the posterior gets how fast. Fitted together with the
+#: switch rate by ``train/fit_switch_rate.py`` (its report: docs/switch_rate_fit.json).
+PHASE_TEMPER = 0.035
 #: Phase model: the weight [sessions] of the variance prior (fit_phase_model).
 PHASE_PRIOR_WEIGHT = 2.0
 #: Phase model: the phase grid's step [s] (one control step).
@@ -39,7 +42,7 @@ PHASE_DT = 0.01
 #: The probability per frame that the operator switches to another skill (a fixed-share
 #: prior over the skills, :func:`switching_step`), fitted by ``train/fit_switch_rate.py``
 #: (its report: docs/switch_rate_fit.json); 0: the skill of a session never changes.
-PHASE_SWITCH_RATE = 1e-20
+PHASE_SWITCH_RATE = 3.011786011857468e-07
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,17 +158,28 @@ def fit_phase_model(
     return model
 
 
-def switch_cost(rate: float, skills: int) -> float:
+def switch_cost(rate: float, skills: int, temper: float = PHASE_TEMPER) -> float:
     """What a switch to one other skill costs in the novelty's units (summed squared z), as
-    the tempered log-likelihood counts it: ``2 / PHASE_TEMPER x log((1 - rate) / (rate /
-    (skills - 1)))``; ``inf`` when no switch is possible (``rate`` 0 or one skill)."""
+    the tempered log-likelihood counts it: ``2 / temper x log((1 - rate) / (rate / (skills
+    - 1)))``; ``inf`` when no switch is possible (``rate`` 0 or one skill)."""
     if rate <= 0.0 or skills < 2:
         return math.inf
-    return 2.0 / PHASE_TEMPER * math.log((1.0 - rate) * (skills - 1) / rate)
+    return 2.0 / temper * math.log((1.0 - rate) * (skills - 1) / rate)
+
+
+def rate_of_cost(cost: float, skills: int, temper: float = PHASE_TEMPER) -> float:
+    """The switch rate whose :func:`switch_cost` is ``cost`` (its inverse)."""
+    odds = math.exp(0.5 * temper * cost) / (skills - 1)
+    return 1.0 / (1.0 + odds)
 
 
 def switching_step(
-    log_alpha: FloatArray, path: FloatArray, ll: FloatArray, z2: FloatArray, rate: float
+    log_alpha: FloatArray,
+    path: FloatArray,
+    ll: FloatArray,
+    z2: FloatArray,
+    rate: float,
+    temper: float = PHASE_TEMPER,
 ) -> tuple[FloatArray, FloatArray]:
     """One frame of the switching model: the forward recursion of the skills' evidence and
     its best path's squared distance.
@@ -183,12 +197,13 @@ def switching_step(
         ll: ``(K, H)`` the frame's tempered log-likelihoods.
         z2: ``(K, H)`` its summed squared z.
         rate: the switch probability per frame.
+        temper: the likelihoods' tempering (for the switch's cost in the novelty).
 
     Returns:
         The new ``(log_alpha, path)``.
     """
     k = len(log_alpha)
-    cost = switch_cost(rate, k)
+    cost = switch_cost(rate, k, temper)
     if not math.isfinite(cost):
         return log_alpha + ll, path + z2
     m = log_alpha.max(axis=0, keepdims=True)
@@ -206,7 +221,7 @@ class PhaseRecogniser(LibraryRecogniser):
     """Phase-aware Gaussian model per skill with on-line phase hypotheses (the better method).
 
     For skill k and hypothesis h (delay, speed of the skill's own motion) each frame adds
-    ``PHASE_TEMPER * log N(x_t; mean_k(phase_h(t)), std_k(phase_h(t))^2)`` to the forward
+    ``temper * log N(x_t; mean_k(phase_h(t)), std_k(phase_h(t))^2)`` to the forward
     variable of (k, h), which may also come from another skill's at the same hypothesis
     with the probability ``switch_rate`` (:func:`switching_step`); the skill's evidence is
     the sum over its hypotheses (a uniform prior over them) and the posterior is Bayes' rule
@@ -217,21 +232,28 @@ class PhaseRecogniser(LibraryRecogniser):
         sessions: the library.
         switch_rate: the probability per frame of a switch to another skill (default:
             the fitted :data:`PHASE_SWITCH_RATE`; 0: a session is one skill throughout).
+        temper: the log-likelihood's tempering (default: the fitted :data:`PHASE_TEMPER`).
 
     Raises:
-        InputError: empty library, no skill performed by two persons (no calibration), or a
-            switch rate outside [0, 1).
+        InputError: empty library, no skill performed by two persons (no calibration), a
+            switch rate outside [0, 1) or a temper outside (0, 1].
     """
 
     method = "phase"
 
     def __init__(
-        self, sessions: Sequence[LibrarySession], switch_rate: float | None = None
+        self,
+        sessions: Sequence[LibrarySession],
+        switch_rate: float | None = None,
+        temper: float | None = None,
     ) -> None:
         rate = PHASE_SWITCH_RATE if switch_rate is None else float(switch_rate)
         if not 0.0 <= rate < 1.0:
             raise InputError(f"switch_rate must lie in [0, 1), got {switch_rate!r}")
-        self.switch_rate = rate
+        t = PHASE_TEMPER if temper is None else float(temper)
+        if not 0.0 < t <= 1.0:
+            raise InputError(f"temper must lie in (0, 1], got {temper!r}")
+        self.switch_rate, self.temper = rate, t
         super().__init__(sessions)
 
     def _fit_all(self) -> None:
@@ -261,15 +283,14 @@ class PhaseRecogniser(LibraryRecogniser):
         self._log_alpha = np.zeros((k, h))
         self._path = np.zeros((k, h))
 
-    @staticmethod
     def _frame_terms(
-        model: PhaseModel, x: FloatArray, phase: FloatArray
+        self, model: PhaseModel, x: FloatArray, phase: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
         """Per hypothesis (and frame): tempered log-likelihood and summed squared z."""
         idx = np.minimum(np.rint(phase / PHASE_DT).astype(int), len(model.mean) - 1)
         z2 = (((x - model.mean[idx]) * model.inv_std[idx]) ** 2).sum(axis=-1)
         ll = -0.5 * (z2 + model.log_norm[idx])
-        return PHASE_TEMPER * ll, z2
+        return self.temper * ll, z2
 
     def _evidence(self) -> tuple[dict[str, float], float] | None:
         x = self._feats[-1]
@@ -281,7 +302,7 @@ class PhaseRecogniser(LibraryRecogniser):
             self._log_alpha, self._path = ll, z2
         else:
             self._log_alpha, self._path = switching_step(
-                self._log_alpha, self._path, ll, z2, self.switch_rate
+                self._log_alpha, self._path, ll, z2, self.switch_rate, self.temper
             )
         # keep the forward variables near 0 (only their differences count)
         self._log_alpha -= self._log_alpha.max()
@@ -315,12 +336,12 @@ class PhaseRecogniser(LibraryRecogniser):
                 else self._models[name]
             )
             ll[i], z2[i] = self._frame_terms(model, feats[None, :, :], phase)
-        if not math.isfinite(switch_cost(self.switch_rate, len(classes))):
+        if not math.isfinite(switch_cost(self.switch_rate, len(classes), self.temper)):
             return self._summarise(list(classes), ll.sum(axis=2), z2.sum(axis=2), n)
         log_alpha, path = ll[:, :, 0], z2[:, :, 0]
         for t in range(1, n):
             log_alpha, path = switching_step(
-                log_alpha, path, ll[:, :, t], z2[:, :, t], self.switch_rate
+                log_alpha, path, ll[:, :, t], z2[:, :, t], self.switch_rate, self.temper
             )
             log_alpha = log_alpha - log_alpha.max()
         return self._summarise(list(classes), log_alpha, path, n)
