@@ -70,8 +70,7 @@ from ias_gym.skills import SkillDB
 #: The tempers searched: from one independent observation in 10 frames (0.1 s) to one in 40.
 TEMPERS = (0.025, 0.035, 0.05, 0.1)
 #: The switch costs searched [summed squared z]: at a temper of 0.1 and 6 skills, the rates
-#: 1e-12, 1e-20 and 1e-30 (a first grid of rates from 0 to 1e-8 at that temper chose 1e-20;
-#: none, rate 0, followed 18 of 96 switches). 950 is e.g. 12 frames at 10 squared z a feature.
+#: 1e-12, 1e-20 and 1e-30; 950 is as much as 12 frames at 10 squared z in every feature.
 COSTS = (590.0, 950.0, 1410.0)
 #: The range a switch time is drawn from [s]: from where the slowest-starting person's
 #: motion has begun (the lift ends at 1.7 s, a motion starts up to 0.2 s later) to 1.2 s
