@@ -30,7 +30,9 @@ from ias_gym.assist.recognition import (
     Posterior,
     Recogniser,
     acquire_skill,
+    load_library,
 )
+from ias_gym.assist.skill_motions import load_motions
 from ias_gym.assist.stream import frames_from_skill
 from ias_gym.cli import main
 from ias_gym.envs.glove_grasp_config import GloveGraspConfig
@@ -315,6 +317,27 @@ def test_acquisition_is_atomic(recorded: dict[str, object], tmp_path: Path) -> N
         assert rec.skills[-1] == "new_skill"
         stored = frames_from_skill(db.get(skill_id))
         assert np.array_equal(stored[-1].theta, skill.demonstration.infos["glove_theta"][-1])
+
+
+@pytest.mark.parametrize("success", [True, False])
+def test_a_failed_session_is_no_demonstration_of_its_skill(
+    recorded: dict[str, object], tmp_path: Path, success: bool
+) -> None:
+    """The recognisers' library and the assistant's skill motions learn a skill from the
+    sessions that did it: a stored session whose ``is_success`` is false is left out."""
+    path = tmp_path / "lib.db"
+    with SkillDB(recorded["path"], readonly=True) as src, SkillDB(path) as db:  # type: ignore[arg-type]
+        for i in src.ids():
+            db.add(dataclasses.replace(src.get(i), id=None, created=None))
+        tilt = next(src.get(i) for i in src.ids() if src.get(i).name == "tilt_left")
+        db.add(
+            dataclasses.replace(tilt, name="tilt_copy", is_success=success, id=None, created=None)
+        )
+    with SkillDB(path, readonly=True) as db:
+        classes = {s.skill for s in load_library(db)}
+    assert ("tilt_copy" in classes) is success
+    assert ("tilt_copy" in load_motions(path)) is success
+    assert {"lift_hold", "tilt_left", "tilt_right"} <= classes
 
 
 def test_recogniser_refuses_an_uncalibrated_library(recorded: dict[str, object]) -> None:

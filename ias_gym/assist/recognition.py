@@ -173,27 +173,30 @@ def library_session(skill: str, group: str, frames: Sequence[SessionFrame]) -> L
 
 
 def load_library(db: SkillDB, task: str = GLOVE_TASK) -> list[LibrarySession]:
-    """The glove sessions of ``task`` stored in ``db``, the skill's name as its class.
+    """The successful glove sessions of ``task`` stored in ``db``, the skill's name as its
+    class. A failed session (its ``is_success`` false: the pen dropped, the skill's motion
+    not done) is no demonstration of its skill, and it is left out: a model that learnt
+    a dropped pen as a tilt would take other sessions for it.
 
     Args:
         db: an open skill database.
         task: the env id of the sessions to use.
 
     Returns:
-        One :class:`LibrarySession` per stored session, by id.
+        One :class:`LibrarySession` per stored successful session, by id.
 
     Raises:
-        InputError: the database holds no session of ``task``.
+        InputError: the database holds no successful session of ``task``.
     """
     out = []
-    for summary in db.list_skills(task=task):
+    for summary in db.list_skills(task=task, success=True):
         skill = db.get(summary.id)
         group = skill.person_id or f"skill-{summary.id}"
         out.append(library_session(skill.name, group, frames_from_skill(skill)))
     if not out:
         raise InputError(
-            f"{db.path} holds no {task} session; record some with `ias-gym skills record "
-            f"--env {task} --policy teleop --skill NAME --person ID --db {db.path}`"
+            f"{db.path} holds no successful {task} session; record some with `ias-gym skills "
+            f"record --env {task} --policy teleop --skill NAME --person ID --db {db.path}`"
         )
     return out
 

@@ -150,9 +150,11 @@ class SkillMotion:
 
 def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
     """Every glove skill's :class:`SkillMotion` in a library (default: the shipped one): the
-    aligned mean of its demonstrations' operator targets (``glove_theta``; the hand's joint
-    angles where a recording lacks them) from their skill start, less the holding skill's
-    (:data:`HOLD_SKILL`); skills that move no joint beyond it are left out.
+    aligned mean of its successful demonstrations' operator targets (``glove_theta``; the
+    hand's joint angles where a recording lacks them) from their skill start, less the
+    holding skill's (:data:`HOLD_SKILL`); skills that move no joint beyond it are left out.
+    A failed session (its ``is_success`` false) is no demonstration of its skill (as in
+    :func:`~ias_gym.assist.recognition.load_library`).
 
     Raises:
         InputError: the file does not exist.
@@ -165,7 +167,7 @@ def load_motions(db_path: str | Path | None = None) -> dict[str, SkillMotion]:
     with SkillDB(path, readonly=True) as db:
         for skill_id in db.ids():
             skill = db.get(skill_id)
-            if skill.person_id is None:
+            if skill.person_id is None or not skill.is_success:
                 continue
             if skill.name not in SKILLS and motion_window(skill) is None:
                 continue  # neither a shipped glove skill nor a session that says its start
