@@ -189,6 +189,11 @@ def main(argv: list[str] | None = None) -> int:
     lib_path = out / f"library_{args.library_persons}_{args.library_seed}.db"
     ho_path = out / f"persons_{args.persons}_{args.population_seed}.db"
     library_skills, library = sessions_of(lib_path, library_ids, args.library_episodes, seed=0)
+    # the library learns a skill from the sessions that did it (as load_library does); the
+    # evaluation counts every session
+    kept = [i for i, k in enumerate(library_skills) if k.is_success]
+    library_skills = [library_skills[i] for i in kept]
+    library = [library[i] for i in kept]
     _, held_out = sessions_of(ho_path, ids, args.episodes, seed=1000)
     methods = list(METHODS)
     library_sessions = [s.library() for s in library]

@@ -34,7 +34,7 @@ PHASE_SIGMA_FLOOR = 0.1
 #: independent observation (consecutive frames of the smooth motion are far from
 #: independent); it sets how sure the posterior gets how fast. Fitted together with the
 #: switch rate by ``train/fit_switch_rate.py`` (its report: docs/switch_rate_fit.json).
-PHASE_TEMPER = 0.035
+PHASE_TEMPER = 0.025
 #: Phase model: the weight [sessions] of the variance prior (fit_phase_model).
 PHASE_PRIOR_WEIGHT = 2.0
 #: Phase model: the phase grid's step [s] (one control step).
@@ -42,7 +42,7 @@ PHASE_DT = 0.01
 #: The probability per frame that the operator switches to another skill (a fixed-share
 #: prior over the skills, :func:`switching_step`), fitted by ``train/fit_switch_rate.py``
 #: (its report: docs/switch_rate_fit.json); 0: the skill of a session never changes.
-PHASE_SWITCH_RATE = 3.011786011857468e-07
+PHASE_SWITCH_RATE = 1.107974365907566e-07
 
 
 @dataclass(frozen=True, eq=False)
