@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -37,18 +39,24 @@ def _operator(times: np.ndarray, stop_at: float | None) -> np.ndarray:
     return AMPLITUDE * _minimum_jerk(s) + dip
 
 
-def _run(stop_at: float | None) -> Completion:
-    completion = Completion(_motion(), AssistParams.load(), DT)
+def _run(
+    stop_at: float | None, params: AssistParams | None = None
+) -> tuple[Completion, np.ndarray, np.ndarray]:
+    """The completion after the operator's session, and per step its time and the joint's
+    target (the operator's value plus the completion's offset)."""
+    completion = Completion(_motion(), params or AssistParams.load(), DT)
     times = np.arange(LIFT_END, 4.0, DT)
+    targets = []
     for step, (t, value) in enumerate(zip(times, _operator(times, stop_at), strict=True)):
-        completion.update(float(t), np.array([value]), refit=step % 5 == 0)
-    return completion
+        out = completion.update(float(t), np.array([value]), refit=step % 5 == 0)
+        targets.append(value + out[0])
+    return completion, times, np.array(targets)
 
 
 def test_a_motion_after_an_early_onset_is_fitted_where_it_starts() -> None:
     """The dip sets the onset 0.2 s before the motion; an operator who then does the whole
     motion is fitted as the typical person and never latched as stopped."""
-    completion = _run(stop_at=None)
+    completion, _, _ = _run(stop_at=None)
     assert completion.onset is not None and completion.onset < START - 0.15
     assert completion.stopped_at is None
     assert completion.fit is not None
@@ -60,6 +68,38 @@ def test_a_motion_after_an_early_onset_is_fitted_where_it_starts() -> None:
 
 @pytest.mark.parametrize("stop_at", [0.3, 0.5])
 def test_an_operator_who_stops_part_way_is_latched(stop_at: float) -> None:
-    completion = _run(stop_at=stop_at)
+    completion, _, _ = _run(stop_at=stop_at)
     assert completion.stopped_at is not None
     assert START < completion.stopped_at < START + DURATION + 0.5
+
+
+def test_a_completion_resumes_from_the_stop_and_catches_up_at_its_pace() -> None:
+    """From the stopped pose, without a step, on toward the motion's end, and back on the
+    fitted timeline after the latch's delay over ``catch_up_pace - 1`` (at pace 1 it stays
+    as late as the latch until the motion has ended)."""
+    reached = {}
+    for pace in (1.0, 2.0, 4.0):
+        params = dataclasses.replace(AssistParams.load(), catch_up_pace=pace)
+        completion, times, targets = _run(stop_at=0.4, params=params)
+        assert completion.stopped_at is not None and completion.fit is not None
+        latched = int(np.searchsorted(times, completion.stopped_at))
+        after = targets[latched:]
+        # no more than a step's worth of the motion at its pace (peak 0.8 rad/s here)
+        assert abs(after[0] - targets[latched - 1]) < pace * DT * 1.2
+        assert np.all(np.diff(after) >= -1e-9)
+        timeline = completion.model(times[latched:])[:, 0]
+        assert after[-1] == pytest.approx(timeline[-1], abs=1e-9)
+        reached[pace] = times[latched + np.flatnonzero(np.abs(after - timeline) < 1e-3)[0]]
+        # the fitted timeline's time at which the completion took over: its delay
+        fine = np.arange(completion.fit[2], completion.stopped_at, DT / 10)
+        resumed = fine[np.argmin(np.abs(completion.model(fine)[:, 0] - after[0]))]
+        delay = completion.stopped_at - (resumed - pace * DT)
+        assert 0.05 < delay < 0.4
+        _, v, t0 = completion.fit
+        ended = t0 + completion.motion.end_tau / v
+        if pace == 1.0:
+            assert reached[pace] >= ended - 2 * DT
+        else:
+            expected = completion.stopped_at + delay / (pace - 1.0)
+            assert reached[pace] <= expected + 2 * DT
+    assert reached[4.0] < reached[2.0] < reached[1.0]

@@ -105,6 +105,7 @@ def test_every_results_table_is_made_from_its_json() -> None:
         "assist_redraw_population.md",
         "assist_detection_population.md",
         "assist_switch_population.md",
+        "assist_pace_population.md",
         "assist_acquisition.md",
         "pen_skill_bc.md",
         "pen_skill_bc_robustness.md",

@@ -3,6 +3,7 @@ against the impairment it is for; the other fields and their records are kept.""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from types import ModuleType
 
@@ -92,3 +93,12 @@ def test_an_integer_field_is_stored_as_one_the_parameters_load(
     path = tmp_path / "params.json"
     AssistParams(tremor_trend_degree=value).save(path)
     assert AssistParams.load(path).tremor_trend_degree == 3
+
+
+def test_the_shipped_catch_up_pace_is_the_fitted_one() -> None:
+    """The completion's pace is the value its fit chose (docs/catch_up_fit.json), and one
+    that catches up (a pace of 1 or less never returns to the fitted timeline)."""
+    report = json.loads((Path(__file__).parents[1] / "docs" / "catch_up_fit.json").read_text())
+    assert AssistParams.load().catch_up_pace == report["catch_up_pace"]
+    assert report["catch_up_pace"] > 1.0
+    assert "catch_up_pace" in AssistParams.load().fitted_on

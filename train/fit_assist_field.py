@@ -1,6 +1,6 @@
 """Fit one of the observation assistant's fields on development persons, by what it is for.
 
-Five fields of :class:`~ias_gym.assist.motion_completion.AssistParams` are fitted this way,
+Six fields of :class:`~ias_gym.assist.motion_completion.AssistParams` are fitted this way,
 each against the impairment family it is for (``--field``):
 
 - ``tremor_window_s``: the tremor canceller (:class:`~ias_gym.assist.tremor.TremorCanceller`)
@@ -13,6 +13,10 @@ each against the impairment family it is for (``--field``):
   motion's curvature to the line (the notch then sits at the band's lowest frequency,
   away from a weak fast tremor), a high one takes up part of a slow tremor. Judged with a
   tremor drawn as for ``tremor_window_s``.
+- ``catch_up_pace``: once a stop is latched (0.15-0.25 s after the operator stopped), how
+  much faster than the fitted motion the completion runs until it is back on the fitted
+  timeline. Slow leaves the pen behind the person's own motion; fast jerks it ahead.
+  Judged with ``stops:at=F`` as for ``sight_gain``.
 - ``pad_close_rate``: how fast a finger whose pad is off the pen while the other's is on is
   closed (:class:`~ias_gym.assist.pad_contact.PadKeeper`). A slow close lets the pen go in
   the lift, a fast one pushes it. Judged with a weak grip or a biased calibration (equally
@@ -151,6 +155,9 @@ FIELDS = {
     ),
     # time constants from 0.67 s down to 0.08 s, about a person's visual delay [1/s]
     "sight_gain": Field("stops", drawn_stop, (1.5, 3.0, 6.0, 12.0)),
+    # from no catching up (1: the completion stays as late as the latch, 0.15-0.25 s) to
+    # a fifth of the motion's remaining time [-]
+    "catch_up_pace": Field("stops", drawn_stop, (1.0, 1.5, 2.0, 3.0, 5.0)),
     # from under half the speed at which the library's pinches close the index (about
     # 0.6 rad/s on its MCP) to a step's closing of 0.08 rad at 8 rad/s [rad/s]
     "pad_close_rate": Field(

@@ -83,6 +83,10 @@ class AssistParams:
             moves by ``sight_gain x`` its error per second, in radians through the
             demonstrations' ``rise_per_flexion`` and ``tilt_per_pronation``
             (``train/fit_assist_field.py``).
+        catch_up_pace: once a stop is latched, the completion resumes the fitted motion from
+            where the operator stopped and runs it at this multiple of its pace until it is
+            back on the fitted timeline [-] (1: it stays as late as the latch; large: a jump
+            toward where the operator would be by now; ``train/fit_assist_field.py``).
         pad_close_rate: how fast a finger whose pad is off the pen, while the other's is on,
             is closed [rad/s] (:class:`~ias_gym.assist.pad_contact.PadKeeper`;
             ``train/fit_assist_field.py``).
@@ -98,6 +102,7 @@ class AssistParams:
     tremor_trend_degree: int = 1
     tremor_floor_rad: float = dataclasses.field(default=0.0, metadata={"zero_switches_off": True})
     sight_gain: float = 3.0
+    catch_up_pace: float = 2.0
     pad_close_rate: float = 0.5
     fitted_on: str = "defaults"
 
@@ -269,8 +274,8 @@ class Completion:
         if self.stopped_at is None:
             return np.zeros(len(self.motion.joints))
         # resume from where the operator stopped and catch up with the fitted timeline at
-        # twice its pace (no step in the targets)
-        self._clock = min(self._clock + 2.0 * self.dt, t)
+        # catch_up_pace times its pace (no step in the targets)
+        self._clock = min(self._clock + p.catch_up_pace * self.dt, t)
         out: FloatArray = np.zeros(len(self.motion.joints))
         j = self.motion.principal
         out[j] = self.model(np.array([self._clock], dtype=np.float64))[0, j] - value[j]

@@ -35,10 +35,11 @@ Every step:
    completes the skill the recogniser put first when the operator began to slow down
    (one skill: two completions at once would move the same joints two ways), driving its
    principal joint the rest of the way: from the stopped pose, catching up with the fitted
-   timeline at twice its pace, offset ``= p_k (a m_k(v (t - t0)) - (Θ - Θ_0))`` with
-   ``p_k`` the skill's posterior when the slowing down began (the ``unknown`` share adds
-   nothing, so without skill knowledge there is no completion; what the recogniser sees
-   afterwards is the completion itself, no evidence of what the operator meant).
+   timeline at ``catch_up_pace`` times its pace, offset
+   ``= p_k (a m_k(v (t - t0)) - (Θ - Θ_0))`` with ``p_k`` the skill's posterior when the
+   slowing down began (the ``unknown`` share adds nothing, so without skill knowledge
+   there is no completion; what the recogniser sees afterwards is the completion itself,
+   no evidence of what the operator meant).
    Once the fitted motion is done, the assistant holds the pen where the skill's
    demonstrations leave it, as the person in the loop would by sight and the stopped
    operator no longer does: the pen's height error against the skill's
