@@ -39,15 +39,26 @@ def _operator(times: np.ndarray, stop_at: float | None) -> np.ndarray:
     return AMPLITUDE * _minimum_jerk(s) + dip
 
 
+def _wobble(times: np.ndarray, after: float) -> np.ndarray:
+    """An unsteady wrist from ``after`` on: 8 mrad at 6 Hz, whose speed peaks at 0.3 rad/s
+    (a stopped person's wrist targets move by about +-5 mrad within 0.1 s; this skill's
+    motion is larger than a tilt's)."""
+    return np.where(times >= after, 0.008 * np.sin(2 * np.pi * 6.0 * (times - after)), 0.0)
+
+
 def _run(
-    stop_at: float | None, params: AssistParams | None = None
+    stop_at: float | None, params: AssistParams | None = None, wobble_from: float | None = None
 ) -> tuple[Completion, np.ndarray, np.ndarray]:
     """The completion after the operator's session, and per step its time and the joint's
-    target (the operator's value plus the completion's offset)."""
+    target (the operator's value plus the completion's offset); the operator's wrist
+    unsteady from ``wobble_from`` on (:func:`_wobble`)."""
     completion = Completion(_motion(), params or AssistParams.load(), DT)
     times = np.arange(LIFT_END, 4.0, DT)
+    values = _operator(times, stop_at)
+    if wobble_from is not None:
+        values = values + _wobble(times, wobble_from)
     targets = []
-    for step, (t, value) in enumerate(zip(times, _operator(times, stop_at), strict=True)):
+    for step, (t, value) in enumerate(zip(times, values, strict=True)):
         out = completion.update(float(t), np.array([value]), refit=step % 5 == 0)
         targets.append(value + out[0])
     return completion, times, np.array(targets)
@@ -103,3 +114,17 @@ def test_a_completion_resumes_from_the_stop_and_catches_up_at_its_pace() -> None
             expected = completion.stopped_at + delay / (pace - 1.0)
             assert reached[pace] <= expected + 2 * DT
     assert reached[4.0] < reached[2.0] < reached[1.0]
+
+
+def test_a_stopped_unsteady_wrist_is_latched_and_its_motion_kept() -> None:
+    """After the stop the wrist wobbles, which lifts its speed over the test's ratio for
+    less than a window at a time: the stop is still latched, and the fit is the motion the
+    operator began, not a small one already over (a test reset at every step over the
+    ratio refitted it to a third of its amplitude and never latched)."""
+    stop = START + 0.35 * DURATION  # the operator's motion held from 0.4 of the way on
+    completion, _, _ = _run(stop_at=0.4, wobble_from=stop)
+    assert completion.stopped_at is not None and completion.fit is not None
+    assert completion.fit[0] == pytest.approx(1.0, abs=0.2)
+    # the same wobble on an operator who does the whole motion latches nothing
+    whole, _, _ = _run(stop_at=None, wobble_from=START)
+    assert whole.stopped_at is None

@@ -180,6 +180,7 @@ class Completion:
         self.noise: float | None = None  # the operator's unsteadiness before the onset [rad]
         self.stopped_at: float | None = None
         self.slow_since: float | None = None  # the stop test holds since then [s]
+        self._failing_s = 0.0  # ... and has failed for this long since it last held [s]
         self._clock = 0.0  # the completion's time on the fitted timeline [s]
 
     @property
@@ -237,7 +238,10 @@ class Completion:
         of it. From the first such window on the fit is held (what the operator does while
         slowing down is no evidence of how they meant to move), and the stop is latched
         once the test has held for another window (a turning point or a hesitation of an
-        unimpaired operator passes sooner)."""
+        unimpaired operator passes sooner). It is reset once it has failed for a window:
+        a stopped wrist's unsteadiness lifts the operator's speed over the ratio for a
+        step or two, and a fit made then would read the samples after the stop as a
+        small motion already over."""
         p = self.params
         if self.stopped_at is None:
             self.times.append(t)
@@ -260,8 +264,14 @@ class Completion:
             ahead = self.model(t + np.arange(0.0, FUTURE_S, 0.05))[:, j]
             remaining = float(np.abs(ahead - value[j]).max())  # from where the operator is
             armed = model_speed >= p.min_model_speed and remaining >= p.min_remaining_rad
-            if not (armed and op_speed < p.stop_ratio * model_speed):
+            holds = armed and op_speed < p.stop_ratio * model_speed
+            # the test is reset as it is latched: only once it has failed for a window (a
+            # stopped wrist's unsteadiness lifts its speed over the ratio for a step or two)
+            self._failing_s = 0.0 if holds else self._failing_s + self.dt
+            if self._failing_s >= p.stop_window_s - 0.5 * self.dt:
                 self.slow_since = None
+            elif not holds:
+                pass
             elif self.slow_since is None:
                 self.slow_since = t
             elif t - self.slow_since >= p.stop_window_s - 0.5 * self.dt:
