@@ -270,17 +270,16 @@ class Completion:
             self._failing_s = 0.0 if holds else self._failing_s + self.dt
             if self._failing_s >= p.stop_window_s - 0.5 * self.dt:
                 self.slow_since = None
-            elif not holds:
-                pass
-            elif self.slow_since is None:
-                self.slow_since = t
-            elif t - self.slow_since >= p.stop_window_s - 0.5 * self.dt:
-                self.stopped_at = t
-                # when the operator stopped: the model's pose nearest to theirs since the
-                # slowing down began
-                grid = np.arange(self.slow_since - 2.0 * p.stop_window_s, t, self.dt)
-                gap = np.abs(self.model(grid) - value).max(axis=1)
-                self._clock = float(grid[int(np.argmin(gap))])
+            elif holds:
+                if self.slow_since is None:
+                    self.slow_since = t
+                elif t - self.slow_since >= p.stop_window_s - 0.5 * self.dt:
+                    self.stopped_at = t
+                    # when the operator stopped: the model's pose nearest to theirs since
+                    # the slowing down began
+                    grid = np.arange(self.slow_since - 2.0 * p.stop_window_s, t, self.dt)
+                    gap = np.abs(self.model(grid) - value).max(axis=1)
+                    self._clock = float(grid[int(np.argmin(gap))])
         if self.stopped_at is None:
             return np.zeros(len(self.motion.joints))
         # resume from where the operator stopped and catch up with the fitted timeline at
