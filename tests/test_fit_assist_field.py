@@ -102,3 +102,23 @@ def test_the_shipped_catch_up_pace_is_the_fitted_one() -> None:
     assert AssistParams.load().catch_up_pace == report["catch_up_pace"]
     assert report["catch_up_pace"] > 1.0
     assert "catch_up_pace" in AssistParams.load().fitted_on
+
+
+@pytest.mark.parametrize(
+    ("field", "report_name"),
+    [
+        ("stop_hold_s", "stop_hold_fit.json"),
+        ("min_remaining_rad", "min_remaining_fit.json"),
+        ("min_model_speed", "min_speed_fit.json"),
+    ],
+)
+def test_the_shipped_stop_test_fields_are_the_fitted_ones(field: str, report_name: str) -> None:
+    """Each of the stop test's fitted fields is the value its fit chose (its report in
+    docs/), chosen by the unimpaired success first: no grid value loses fewer unimpaired
+    sessions."""
+    report = json.loads((Path(__file__).parents[1] / "docs" / report_name).read_text())
+    assert report["objective"] == "no-loss"
+    assert getattr(AssistParams.load(), field) == report[field]
+    unimpaired = {v: row["unimpaired"]["successes"] for v, row in report["grid"].items()}
+    assert unimpaired[str(report[field])] == max(unimpaired.values())
+    assert field in AssistParams.load().fitted_on

@@ -1,6 +1,6 @@
 """Fit one of the observation assistant's fields on development persons, by what it is for.
 
-Six fields of :class:`~ias_gym.assist.motion_completion.AssistParams` are fitted this way,
+Nine fields of :class:`~ias_gym.assist.motion_completion.AssistParams` are fitted this way,
 each against the impairment family it is for (``--field``):
 
 - ``tremor_window_s``: the tremor canceller (:class:`~ias_gym.assist.tremor.TremorCanceller`)
@@ -13,7 +13,7 @@ each against the impairment family it is for (``--field``):
   motion's curvature to the line (the notch then sits at the band's lowest frequency,
   away from a weak fast tremor), a high one takes up part of a slow tremor. Judged with a
   tremor drawn as for ``tremor_window_s``.
-- ``catch_up_pace``: once a stop is latched (0.15-0.25 s after the operator stopped), how
+- ``catch_up_pace``: once a stop is latched (0.1-0.25 s after the operator stopped), how
   much faster than the fitted motion the completion runs until it is back on the fitted
   timeline. Slow leaves the pen behind the person's own motion; fast jerks it ahead.
   Judged with ``stops:at=F`` as for ``sight_gain``.
@@ -26,6 +26,16 @@ each against the impairment family it is for (``--field``):
   operator without a tremor too, whose voluntary motion the notch delays (a lagged
   operator's most); a high one misses a weak tremor. Judged with a tremor drawn as for
   ``tremor_window_s`` or a lag (``s`` from the family's sample range), equally likely.
+- ``stop_hold_s``: how long the stop test must hold before a stop is latched (0: at the
+  first window in which the operator moved less than ``stop_ratio`` of the fitted model).
+  A short hold completes a stopped motion before the person's own has moved on (a fast
+  motion most), a long one lets a hesitation or a turning point of an unimpaired
+  operator pass. Judged with ``stops:at=F`` as for ``sight_gain``.
+- ``min_remaining_rad`` and ``min_model_speed``: the stop test is armed only while the
+  fitted model still has this much of its motion to go from the operator's pose and moves
+  at least this fast. Low values test late in a motion and near a turning point too,
+  where a person who ends a little early or slows at the turn may be taken for stopped;
+  high ones leave a stop there alone. Judged with ``stops:at=F`` as for ``sight_gain``.
 - ``sight_gain``: once a completed motion is done, the rate at which the assistant brings
   the pen's height to where the skill's demonstrations leave it. A slow hold leaves the
   pen where the stopped operator left it, a fast one overshoots. Judged with
@@ -153,9 +163,18 @@ FIELDS = {
     "tremor_floor_rad": Field(
         "shake", drawn_shake, (0.0, 0.01, 0.015, 0.02), families=SHAKE_FAMILIES
     ),
+    # from a latch at the first slow window (0) to a hold as long as the window itself
+    # (0.1 s, the stop window's fitted length) [s]
+    "stop_hold_s": Field("stops", drawn_stop, (0.0, 0.03, 0.05, 0.1)),
+    # from about the spread of persons' tilts at their end (the library's amplitude spread,
+    # 0.06-0.12, times a tilt's 0.18 rad) to half a tilt [rad]
+    "min_remaining_rad": Field("stops", drawn_stop, (0.02, 0.035, 0.05, 0.08)),
+    # from a twentieth to two fifths of a tilt's peak speed (0.18 rad in about 0.7 s, a
+    # minimum-jerk peak of about 0.5 rad/s) [rad/s]
+    "min_model_speed": Field("stops", drawn_stop, (0.025, 0.05, 0.1, 0.2)),
     # time constants from 0.67 s down to 0.08 s, about a person's visual delay [1/s]
     "sight_gain": Field("stops", drawn_stop, (1.5, 3.0, 6.0, 12.0)),
-    # from no catching up (1: the completion stays as late as the latch, 0.15-0.25 s) to
+    # from no catching up (1: the completion stays as late as the latch, 0.1-0.25 s) to
     # a fifth of the motion's remaining time [-]
     "catch_up_pace": Field("stops", drawn_stop, (1.0, 1.5, 2.0, 3.0, 5.0)),
     # from under half the speed at which the library's pinches close the index (about

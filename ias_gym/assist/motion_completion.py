@@ -60,8 +60,9 @@ class AssistParams:
         stop_window_s: the window over which the operator's and the model's speeds are
             compared [s].
         stop_ratio: the operator is slowing down when their speed over the window is below
-            this share of the fitted model's, and has stopped when that lasts another
-            window [-].
+            this share of the fitted model's [-] ...
+        stop_hold_s: ... and has stopped when that has lasted this long [s] (0: at the first
+            slow window; ``train/fit_assist_field.py``).
         min_model_speed: ... and the model's is at least this [rad/s] (a model at a turning
             point says nothing).
         min_remaining_rad: ... and the model still moves at least this far from its pose now
@@ -96,6 +97,7 @@ class AssistParams:
     onset_rad: float = 0.01
     stop_window_s: float = 0.1
     stop_ratio: float = 0.3
+    stop_hold_s: float = dataclasses.field(default=0.1, metadata={"zero_switches_off": True})
     min_model_speed: float = 0.05
     min_remaining_rad: float = 0.05
     tremor_window_s: float = 0.5
@@ -237,7 +239,7 @@ class Completion:
         ``stop_window_s`` predicts the window; the operator moved less than ``stop_ratio``
         of it. From the first such window on the fit is held (what the operator does while
         slowing down is no evidence of how they meant to move), and the stop is latched
-        once the test has held for another window (a turning point or a hesitation of an
+        once the test has held for ``stop_hold_s`` (a turning point or a hesitation of an
         unimpaired operator passes sooner). It is reset once it has failed for a window:
         a stopped wrist's unsteadiness lifts the operator's speed over the ratio for a
         step or two, and a fit made then would read the samples after the stop as a
@@ -273,7 +275,7 @@ class Completion:
             elif holds:
                 if self.slow_since is None:
                     self.slow_since = t
-                elif t - self.slow_since >= p.stop_window_s - 0.5 * self.dt:
+                if t - self.slow_since >= p.stop_hold_s - 0.5 * self.dt:
                     self.stopped_at = t
                     # when the operator stopped: the model's pose nearest to theirs since
                     # the slowing down began

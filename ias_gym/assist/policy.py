@@ -31,7 +31,7 @@ Every step:
    ``stop_ratio`` of the model's, on the skill's principal joint, with at least
    ``min_remaining_rad`` of the model's motion still to go from the operator's pose: the
    fields of :class:`~ias_gym.assist.motion_completion.AssistParams`), the fit is held, and once
-   that has lasted another window the assistant latches that the operator has stopped. It
+   that has lasted ``stop_hold_s`` the assistant latches that the operator has stopped. It
    completes the skill the recogniser put first when the operator began to slow down
    (one skill: two completions at once would move the same joints two ways), driving its
    principal joint the rest of the way: from the stopped pose, catching up with the fitted
