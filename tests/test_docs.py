@@ -107,6 +107,7 @@ def test_every_results_table_is_made_from_its_json() -> None:
         "assist_switch_population.md",
         "assist_pace_population.md",
         "assist_reset_population.md",
+        "assist_hold_population.md",
         "assist_acquisition.md",
         "pen_skill_bc.md",
         "pen_skill_bc_robustness.md",

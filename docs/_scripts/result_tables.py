@@ -32,6 +32,8 @@ JSON in ``docs/``                      written by                          table
                                        ``--sessions``                      ``population.md``
 ``assist_reset_population.json``       ``train/assist_population.py``      ``assist_reset_``
                                        ``--sessions``                      ``population.md``
+``assist_hold_population.json``        ``train/assist_population.py``      ``assist_hold_``
+                                       ``--sessions``                      ``population.md``
 ``assist_acquisition.json``            ``train/assist_acquisition.py``     ``assist_acquisition.md``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
@@ -890,6 +892,7 @@ def tables(docs: Path) -> dict[str, str]:
         "assist_switch_population.md": assist_population(load("assist_switch_population.json")),
         "assist_pace_population.md": assist_population(load("assist_pace_population.json")),
         "assist_reset_population.md": assist_population(load("assist_reset_population.json")),
+        "assist_hold_population.md": assist_population(load("assist_hold_population.json")),
         "assist_acquisition.md": assist_acquisition(load("assist_acquisition.json")),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "pen_skill_bc_robustness.md": pen_skill_bc_robustness(load("pen_skill_bc_results.json")),
