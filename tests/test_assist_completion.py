@@ -126,7 +126,8 @@ def test_a_stopped_unsteady_wrist_is_latched_and_its_motion_kept() -> None:
     does the whole motion then latches nothing. (A shorter hold, as fitted, latches this
     synthetic operator at the motion's start, where the fit still reads the dip before
     it; the population's operators are measured in docs/assistance.md.)"""
-    params = dataclasses.replace(AssistParams.load(), stop_hold_s=AssistParams.load().stop_window_s)
+    shipped_params = AssistParams.load()
+    params = dataclasses.replace(shipped_params, stop_hold_s=shipped_params.stop_window_s)
     stop = START + 0.35 * DURATION  # the operator's motion held from 0.4 of the way on
     completion, _, _ = _run(stop_at=0.4, params=params, wobble_from=stop)
     assert completion.stopped_at is not None and completion.fit is not None

@@ -95,25 +95,22 @@ def test_an_integer_field_is_stored_as_one_the_parameters_load(
     assert AssistParams.load(path).tremor_trend_degree == 3
 
 
-def test_the_shipped_catch_up_pace_is_the_fitted_one() -> None:
-    """The completion's pace is the value its fit chose (docs/catch_up_fit.json), and one
-    that catches up (a pace of 1 or less never returns to the fitted timeline)."""
-    report = json.loads((Path(__file__).parents[1] / "docs" / "catch_up_fit.json").read_text())
-    assert AssistParams.load().catch_up_pace == report["catch_up_pace"]
-    assert report["catch_up_pace"] > 1.0
-    assert "catch_up_pace" in AssistParams.load().fitted_on
+def test_the_shipped_catch_up_pace_catches_up() -> None:
+    """A pace of 1 or less never returns to the fitted timeline."""
+    assert AssistParams.load().catch_up_pace > 1.0
 
 
 @pytest.mark.parametrize(
     ("field", "report_name"),
     [
+        ("catch_up_pace", "catch_up_fit.json"),
         ("stop_hold_s", "stop_hold_fit.json"),
         ("min_remaining_rad", "min_remaining_fit.json"),
         ("min_model_speed", "min_speed_fit.json"),
     ],
 )
-def test_the_shipped_stop_test_fields_are_the_fitted_ones(field: str, report_name: str) -> None:
-    """Each of the stop test's fitted fields is the value its fit chose (its report in
+def test_the_shipped_completion_fields_are_the_fitted_ones(field: str, report_name: str) -> None:
+    """Each of the completion's fitted fields is the value its fit chose (its report in
     docs/), chosen by the unimpaired success first: no grid value loses fewer unimpaired
     sessions."""
     report = json.loads((Path(__file__).parents[1] / "docs" / report_name).read_text())
