@@ -20,20 +20,9 @@ JSON in ``docs/``                      written by                          table
                                        ``--without pads``                  ``population.md``
 ``assist_trend_population.json``       ``train/assist_population.py``      ``assist_trend_``
                                        ``--without tremor``                ``population.md``
-``assist_unimpaired_population.json``  ``train/assist_population.py``      ``assist_unimpaired_``
-                                                                           ``population.md``
-``assist_redraw_population.json``      ``train/assist_population.py``      ``assist_redraw_``
-                                       ``--sessions``                      ``population.md``
-``assist_detection_population.json``   ``train/assist_population.py``      ``assist_detection_``
-                                       ``--without detection``             ``population.md``
-``assist_switch_population.json``      ``train/assist_population.py``      ``assist_switch_``
-                                       ``--sessions``                      ``population.md``
-``assist_pace_population.json``        ``train/assist_population.py``      ``assist_pace_``
-                                       ``--sessions``                      ``population.md``
-``assist_reset_population.json``       ``train/assist_population.py``      ``assist_reset_``
-                                       ``--sessions``                      ``population.md``
 ``assist_hold_population.json``        ``train/assist_population.py``      ``assist_hold_``
                                        ``--sessions``                      ``population.md``
+the draws of ``ASSIST_DRAWS``          ``train/assist_population.py``      ``assist_draws.md``
 ``assist_acquisition.json``            ``train/assist_acquisition.py``     ``assist_acquisition.md``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
@@ -312,6 +301,63 @@ PART_NAMES = {
 def _size(value: float | None) -> str:
     """An intervention size, or a dash where an arm judged no session."""
     return "-" if value is None else f"{value:.2f}"
+
+
+#: The observation assistant's held-out draws on population persons, in the order they were
+#: run, each with what the assistant had gained before it (its JSON in ``docs/``; every
+#: draw was run once, on a population seed drawn after that change).
+ASSIST_DRAWS = (
+    (
+        "assist_unimpaired_population.json",
+        "a pad alone counted from the library's first touch; the fit's start on either side "
+        "of the onset",
+    ),
+    ("assist_redraw_population.json", "the same assistant, another draw"),
+    ("assist_detection_population.json", "the tremor's detection (`tremor_floor_rad`)"),
+    ("assist_switch_population.json", "the switching phase recogniser, its temper fitted"),
+    ("assist_pace_population.json", "`catch_up_pace` fitted"),
+    ("assist_reset_population.json", "the stop test reset as it is latched"),
+    (
+        "assist_hold_population.json",
+        "`stop_hold_s`, `min_remaining_rad` and `min_model_speed` fitted",
+    ),
+)
+
+
+def assist_draws(draws: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
+    """One row per held-out draw of the observation assistant (:data:`ASSIST_DRAWS`): the
+    change before it, its population seed, and the assisted success [95 % interval] of an
+    unimpaired operator, of sampled families (beside alone) and of a stopped skill."""
+    body = []
+    for change, result in draws:
+        by = result["by_impairment"]
+
+        def cell(spec: str, arm: str, by: Mapping[str, Any] = by) -> str:
+            return interval(by[spec][arm]) if spec in by else "-"
+
+        body.append(
+            [
+                change,
+                str(result["population_seed"]),
+                cell("none", "assisted"),
+                cell("sampled", "unassisted"),
+                cell("sampled", "assisted"),
+                cell("stops:at=0.4", "assisted"),
+            ]
+        )
+    header = [
+        "the assistant, after",
+        "population seed",
+        "unimpaired, assisted",
+        "`sampled`, alone",
+        "`sampled`, assisted",
+        "`stops:at=0.4`, assisted",
+    ]
+    intro = (
+        "Each draw: 30 persons, the person in the loop, the skills with a motion of their "
+        "own, success [95 % interval] (successes/sessions judged).\n\n"
+    )
+    return intro + rows(header, body)
 
 
 def assist_population(result: Mapping[str, Any]) -> str:
@@ -882,16 +928,7 @@ def tables(docs: Path) -> dict[str, str]:
         "assist_residual_population.md": assist_population(load("assist_residual_population.json")),
         "assist_pads_population.md": assist_population(load("assist_pads_population.json")),
         "assist_trend_population.md": assist_population(load("assist_trend_population.json")),
-        "assist_unimpaired_population.md": assist_population(
-            load("assist_unimpaired_population.json")
-        ),
-        "assist_redraw_population.md": assist_population(load("assist_redraw_population.json")),
-        "assist_detection_population.md": assist_population(
-            load("assist_detection_population.json")
-        ),
-        "assist_switch_population.md": assist_population(load("assist_switch_population.json")),
-        "assist_pace_population.md": assist_population(load("assist_pace_population.json")),
-        "assist_reset_population.md": assist_population(load("assist_reset_population.json")),
+        "assist_draws.md": assist_draws([(c, load(name)) for name, c in ASSIST_DRAWS]),
         "assist_hold_population.md": assist_population(load("assist_hold_population.json")),
         "assist_acquisition.md": assist_acquisition(load("assist_acquisition.json")),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
