@@ -107,6 +107,7 @@ def test_the_shipped_catch_up_pace_catches_up() -> None:
         ("stop_hold_s", "stop_hold_fit.json"),
         ("min_remaining_rad", "min_remaining_fit.json"),
         ("min_model_speed", "min_speed_fit.json"),
+        ("onset_rad", "onset_fit.json"),
     ],
 )
 def test_the_shipped_completion_fields_are_the_fitted_ones(field: str, report_name: str) -> None:

@@ -1,6 +1,6 @@
 """Fit one of the observation assistant's fields on development persons, by what it is for.
 
-Nine fields of :class:`~ias_gym.assist.motion_completion.AssistParams` are fitted this way,
+Ten fields of :class:`~ias_gym.assist.motion_completion.AssistParams` are fitted this way,
 each against the impairment family it is for (``--field``):
 
 - ``tremor_window_s``: the tremor canceller (:class:`~ias_gym.assist.tremor.TremorCanceller`)
@@ -36,6 +36,12 @@ each against the impairment family it is for (``--field``):
   at least this fast. Low values test late in a motion and near a turning point too,
   where a person who ends a little early or slows at the turn may be taken for stopped;
   high ones leave a stop there alone. Judged with ``stops:at=F`` as for ``sight_gain``.
+- ``onset_rad``: how far a joint of the skill must leave its pose at the lift's end before
+  the skill's motion counts as begun (the fit reads from there, and the operator's
+  unsteadiness is measured before it). A small value starts on a drift or a dip before the
+  motion; a large one starts late, and misses a motion stopped early (a tilt stopped at a
+  fifth of its way has moved the wrist about 0.01 rad). Judged with ``stops:at=F`` as for
+  ``sight_gain``.
 - ``sight_gain``: once a completed motion is done, the rate at which the assistant brings
   the pen's height to where the skill's demonstrations leave it. A slow hold leaves the
   pen where the stopped operator left it, a fast one overshoots. Judged with
@@ -172,6 +178,9 @@ FIELDS = {
     # from a twentieth to two fifths of a tilt's peak speed (0.18 rad in about 0.7 s, a
     # minimum-jerk peak of about 0.5 rad/s) [rad/s]
     "min_model_speed": Field("stops", drawn_stop, (0.025, 0.05, 0.1, 0.2)),
+    # from five times the least unsteadiness the fit assumes (NOISE_FLOOR, 1 mrad) to twice
+    # where a tilt stopped at a fifth of its way has got to (0.18 rad x 0.06) [rad]
+    "onset_rad": Field("stops", drawn_stop, (0.005, 0.01, 0.02)),
     # time constants from 0.67 s down to 0.08 s, about a person's visual delay [1/s]
     "sight_gain": Field("stops", drawn_stop, (1.5, 3.0, 6.0, 12.0)),
     # from no catching up (1: the completion stays as late as the latch, 0.1-0.25 s) to

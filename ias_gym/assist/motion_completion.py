@@ -56,7 +56,7 @@ class AssistParams:
 
     Attributes:
         onset_rad: the skill's motion has set in once a moving joint left its pose at the
-            lift's end by this much [rad].
+            lift's end by this much [rad] (``train/fit_assist_field.py``).
         stop_window_s: the window over which the operator's and the model's speeds are
             compared [s].
         stop_ratio: the operator is slowing down when their speed over the window is below
