@@ -102,7 +102,7 @@ def test_every_results_table_is_made_from_its_json() -> None:
         "assist_pads_population.md",
         "assist_trend_population.md",
         "assist_draws.md",
-        "assist_hold_population.md",
+        "assist_latest_draw.md",
         "assist_acquisition.md",
         "pen_skill_bc.md",
         "pen_skill_bc_robustness.md",
@@ -181,6 +181,28 @@ def test_the_assistant_population_table_shows_each_arm_s_intervention() -> None:
     sizes = {"unassisted": 0.0, "assisted": 0.123, "no_skill_knowledge": None}
     result["by_impairment"]["stops:at=0.4"]["intervention"] = sizes
     assert "| `stops:at=0.4` | 0.12 | - |" in result_tables.assist_population(result)
+
+
+def test_the_draws_table_has_one_row_per_draw_in_order() -> None:
+    """Every draw of ``ASSIST_DRAWS`` is a row, in the order run, with its persons and seed;
+    a spec the draw did not run shows a dash, not another spec's rate."""
+    rate = {"successes": 9, "trials": 10}
+    early = {"persons": 30, "population_seed": 11, "by_impairment": {"none": {"assisted": rate}}}
+    late = {
+        **early,
+        "population_seed": 22,
+        "by_impairment": {
+            "none": {"assisted": rate},
+            "stops:at=0.4": {"assisted": {"successes": 3, "trials": 10}},
+        },
+    }
+    lines = result_tables.assist_draws([("first", early), ("second", late)]).splitlines()
+    body = [line for line in lines if line.startswith("| first") or line.startswith("| second")]
+    assert [row.split(" | ")[1] for row in body] == ["30 of seed 11", "30 of seed 22"]
+    assert body[0].endswith("| - | - | - |")
+    assert body[1].endswith("| - | - | 30 % [11, 60] (3/10) |")
+    drawn = [name for name, _ in result_tables.ASSIST_DRAWS]
+    assert len(set(drawn)) == len(drawn) and all((DOCS / name).is_file() for name in drawn)
 
 
 def readme_snippets() -> list[str]:

@@ -20,9 +20,9 @@ JSON in ``docs/``                      written by                          table
                                        ``--without pads``                  ``population.md``
 ``assist_trend_population.json``       ``train/assist_population.py``      ``assist_trend_``
                                        ``--without tremor``                ``population.md``
-``assist_hold_population.json``        ``train/assist_population.py``      ``assist_hold_``
-                                       ``--sessions``                      ``population.md``
-the draws of ``ASSIST_DRAWS``          ``train/assist_population.py``      ``assist_draws.md``
+the draws of ``ASSIST_DRAWS``          ``train/assist_population.py``      ``assist_draws.md``,
+                                       ``--sessions``                      ``assist_latest_``
+                                                                           ``draw.md`` (the last)
 ``assist_acquisition.json``            ``train/assist_acquisition.py``     ``assist_acquisition.md``
 ``pen_skill_bc_results.json``          ``train/pen_skill_bc.py`` (runs)    ``pen_skill_bc.md``
 ``completion_table.json``              ``train/completion_table.py``       ``completion.md``
@@ -326,8 +326,9 @@ ASSIST_DRAWS = (
 
 def assist_draws(draws: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
     """One row per held-out draw of the observation assistant (:data:`ASSIST_DRAWS`): the
-    change before it, its population seed, and the assisted success [95 % interval] of an
-    unimpaired operator, of sampled families (beside alone) and of a stopped skill."""
+    change before it, its persons and population seed, and the assisted success [95 %
+    interval] of an unimpaired operator, of sampled families (beside alone) and of a
+    stopped skill."""
     body = []
     for change, result in draws:
         by = result["by_impairment"]
@@ -338,7 +339,7 @@ def assist_draws(draws: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
         body.append(
             [
                 change,
-                str(result["population_seed"]),
+                f"{result['persons']} of seed {result['population_seed']}",
                 cell("none", "assisted"),
                 cell("sampled", "unassisted"),
                 cell("sampled", "assisted"),
@@ -347,15 +348,15 @@ def assist_draws(draws: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
         )
     header = [
         "the assistant, after",
-        "population seed",
+        "persons",
         "unimpaired, assisted",
         "`sampled`, alone",
         "`sampled`, assisted",
         "`stops:at=0.4`, assisted",
     ]
     intro = (
-        "Each draw: 30 persons, the person in the loop, the skills with a motion of their "
-        "own, success [95 % interval] (successes/sessions judged).\n\n"
+        "Each draw: population persons, the person in the loop, the skills with a motion of "
+        "their own, success [95 % interval] (successes/sessions judged).\n\n"
     )
     return intro + rows(header, body)
 
@@ -929,7 +930,7 @@ def tables(docs: Path) -> dict[str, str]:
         "assist_pads_population.md": assist_population(load("assist_pads_population.json")),
         "assist_trend_population.md": assist_population(load("assist_trend_population.json")),
         "assist_draws.md": assist_draws([(c, load(name)) for name, c in ASSIST_DRAWS]),
-        "assist_hold_population.md": assist_population(load("assist_hold_population.json")),
+        "assist_latest_draw.md": assist_population(load(ASSIST_DRAWS[-1][0])),
         "assist_acquisition.md": assist_acquisition(load("assist_acquisition.json")),
         "pen_skill_bc.md": pen_skill_bc(load("pen_skill_bc_results.json")),
         "pen_skill_bc_robustness.md": pen_skill_bc_robustness(load("pen_skill_bc_results.json")),
